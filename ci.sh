@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# The one test command (README). Runs exactly what CI runs, from a fresh machine:
+# installs what it needs, then fmt, clippy -D warnings (host, and core + firmware for the
+# Cortex-M4 target), host tests, firmware build and size budget, Cortex-M4 benchmarks.
+set -euo pipefail
+cd "$(dirname "$0")"
+export CARGO_TERM_COLOR=never
+TARGET=thumbv7em-none-eabihf
+
+step() { printf '\n=== %s ===\n' "$*"; }
+
+step "toolchain"
+rustup target add "$TARGET" >/dev/null 2>&1 || rustup target add "$TARGET"
+rustup component add rustfmt clippy llvm-tools >/dev/null 2>&1 || rustup component add rustfmt clippy llvm-tools
+rustc --version
+
+step "rustfmt"
+cargo fmt --all -- --check
+
+step "clippy (host)"
+cargo clippy --all-targets -- -D warnings
+
+step "clippy (thumbv7em: core + firmware)"
+RUSTFLAGS="-D warnings" cargo clippy -p hydra-core -p firmware --release --target "$TARGET" -- -D warnings
+
+step "host tests"
+cargo test --release 2>&1 | tee target/host-tests.log | grep -E '^(test result|running|error|failures|---- )' || true
+if grep -qE '^test result: FAILED|^error' target/host-tests.log || ! grep -q '^test result: ok' target/host-tests.log; then
+  echo "host tests FAILED"; tail -80 target/host-tests.log; exit 1
+fi
+passed=$(grep -E '^test result: ok' target/host-tests.log | sed -E 's/.* ([0-9]+) passed.*/\1/' | awk '{s+=$1} END {print s+0}')
+echo "host tests: $passed passed, 0 failed"
+
+step "firmware (release, thumbv7em)"
+RUSTFLAGS="-D warnings" cargo build -p firmware --release --target "$TARGET"
+./scripts/fw-size.sh
+
+echo
+echo "ci.sh: all green"

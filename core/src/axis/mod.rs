@@ -1,0 +1,1 @@
+//! Axis control laws (in progress).

@@ -1,0 +1,78 @@
+//! Fixed-point primitives: widening products with an explicit shift, and saturation.
+//!
+//! The control path multiplies two 32-bit raw values into an `i64` (exact, since
+//! |a·b| ≤ 2^62), shifts the product back to the result's format and saturates it to 32
+//! bits. On a Cortex-M4 that is `smull` plus a shift and `ssat`-like clamp: a handful of
+//! instructions, never a library call.
+
+/// Saturates an `i64` to the `i32` range.
+#[inline(always)]
+pub const fn sat_i32(x: i64) -> i32 {
+    if x > i32::MAX as i64 {
+        i32::MAX
+    } else if x < i32::MIN as i64 {
+        i32::MIN
+    } else {
+        x as i32
+    }
+}
+
+/// `(a · b) >> shift`, saturated to `i32` (arithmetic shift: rounds toward −∞).
+/// `shift` must be below 64 (it is a constant at every call site).
+#[inline(always)]
+pub const fn mul_shr(a: i32, b: i32, shift: u32) -> i32 {
+    // |a·b| ≤ 2^62: the product cannot overflow an i64.
+    sat_i32((a as i64).wrapping_mul(b as i64).wrapping_shr(shift))
+}
+
+/// `(a · b) >> shift` with rounding to nearest, saturated to `i32`.
+#[inline(always)]
+pub const fn mul_shr_round(a: i32, b: i32, shift: u32) -> i32 {
+    let p = (a as i64).wrapping_mul(b as i64);
+    let half = if shift == 0 {
+        0
+    } else {
+        1i64.wrapping_shl(shift.wrapping_sub(1))
+    };
+    // p + half cannot overflow: |p| ≤ 2^62 and half ≤ 2^62.
+    sat_i32(p.wrapping_add(half).wrapping_shr(shift))
+}
+
+/// Clamps `x` to `[-limit, limit]` (`limit ≥ 0`).
+#[inline(always)]
+pub const fn clamp_sym(x: i32, limit: i32) -> i32 {
+    if x > limit {
+        limit
+    } else if x < limit.wrapping_neg() {
+        limit.wrapping_neg()
+    } else {
+        x
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn saturates() {
+        assert_eq!(mul_shr(i32::MAX, i32::MAX, 0), i32::MAX);
+        assert_eq!(mul_shr(i32::MIN, i32::MAX, 0), i32::MIN);
+        assert_eq!(mul_shr(i32::MIN, i32::MIN, 62), 1);
+        assert_eq!(mul_shr(3, 5, 1), 7);
+        assert_eq!(mul_shr_round(3, 5, 1), 8);
+        assert_eq!(mul_shr(-3, 5, 1), -8);
+        assert_eq!(clamp_sym(10, 4), 4);
+        assert_eq!(clamp_sym(-10, 4), -4);
+    }
+
+    proptest! {
+        #[test]
+        fn matches_wide_reference(a: i32, b: i32, shift in 0u32..63) {
+            let exact = (i128::from(a) * i128::from(b)) >> shift;
+            let want = exact.clamp(i128::from(i32::MIN), i128::from(i32::MAX));
+            prop_assert_eq!(i128::from(mul_shr(a, b, shift)), want);
+        }
+    }
+}

@@ -1,0 +1,116 @@
+//! Units and fixed-point formats of every quantity in the control loop.
+//!
+//! `IaFb` is a two's-complement fixed-point number with `a` integer and `b` fractional
+//! bits (the `fixed` crate's types): resolution 2^-b, range [−2^(a−1), 2^(a−1) − 2^-b].
+//! Names carry units (`_um`, `_mdeg`, `_per_s`, `_lsb`, `_n`, `_bar`).
+//!
+//! | quantity | type | unit | resolution | range | why it cannot overflow |
+//! |---|---|---|---|---|---|
+//! | slave position, target, error | [`PosUm`] = `I24F8` | µm | 3.9 nm | ±8.39 m | strokes ≤ 8 m validated in the table and axis scale; differences saturate |
+//! | slave velocity (feed-forward) | [`VelUmPerS`] = `I24F8` | µm/s | 3.9 nm/s | ±8.39 m/s | product saturates to the range |
+//! | slave acceleration | [`AccUmPerS2`] = `I32F0` | µm/s² | 1 µm/s² | ±2147 m/s² | product saturates |
+//! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; saturating adds |
+//! | master speed | [`MasterRate`] = `I48F16` | counts/s | 1.5e-5 counts/s | ±1.4e14 | derived from the filter state by one shift |
+//! | master-filter state (velocity, acceleration per tick) | `I32F32` | counts/tick, counts/tick² | 2.3e-10 | ±2^31 | residual clamped to ±2^14 counts before the gain product |
+//! | segment fraction | `u32` Q0.32 | 1 | 2.3e-10 | [0, 1) | product < 2^48 by construction (see [`crate::table`]) |
+//! | segment rate (master speed / segment length) | `i32` Q16.16 | segments/s | 1.5e-5 | ±32768 | saturated |
+//! | valve command before the DAC | [`CmdLsb`] = `I16F16` | DAC LSB | 1.5e-5 LSB | ±32768 LSB | every term saturates; clamped to ±2047 before output |
+//! | valve DAC code | [`DacCode`] | LSB of the 12-bit DAC, 0 = null | 1 LSB | [−2047, 2047] | clamped |
+//! | encoder count | [`Counts`] | count | 1 | ±2^31 | 16-bit timers extended with wrapping differences |
+//! | chamber pressure | [`PressureBar`] = `I16F16` | bar | 1.5e-5 bar | ±32768 bar | ADC 0–250 bar |
+//! | cylinder force | [`ForceN`] = `I24F8` | N | 3.9 mN | ±8.39 MN | p · A ≤ 250 bar · 0.05 m² = 1.25 MN |
+//! | proportional gain `kp` | `I16F16` | LSB/µm | 1.5e-5 | ±32768 | validated |
+//! | integral gain per tick `ki·T` | `I8F24` | LSB/(µm·tick) | 6e-8 | ±128 | validated |
+//! | derivative gain per tick `kd/T` | `I16F16` | LSB/(µm/tick) | 1.5e-5 | ±32768 | validated |
+//! | velocity feed-forward `kv` | `I8F24` | LSB/(µm/s) | 6e-8 | ±128 | validated |
+//! | acceleration feed-forward `ka` | `I0F32` | LSB/(µm/s²) | 2.3e-10 | ±0.5 | validated |
+//! | force gains `kp_f`, `ki_f·T` | `I8F24` | LSB/N, LSB/(N·tick) | 6e-8 | ±128 | validated |
+//!
+//! Every product of two 32-bit raw values is formed in an `i64` (exact: |a·b| ≤ 2^62),
+//! shifted back to the result's format and saturated to 32 bits ([`crate::q`]).
+//! Rounding: the worst-case rounding of one tick is below 0.01 µm and 0.001 LSB, two
+//! orders of magnitude under the encoder's 1 µm resolution, so it does not enter the
+//! error budget of SPEC §A eq. 17.
+
+use fixed::types::{I16F16, I24F8, I32F0, I48F16};
+
+/// Slave position, target or error in µm (`I24F8`: 3.9 nm resolution, ±8.39 m).
+pub type PosUm = I24F8;
+/// Slave velocity in µm/s (`I24F8`: 3.9 nm/s resolution, ±8.39 m/s).
+pub type VelUmPerS = I24F8;
+/// Slave acceleration in µm/s² (`I32F0`).
+pub type AccUmPerS2 = I32F0;
+/// Master position in master counts (`I48F16`). For the rotary table one count is
+/// 0.001° (so the value is in mdeg); for a time master one count is one period tick.
+pub type Master = I48F16;
+/// Master speed in master counts per second (`I48F16`).
+pub type MasterRate = I48F16;
+/// Valve command in DAC LSB before output conversion (`I16F16`).
+pub type CmdLsb = I16F16;
+/// Chamber pressure in bar (`I16F16`).
+pub type PressureBar = I16F16;
+/// Force in N (`I24F8`).
+pub type ForceN = I24F8;
+
+/// A count of a quadrature encoder, extended to 32 bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Counts(pub i32);
+
+/// A signed valve DAC code: 0 is the valve's null, ±2047 full opening. The 12-bit DAC
+/// writes `2048 + code` ([`DacCode::to_unipolar`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DacCode(i16);
+
+impl DacCode {
+    /// Largest magnitude of a code (12-bit DAC, bipolar).
+    pub const MAX: i16 = 2047;
+    /// The valve's null (spool centred).
+    pub const NULL: DacCode = DacCode(0);
+
+    /// A code, clamped to ±[`DacCode::MAX`].
+    pub const fn new_clamped(code: i32) -> Self {
+        let c = if code > Self::MAX as i32 {
+            Self::MAX as i32
+        } else if code < -(Self::MAX as i32) {
+            -(Self::MAX as i32)
+        } else {
+            code
+        };
+        // In range of i16 after the clamp.
+        DacCode(c as i16)
+    }
+
+    /// The signed code.
+    pub const fn get(self) -> i16 {
+        self.0
+    }
+
+    /// The normalised command u = code / 2047 ∈ [−1, 1] (host side, for the plant).
+    #[cfg(feature = "std")]
+    pub fn to_unit(self) -> f64 {
+        f64::from(self.0) / f64::from(Self::MAX)
+    }
+
+    /// The unipolar 12-bit value written to the DAC register, 2048 + code ∈ [1, 4095].
+    pub const fn to_unipolar(self) -> u16 {
+        // code ∈ [−2047, 2047] ⇒ result ∈ [1, 4095].
+        (self.0 as i32 + 2048) as u16
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dac_code_clamps_and_maps() {
+        assert_eq!(DacCode::new_clamped(5000).get(), 2047);
+        assert_eq!(DacCode::new_clamped(-5000).get(), -2047);
+        assert_eq!(DacCode::new_clamped(12).get(), 12);
+        assert_eq!(DacCode::NULL.to_unipolar(), 2048);
+        assert_eq!(DacCode::new_clamped(2047).to_unipolar(), 4095);
+        assert_eq!(DacCode::new_clamped(-2047).to_unipolar(), 1);
+    }
+}

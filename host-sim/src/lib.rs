@@ -1,0 +1,7 @@
+//! # host-sim — the hydra controller's `core` against a hydraulic plant model
+//!
+//! The library half of the `host-sim` tool, so the end-to-end tests in `tests/` drive the
+//! same plant, scenarios and controllers as the command line.
+
+pub mod cmd;
+pub mod plant;

@@ -1,0 +1,37 @@
+//! `host-sim`: simulate, plot, upload tables, watch a board.
+use clap::{Parser, Subcommand};
+use host_sim::cmd;
+
+/// The hydra hydraulic motion controller's simulator and board tool.
+#[derive(Debug, Parser)]
+#[command(name = "host-sim", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run one scenario file with one controller.
+    Run(cmd::run::Args),
+    /// Drive the plant with a recorded valve command.
+    OpenLoop(cmd::open_loop::Args),
+    /// Plan a jerk-limited 7-phase move (N-axis straight line) and sample it.
+    Scurve(cmd::scurve::Args),
+    /// Compare contour-error estimators against the exact distance.
+    ContourEstimate(cmd::contour_estimate::Args),
+    /// Two-axis X-Y table with independent or cross-coupled control.
+    Xy(cmd::xy::Args),
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        None => cmd::run::run_default(),
+        Some(Command::Run(a)) => cmd::run::run(&a),
+        Some(Command::OpenLoop(a)) => cmd::open_loop::run(&a),
+        Some(Command::Scurve(a)) => cmd::scurve::run(&a),
+        Some(Command::ContourEstimate(a)) => cmd::contour_estimate::run(&a),
+        Some(Command::Xy(a)) => cmd::xy::run(&a),
+    }
+}

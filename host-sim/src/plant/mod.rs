@@ -1,0 +1,1 @@
+//! The hydraulic plant of `shared/PLANT.md` (in progress).
