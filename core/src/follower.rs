@@ -1,1 +1,327 @@
-//! (in progress)
+//! The master/slave follower: one master, `S` slave axes, a cam table of `N` nodes
+//! (SPEC §A, loop steps 3–8), one call per control period.
+//!
+//! Per tick, from the master sample θ_m(k) and the slave positions x(k):
+//!
+//! 1. The master tracking filter ([`MasterFilter`]) and the eq. 4 predictor
+//!    ([`Predictor`]) take θ_m(k).
+//! 2. End of table (steps 3 and 8): once the master is at or past the last node while
+//!    moving up, or below the first while moving down, the follower latches `ended` and
+//!    every slave holds its final table position (no feed-forward).
+//! 3. Per axis, by its [`ControlMode`]:
+//!    - `Feedforward`: x_ref = X(θ_f(k)), the table at the filtered master now (the error
+//!      at the sampling instant); v_ff = ΔX_j·θ̇/len_j and a_ff = ΔX_j·θ̈/len_j taken at
+//!      θ_f(k + n), n = 1.5 + t_valve/T periods ahead: the middle of the period in which
+//!      this command acts (one period of computation delay) plus the valve's lag.
+//!    - `Paper`: x_ref = X(θ̂(k+1)), the table at the eq. 4 prediction (eq. 5–6).
+//!    - `NextNode`: x_ref = the node at the far end of the current segment in the
+//!      direction of master motion.
+//! 4. The axis law ([`position_law`]) and the valve output stage give the DAC code.
+//! 5. Following error e = X(θ_f(k)) − x(k) beyond the axis limit latches that axis'
+//!    fault: its valve goes to null, its controller state is cleared, until
+//!    [`Follower::clear_faults`].
+//!
+//! Every table lookup starts from its own cursor, so the search is O(1) amortised.
+
+use crate::axis::{
+    position_law, AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosRef, PosState,
+};
+use crate::master::{
+    MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig, MasterFilterError,
+};
+use crate::master::{Predictor, PredictorKind};
+use crate::q::mul_shr;
+use crate::table::CamTable;
+use crate::units::{AccUmPerS2, CmdLsb, DacCode, Master, PosUm, VelUmPerS};
+
+/// Follower configuration in engineering units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FollowerConfig<const S: usize> {
+    /// Control period T, µs (50 … 1 000 000).
+    pub period_us: u32,
+    /// Master tracking filter.
+    pub master_filter: MasterFilterConfig,
+    /// Extrapolation of the `Paper` mode's predictor (eq. 4 as printed by default).
+    pub predictor: PredictorKind,
+    /// The slave axes, one per table column.
+    pub axes: [AxisConfig; S],
+}
+
+impl<const S: usize> Default for FollowerConfig<S> {
+    fn default() -> Self {
+        Self {
+            period_us: 1000,
+            master_filter: MasterFilterConfig::default(),
+            predictor: PredictorKind::Eq4,
+            axes: [AxisConfig::default(); S],
+        }
+    }
+}
+
+/// Why a follower configuration was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FollowerError {
+    /// The master filter's parameters.
+    MasterFilter(MasterFilterError),
+    /// Axis `axis`'s parameters.
+    Axis {
+        /// Slave index.
+        axis: usize,
+        /// What is wrong.
+        error: AxisConfigError,
+    },
+}
+
+/// A latched per-axis fault.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AxisFault {
+    /// |X(θ_f) − x| exceeded the axis' following-error limit.
+    FollowingError,
+}
+
+/// One tick's inputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FollowerInputs<const S: usize> {
+    /// Master sample θ_m(k), master counts.
+    pub master: Master,
+    /// Slave positions x(k), µm.
+    pub pos_um: [PosUm; S],
+}
+
+/// One tick's outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FollowerOutputs<const S: usize> {
+    /// Valve codes to apply from the start of the next period.
+    pub dac: [DacCode; S],
+    /// Commands before the output stage, LSB.
+    pub cmd_lsb: [CmdLsb; S],
+    /// X(θ_f(k)): the table at the filtered master now, µm.
+    pub target_um: [PosUm; S],
+    /// target − x(k), µm.
+    pub error_um: [PosUm; S],
+    /// Latched faults.
+    pub fault: [Option<AxisFault>; S],
+    /// The master has passed the end of the table: the slaves hold.
+    pub end_of_table: bool,
+    /// The master filter flagged a jump this tick.
+    pub master_jump: bool,
+    /// The filtered master estimate now.
+    pub master: MasterEstimate,
+}
+
+/// Per-axis runtime data.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct AxisRt {
+    st: PosState,
+    cur_ff: usize,
+    fault: Option<AxisFault>,
+}
+
+/// The follower: validated coefficients, the table, and the loop state.
+#[derive(Clone, Debug)]
+pub struct Follower<const S: usize, const N: usize> {
+    axes: [AxisCoeffs; S],
+    mf: MasterFilterCoeffs,
+    filter: MasterFilter,
+    pred: Predictor,
+    table: CamTable<S, N>,
+    cur_now: usize,
+    cur_pred: usize,
+    rt: [AxisRt; S],
+    ended: bool,
+}
+
+impl<const S: usize, const N: usize> Follower<S, N> {
+    /// Validates the configuration and takes the table.
+    pub fn new(cfg: &FollowerConfig<S>, table: CamTable<S, N>) -> Result<Self, FollowerError> {
+        let mf = cfg
+            .master_filter
+            .build(cfg.period_us)
+            .map_err(FollowerError::MasterFilter)?;
+        let default = AxisConfig::default()
+            .build(1000)
+            .map_err(|error| FollowerError::Axis { axis: 0, error })?;
+        let mut axes = [default; S];
+        for (axis, (c, a)) in axes.iter_mut().zip(cfg.axes.iter()).enumerate() {
+            *c = a
+                .build(cfg.period_us)
+                .map_err(|error| FollowerError::Axis { axis, error })?;
+        }
+        Ok(Self {
+            axes,
+            mf,
+            filter: MasterFilter::default(),
+            pred: Predictor::new(cfg.predictor),
+            table,
+            cur_now: 0,
+            cur_pred: 0,
+            rt: [AxisRt::default(); S],
+            ended: false,
+        })
+    }
+
+    /// The table in use.
+    pub fn table(&self) -> &CamTable<S, N> {
+        &self.table
+    }
+
+    /// Replaces the table (at a safe point: the caller checks that the axes are idle or
+    /// the current table has ended) and restarts the loop state.
+    pub fn replace_table(&mut self, table: CamTable<S, N>) -> CamTable<S, N> {
+        let old = core::mem::replace(&mut self.table, table);
+        self.restart();
+        old
+    }
+
+    /// Forgets the master history, controller states and the end-of-table latch.
+    pub fn restart(&mut self) {
+        self.filter.reset();
+        self.pred.reset();
+        self.cur_now = 0;
+        self.cur_pred = 0;
+        for rt in &mut self.rt {
+            rt.st.reset();
+            rt.cur_ff = 0;
+        }
+        self.ended = false;
+    }
+
+    /// Clears latched axis faults (the controller states start afresh).
+    pub fn clear_faults(&mut self) {
+        for rt in &mut self.rt {
+            if rt.fault.take().is_some() {
+                rt.st.reset();
+            }
+        }
+    }
+
+    /// Whether the end-of-table latch is set.
+    pub fn ended(&self) -> bool {
+        self.ended
+    }
+
+    /// The safe output of every axis (valve null).
+    pub fn safe_outputs(&self) -> [DacCode; S] {
+        let mut out = [DacCode::NULL; S];
+        for (o, c) in out.iter_mut().zip(self.axes.iter()) {
+            *o = c.valve.null_code();
+        }
+        out
+    }
+
+    /// One control period (steps 3–8).
+    pub fn tick(&mut self, inp: &FollowerInputs<S>) -> FollowerOutputs<S> {
+        let master_jump = self.filter.update(&self.mf, inp.master);
+        let predicted = self.pred.update(inp.master);
+        let now = self.filter.estimate(&self.mf, 0);
+        let rate = now.rate_per_s;
+        let t = &self.table;
+        if (rate > 0 && inp.master >= t.master_last())
+            || (rate < 0 && inp.master < t.master_first())
+        {
+            self.ended = true;
+        }
+        let lk_now = t.locate(&mut self.cur_now, now.pos);
+        let lk_pred = t.locate(&mut self.cur_pred, predicted);
+        let mut out = FollowerOutputs {
+            dac: [DacCode::NULL; S],
+            cmd_lsb: [CmdLsb::ZERO; S],
+            target_um: [PosUm::ZERO; S],
+            error_um: [PosUm::ZERO; S],
+            fault: [None; S],
+            end_of_table: self.ended,
+            master_jump,
+            master: now,
+        };
+        let hold_high = rate >= 0;
+        for (i, (c, rt)) in self.axes.iter().zip(self.rt.iter_mut()).enumerate() {
+            let x = inp.pos_um.get(i).copied().unwrap_or(PosUm::ZERO);
+            let target = if self.ended {
+                let end = if hold_high {
+                    t.master_last()
+                } else {
+                    t.master_first()
+                };
+                let mut cur = rt.cur_ff;
+                t.value(&t.locate(&mut cur, end), i)
+            } else {
+                t.value(&lk_now, i)
+            };
+            let err = PosUm::from_bits(target.to_bits().saturating_sub(x.to_bits()));
+            let r = if self.ended {
+                PosRef {
+                    x_ref_um: target,
+                    ..PosRef::default()
+                }
+            } else {
+                match c.mode {
+                    ControlMode::Feedforward => {
+                        let ahead = self.filter.estimate(&self.mf, c.lead_q16);
+                        let lk = t.locate(&mut rt.cur_ff, ahead.pos);
+                        let rise = t.rise(&lk, i).to_bits();
+                        let v = mul_shr(rise, t.seg_rate_q16(&lk, ahead.rate_per_s), 16);
+                        let a = mul_shr(rise, t.seg_rate_q16(&lk, ahead.acc_per_s2), 24);
+                        PosRef {
+                            x_ref_um: target,
+                            v_ff_um_per_s: VelUmPerS::from_bits(v),
+                            a_ff_um_per_s2: AccUmPerS2::from_bits(a),
+                        }
+                    }
+                    ControlMode::Paper => PosRef {
+                        x_ref_um: t.value(&lk_pred, i),
+                        ..PosRef::default()
+                    },
+                    ControlMode::NextNode => {
+                        let node = if hold_high {
+                            lk_now.seg.saturating_add(1)
+                        } else {
+                            lk_now.seg
+                        };
+                        let x_ref = t
+                            .node(node)
+                            .and_then(|n| n.slave_um.get(i).copied())
+                            .unwrap_or(target);
+                        PosRef {
+                            x_ref_um: x_ref,
+                            ..PosRef::default()
+                        }
+                    }
+                }
+            };
+            if rt.fault.is_none() && err.to_bits().saturating_abs() > c.fe_limit {
+                rt.fault = Some(AxisFault::FollowingError);
+                rt.st.reset();
+            }
+            let (u, code) = if rt.fault.is_some() {
+                (CmdLsb::ZERO, c.valve.null_code())
+            } else {
+                let u = position_law(c, &mut rt.st, &r, x);
+                (u, c.valve.output(u))
+            };
+            if let Some(o) = out.dac.get_mut(i) {
+                *o = code;
+            }
+            if let Some(o) = out.cmd_lsb.get_mut(i) {
+                *o = u;
+            }
+            if let Some(o) = out.target_um.get_mut(i) {
+                *o = target;
+            }
+            if let Some(o) = out.error_um.get_mut(i) {
+                *o = err;
+            }
+            if let Some(o) = out.fault.get_mut(i) {
+                *o = rt.fault;
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests;

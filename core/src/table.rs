@@ -1,1 +1,565 @@
-//! (in progress)
+//! The cam table: slave positions as single-valued functions of the master (SPEC §A).
+//!
+//! Nodes (θ_j, x_j) with θ strictly increasing (a decreasing master column is reversed
+//! when the table is built). Between nodes each slave is interpolated linearly (eq. 5):
+//!
+//! ```text
+//! x*(θ) = x_j + (x_{j+1} − x_j) · (θ − θ_j) / (θ_{j+1} − θ_j),   θ_j ≤ θ < θ_{j+1}
+//! ```
+//!
+//! Everything that does not depend on θ is computed once when the table is built: per
+//! segment the start (θ_j, x_j), the rise Δx_j and the reciprocal of the segment length
+//! `recip_j = ⌈2^64 / len_j⌉` (len_j in raw `I48F16` bits). Per tick the fraction is
+//! then one multiplication, `frac = (θ − θ_j)·recip_j >> 32` (Q0.32, never below the exact fraction and above it by less than 2^-32), and
+//! each slave one more, `x = x_j + Δx_j·frac >> 32`: no division in the control loop.
+//! Segment search starts from the segment of the previous call (the cursor) and walks
+//! one node at a time, so it is O(1) amortised for a master moving either way.
+//!
+//! Limits: 2 ≤ nodes ≤ N; segment length 2^-15 … 65 535 master counts (so θ − θ_j fits a
+//! `u32` of raw bits); slave values within the axis' range; each slave's slope within
+//! its axis' speed limit at the stated master speed: |Δx_j|·θ̇_max ≤ v_max·len_j.
+
+use crate::units::{Master, MasterRate, PosUm, VelUmPerS};
+use heapless::Vec;
+
+/// A table node: the master value and every slave's position.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Node<const S: usize> {
+    /// Master value, master counts.
+    pub master: Master,
+    /// Slave positions, µm.
+    pub slave_um: [PosUm; S],
+}
+
+/// Per-slave validation limits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AxisLimits {
+    /// Smallest position the axis may be commanded to, µm.
+    pub min_um: PosUm,
+    /// Largest position the axis may be commanded to, µm.
+    pub max_um: PosUm,
+    /// Largest speed the axis can give, µm/s.
+    pub max_speed_um_per_s: VelUmPerS,
+}
+
+/// Validation limits of a table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TableLimits<const S: usize> {
+    /// The fastest master speed the table will be run at, master counts/s (> 0).
+    pub master_speed_per_s: MasterRate,
+    /// Per-slave limits.
+    pub axes: [AxisLimits; S],
+}
+
+/// Why a table was rejected. `row` is the 0-based index of the node in the order given.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TableError {
+    /// Fewer than two nodes.
+    TooFewNodes,
+    /// More nodes than the table's capacity.
+    TooManyNodes {
+        /// The capacity.
+        capacity: usize,
+    },
+    /// The master column is not strictly monotonic at this row.
+    NotMonotonic {
+        /// Row index.
+        row: usize,
+    },
+    /// The segment ending at this row is longer than 65 535 or shorter than 2^-15 counts.
+    SegmentLength {
+        /// Row index.
+        row: usize,
+    },
+    /// A slave value outside its axis' range.
+    OutOfRange {
+        /// Row index.
+        row: usize,
+        /// Slave column (0-based).
+        axis: usize,
+    },
+    /// The segment ending at this row asks for more speed than the axis can give.
+    TooSteep {
+        /// Row index.
+        row: usize,
+        /// Slave column (0-based).
+        axis: usize,
+    },
+    /// The stated master speed is not positive.
+    MasterSpeed,
+}
+
+impl core::fmt::Display for TableError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::TooFewNodes => write!(f, "a table needs at least 2 nodes"),
+            Self::TooManyNodes { capacity } => write!(f, "more than {capacity} nodes"),
+            Self::NotMonotonic { row } => {
+                write!(f, "row {row}: master column not strictly monotonic")
+            }
+            Self::SegmentLength { row } => write!(
+                f,
+                "row {row}: segment length outside 2^-15 .. 65535 master counts"
+            ),
+            Self::OutOfRange { row, axis } => {
+                write!(f, "row {row}: slave {axis} outside its axis range")
+            }
+            Self::TooSteep { row, axis } => write!(
+                f,
+                "row {row}: slave {axis} slope exceeds the axis speed limit at the stated master speed"
+            ),
+            Self::MasterSpeed => write!(f, "the stated master speed must be positive"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for TableError {}
+
+/// One segment, precomputed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Segment<const S: usize> {
+    /// θ_j, raw `I48F16`.
+    m0: i64,
+    /// ⌈2^64 / len_j⌉, len_j in raw bits (≥ 2).
+    recip: u64,
+    /// x_j, raw `I24F8` µm.
+    x0: [i32; S],
+    /// x_{j+1} − x_j, raw `I24F8` µm (|Δx| < 2^31 since both ends are in range).
+    dx: [i32; S],
+}
+
+/// Where a master value falls in the table.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Lookup {
+    /// Segment index.
+    pub seg: usize,
+    /// Fraction through the segment, Q0.32.
+    pub frac_q32: u32,
+    /// Which end the master is beyond, if any (the value is then clamped to that end).
+    pub beyond: Beyond,
+}
+
+/// Whether a master value is beyond an end of the table.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Beyond {
+    /// Inside [θ_first, θ_last).
+    #[default]
+    Inside,
+    /// Below the first node.
+    Low,
+    /// At or above the last node.
+    High,
+}
+
+/// A validated cam table of up to `N` nodes and `S` slave columns.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CamTable<const S: usize, const N: usize> {
+    segs: Vec<Segment<S>, N>,
+    last: Node<S>,
+}
+
+/// Largest segment length, raw bits (65 535 counts · 2^16 < 2^32).
+const MAX_LEN_BITS: i64 = (1 << 32) - (1 << 16);
+
+impl<const S: usize, const N: usize> CamTable<S, N> {
+    /// Validates the nodes and builds the table (SPEC §A "Table").
+    pub fn try_from_nodes(nodes: &[Node<S>], limits: &TableLimits<S>) -> Result<Self, TableError> {
+        if nodes.len() < 2 {
+            return Err(TableError::TooFewNodes);
+        }
+        if nodes.len() > N {
+            return Err(TableError::TooManyNodes { capacity: N });
+        }
+        if limits.master_speed_per_s <= 0 {
+            return Err(TableError::MasterSpeed);
+        }
+        let (first, rest) = nodes.split_first().ok_or(TableError::TooFewNodes)?;
+        let decreasing = rest.first().is_some_and(|n| n.master < first.master);
+        // Rows in increasing master order, with their original indices.
+        let at = |i: usize| -> Option<(usize, &Node<S>)> {
+            let len = nodes.len();
+            let idx = if decreasing {
+                len.checked_sub(1)?.checked_sub(i)?
+            } else {
+                i
+            };
+            nodes.get(idx).map(|n| (idx, n))
+        };
+        let mut segs: Vec<Segment<S>, N> = Vec::new();
+        let mut prev: Option<(usize, &Node<S>)> = None;
+        for i in 0..nodes.len() {
+            let (row, node) = at(i).ok_or(TableError::TooFewNodes)?;
+            for (axis, (x, lim)) in node.slave_um.iter().zip(limits.axes.iter()).enumerate() {
+                if *x < lim.min_um || *x > lim.max_um {
+                    return Err(TableError::OutOfRange { row, axis });
+                }
+            }
+            if let Some((_, p)) = prev {
+                let len = node.master.to_bits().checked_sub(p.master.to_bits());
+                let len = match len {
+                    Some(l) if l > 0 => l,
+                    _ => return Err(TableError::NotMonotonic { row }),
+                };
+                if !(2..=MAX_LEN_BITS).contains(&len) {
+                    return Err(TableError::SegmentLength { row });
+                }
+                let mut dx = [0i32; S];
+                for (axis, ((d, (a, b)), lim)) in dx
+                    .iter_mut()
+                    .zip(p.slave_um.iter().zip(node.slave_um.iter()))
+                    .zip(limits.axes.iter())
+                    .enumerate()
+                {
+                    let diff = i64::from(b.to_bits()).saturating_sub(i64::from(a.to_bits()));
+                    // |Δx|·θ̇ ≤ v_max·len, both sides Q8·Q16 in i128.
+                    let lhs = i128::from(diff.unsigned_abs())
+                        .saturating_mul(i128::from(limits.master_speed_per_s.to_bits()));
+                    let rhs = i128::from(lim.max_speed_um_per_s.to_bits())
+                        .saturating_mul(i128::from(len));
+                    if lhs > rhs {
+                        return Err(TableError::TooSteep { row, axis });
+                    }
+                    *d = i32::try_from(diff).map_err(|_| TableError::TooSteep { row, axis })?;
+                }
+                let len_u = len.unsigned_abs();
+                // ⌈2^64/len⌉ (len ≥ 2, so ≤ 2^63).
+                let recip = u64::MAX.checked_div(len_u).unwrap_or(0).saturating_add(1);
+                let mut x0 = [0i32; S];
+                for (o, x) in x0.iter_mut().zip(p.slave_um.iter()) {
+                    *o = x.to_bits();
+                }
+                segs.push(Segment {
+                    m0: p.master.to_bits(),
+                    recip,
+                    x0,
+                    dx,
+                })
+                .map_err(|_| TableError::TooManyNodes { capacity: N })?;
+            }
+            prev = Some((row, node));
+        }
+        let last = *prev.map(|(_, n)| n).ok_or(TableError::TooFewNodes)?;
+        Ok(Self { segs, last })
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.segs.len().saturating_add(1)
+    }
+
+    /// Always false: a valid table has at least two nodes.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Node `i` in increasing master order.
+    pub fn node(&self, i: usize) -> Option<Node<S>> {
+        if i == self.segs.len() {
+            return Some(self.last);
+        }
+        self.segs.get(i).map(|s| {
+            let mut slave_um = [PosUm::ZERO; S];
+            for (o, x) in slave_um.iter_mut().zip(s.x0.iter()) {
+                *o = PosUm::from_bits(*x);
+            }
+            Node {
+                master: Master::from_bits(s.m0),
+                slave_um,
+            }
+        })
+    }
+
+    /// The first (lowest) master value.
+    pub fn master_first(&self) -> Master {
+        Master::from_bits(
+            self.segs
+                .first()
+                .map_or(self.last.master.to_bits(), |s| s.m0),
+        )
+    }
+
+    /// The last (highest) master value.
+    pub fn master_last(&self) -> Master {
+        self.last.master
+    }
+
+    /// Locates `m`, starting the search at `*cursor` and leaving the found segment there.
+    #[inline]
+    pub fn locate(&self, cursor: &mut usize, m: Master) -> Lookup {
+        let m = m.to_bits();
+        let last_seg = self.segs.len().saturating_sub(1);
+        let mut j = (*cursor).min(last_seg);
+        // Walk down while θ < θ_j, up while θ ≥ θ_{j+1}.
+        while j > 0 && self.segs.get(j).is_some_and(|s| m < s.m0) {
+            j = j.saturating_sub(1);
+        }
+        while j < last_seg
+            && self
+                .segs
+                .get(j.saturating_add(1))
+                .is_some_and(|s| m >= s.m0)
+        {
+            j = j.saturating_add(1);
+        }
+        *cursor = j;
+        let Some(s) = self.segs.get(j) else {
+            return Lookup::default();
+        };
+        if m < s.m0 {
+            return Lookup {
+                seg: j,
+                frac_q32: 0,
+                beyond: Beyond::Low,
+            };
+        }
+        if m >= self.last.master.to_bits() {
+            return Lookup {
+                seg: j,
+                frac_q32: u32::MAX,
+                beyond: Beyond::High,
+            };
+        }
+        // 0 ≤ d ≤ len − 1 < 2^32 and recip < 2^64/len + 1, so
+        // d·recip < 2^64 − 2^64/len + len < 2^64 (2^64/len > 2^32 > len), and
+        // (d·recip) >> 32 = d·r_hi + (d·r_lo >> 32) < 2^32 (two u32×u32 products).
+        let d = m.wrapping_sub(s.m0) as u64 & 0xFFFF_FFFF;
+        let lo = d.wrapping_mul(s.recip & 0xFFFF_FFFF) >> 32;
+        let hi = d.wrapping_mul(s.recip >> 32);
+        let frac = hi.wrapping_add(lo);
+        Lookup {
+            seg: j,
+            frac_q32: u32::try_from(frac).unwrap_or(u32::MAX),
+            beyond: Beyond::Inside,
+        }
+    }
+
+    /// Slave `axis` at a located master value, µm (the end value beyond an end).
+    #[inline]
+    pub fn value(&self, lk: &Lookup, axis: usize) -> PosUm {
+        let bits = match lk.beyond {
+            Beyond::High => self.last.slave_um.get(axis).map_or(0, |x| x.to_bits()),
+            _ => self.segs.get(lk.seg).map_or(0, |s| {
+                let x0 = s.x0.get(axis).copied().unwrap_or(0);
+                let dx = s.dx.get(axis).copied().unwrap_or(0);
+                if lk.beyond == Beyond::Low {
+                    return x0;
+                }
+                // |dx|·2^32 < 2^63; rounded to nearest; between x_j and x_{j+1}.
+                let p = i64::from(dx).wrapping_mul(i64::from(lk.frac_q32));
+                let step = (p.wrapping_add(1 << 31) >> 32) as i32;
+                x0.saturating_add(step)
+            }),
+        };
+        PosUm::from_bits(bits)
+    }
+
+    /// The rise of slave `axis` over segment `seg`, µm (0 beyond the ends).
+    #[inline]
+    pub fn rise(&self, lk: &Lookup, axis: usize) -> PosUm {
+        if lk.beyond != Beyond::Inside {
+            return PosUm::ZERO;
+        }
+        PosUm::from_bits(
+            self.segs
+                .get(lk.seg)
+                .and_then(|s| s.dx.get(axis).copied())
+                .unwrap_or(0),
+        )
+    }
+
+    /// Master rate in segments per second, Q16.16: `θ̇ / len_seg` (0 beyond the ends).
+    /// Multiplied by a slave's rise it gives that slave's target speed.
+    #[inline]
+    pub fn seg_rate_q16(&self, lk: &Lookup, rate: MasterRate) -> i32 {
+        if lk.beyond != Beyond::Inside {
+            return 0;
+        }
+        let recip = self.segs.get(lk.seg).map_or(0, |s| s.recip);
+        // θ̇[Q16] · 2^64/len[Q16] / 2^64 = θ̇/len (Q0) → Q16: >> 48.
+        let p = i128::from(rate.to_bits()).wrapping_mul(i128::from(recip)) >> 48;
+        i32::try_from(p).unwrap_or(if p < 0 { i32::MIN } else { i32::MAX })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn lim<const S: usize>() -> TableLimits<S> {
+        TableLimits {
+            master_speed_per_s: MasterRate::from_num(3000),
+            axes: [AxisLimits {
+                min_um: PosUm::from_num(-1_000_000),
+                max_um: PosUm::from_num(1_000_000),
+                max_speed_um_per_s: VelUmPerS::from_num(1_000_000),
+            }; S],
+        }
+    }
+
+    fn n1(m: f64, x: f64) -> Node<1> {
+        Node {
+            master: Master::from_num(m),
+            slave_um: [PosUm::from_num(x)],
+        }
+    }
+
+    #[test]
+    fn interpolates_and_clamps() {
+        let t: CamTable<1, 8> =
+            CamTable::try_from_nodes(&[n1(0.0, 0.0), n1(100.0, 1000.0), n1(300.0, 0.0)], &lim())
+                .unwrap();
+        let mut c = 0;
+        let v = |c: &mut usize, m: f64| {
+            let lk = t.locate(c, Master::from_num(m));
+            (t.value(&lk, 0).to_num::<f64>(), lk.beyond)
+        };
+        assert_eq!(v(&mut c, 50.0), (500.0, Beyond::Inside));
+        assert!((v(&mut c, 200.0).0 - 500.0).abs() < 0.01);
+        assert_eq!(v(&mut c, 300.0), (0.0, Beyond::High));
+        assert_eq!(v(&mut c, 1e6), (0.0, Beyond::High));
+        assert_eq!(v(&mut c, -5.0), (0.0, Beyond::Low));
+        assert_eq!(v(&mut c, 100.0), (1000.0, Beyond::Inside));
+        assert_eq!(t.master_first(), Master::ZERO);
+        assert_eq!(t.master_last(), Master::from_num(300));
+        assert_eq!(t.node(2), Some(n1(300.0, 0.0)));
+    }
+
+    #[test]
+    fn decreasing_master_is_reversed() {
+        let t: CamTable<1, 8> =
+            CamTable::try_from_nodes(&[n1(10.0, 5.0), n1(0.0, 1.0)], &lim()).unwrap();
+        assert_eq!(t.node(0), Some(n1(0.0, 1.0)));
+        let mut c = 0;
+        let lk = t.locate(&mut c, Master::from_num(5));
+        assert_eq!(t.value(&lk, 0), PosUm::from_num(3));
+    }
+
+    #[test]
+    fn typed_errors_name_the_row() {
+        type T = CamTable<1, 4>;
+        assert_eq!(
+            T::try_from_nodes(&[n1(0.0, 0.0)], &lim()),
+            Err(TableError::TooFewNodes)
+        );
+        let five = [
+            n1(0.0, 0.0),
+            n1(1.0, 0.0),
+            n1(2.0, 0.0),
+            n1(3.0, 0.0),
+            n1(4.0, 0.0),
+        ];
+        assert_eq!(
+            T::try_from_nodes(&five, &lim()),
+            Err(TableError::TooManyNodes { capacity: 4 })
+        );
+        let bad = [n1(0.0, 0.0), n1(1.0, 0.0), n1(1.0, 0.0)];
+        assert_eq!(
+            T::try_from_nodes(&bad, &lim()),
+            Err(TableError::NotMonotonic { row: 2 })
+        );
+        let bad = [n1(0.0, 0.0), n1(1.0, 0.0), n1(0.5, 0.0)];
+        assert_eq!(
+            T::try_from_nodes(&bad, &lim()),
+            Err(TableError::NotMonotonic { row: 2 })
+        );
+        let bad = [n1(0.0, 0.0), n1(70_000.0, 0.0)];
+        assert_eq!(
+            T::try_from_nodes(&bad, &lim()),
+            Err(TableError::SegmentLength { row: 1 })
+        );
+        let bad = [n1(0.0, 0.0), n1(1.0, 2e6)];
+        assert_eq!(
+            T::try_from_nodes(&bad, &lim()),
+            Err(TableError::OutOfRange { row: 1, axis: 0 })
+        );
+        // 1000 µm per count at 3000 counts/s = 3 m/s > 1 m/s
+        let bad = [n1(0.0, 0.0), n1(1.0, 10.0), n1(2.0, 1010.0)];
+        assert_eq!(
+            T::try_from_nodes(&bad, &lim()),
+            Err(TableError::TooSteep { row: 2, axis: 0 })
+        );
+        let mut l = lim::<1>();
+        l.master_speed_per_s = MasterRate::ZERO;
+        assert_eq!(
+            T::try_from_nodes(&[n1(0.0, 0.0), n1(1.0, 0.0)], &l),
+            Err(TableError::MasterSpeed)
+        );
+    }
+
+    #[test]
+    fn segment_rate_gives_speed() {
+        let t: CamTable<1, 4> =
+            CamTable::try_from_nodes(&[n1(0.0, 0.0), n1(500.0, 6000.0)], &lim()).unwrap();
+        let mut c = 0;
+        let lk = t.locate(&mut c, Master::from_num(100));
+        // 3000 counts/s over 500-count segments = 6 segments/s
+        let r = t.seg_rate_q16(&lk, MasterRate::from_num(3000));
+        assert!((f64::from(r) / 65536.0 - 6.0).abs() < 1e-4);
+        assert_eq!(t.rise(&lk, 0), PosUm::from_num(6000));
+    }
+
+    fn table_strategy() -> impl Strategy<Value = std::vec::Vec<(f64, f64, f64)>> {
+        proptest::collection::vec(
+            (1.0f64..2000.0, -400_000.0f64..400_000.0, -4000.0f64..4000.0),
+            2..60,
+        )
+    }
+
+    proptest! {
+        /// The interpolated value lies between the bracketing nodes and equals an f64
+        /// reference within 2 LSB (7.8 nm), for any cursor start.
+        #[test]
+        fn matches_f64_reference(steps in table_strategy(), probes in proptest::collection::vec(0.0f64..1.0, 1..40),
+                                 start in 0usize..64) {
+            let mut nodes = std::vec::Vec::new();
+            let mut m = -10_000.0;
+            for (dm, x, y) in &steps {
+                m += dm.round().max(1.0);
+                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
+            }
+            let mut l = lim::<2>();
+            l.master_speed_per_s = MasterRate::from_num(1);
+            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &l).unwrap();
+            let lo = nodes[0].master.to_num::<f64>();
+            let hi = nodes[nodes.len() - 1].master.to_num::<f64>();
+            let mut c = start;
+            for p in probes {
+                let mq = Master::from_num(lo + p * (hi - lo));
+                let mf = mq.to_num::<f64>();
+                let lk = t.locate(&mut c, mq);
+                let j = nodes.iter().rposition(|n| n.master <= mq).unwrap();
+                prop_assert_eq!(lk.seg, j.min(nodes.len() - 2));
+                for axis in 0..2 {
+                    let got = t.value(&lk, axis).to_num::<f64>();
+                    let (a, b) = (&nodes[lk.seg], &nodes[lk.seg + 1]);
+                    let (m0, m1) = (a.master.to_num::<f64>(), b.master.to_num::<f64>());
+                    let (x0, x1) = (a.slave_um[axis].to_num::<f64>(), b.slave_um[axis].to_num::<f64>());
+                    let want = x0 + (x1 - x0) * (mf - m0) / (m1 - m0);
+                    prop_assert!((got - want).abs() <= 2.0 / 256.0, "got {} want {}", got, want);
+                    prop_assert!(got >= x0.min(x1) && got <= x0.max(x1));
+                }
+            }
+        }
+
+        #[test]
+        fn never_panics(ms in proptest::collection::vec(any::<i64>(), 0..10), xs in any::<i32>(), q in any::<i64>(),
+                        c0 in any::<usize>(), rate in any::<i64>()) {
+            let nodes: std::vec::Vec<Node<1>> = ms.iter().map(|m| Node { master: Master::from_bits(*m), slave_um: [PosUm::from_bits(xs)] }).collect();
+            if let Ok(t) = CamTable::<1, 16>::try_from_nodes(&nodes, &lim()) {
+                let mut c = c0;
+                let lk = t.locate(&mut c, Master::from_bits(q));
+                let _ = t.value(&lk, 0);
+                let _ = t.value(&lk, 5);
+                let _ = t.seg_rate_q16(&lk, MasterRate::from_bits(rate));
+            }
+        }
+    }
+}

@@ -12,7 +12,7 @@
 //! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; saturating adds |
 //! | master speed | [`MasterRate`] = `I48F16` | counts/s | 1.5e-5 counts/s | ±1.4e14 | derived from the filter state by one shift |
 //! | master-filter state (velocity, acceleration per tick) | `I32F32` | counts/tick, counts/tick² | 2.3e-10 | ±2^31 | residual clamped to ±2^14 counts before the gain product |
-//! | segment fraction | `u32` Q0.32 | 1 | 2.3e-10 | [0, 1) | product < 2^48 by construction (see [`crate::table`]) |
+//! | segment fraction | `u32` Q0.32 | 1 | 2.3e-10 | [0, 1) | product < 2^64 by construction (see [`crate::table`]) |
 //! | segment rate (master speed / segment length) | `i32` Q16.16 | segments/s | 1.5e-5 | ±32768 | saturated |
 //! | valve command before the DAC | [`CmdLsb`] = `I16F16` | DAC LSB | 1.5e-5 LSB | ±32768 LSB | every term saturates; clamped to ±2047 before output |
 //! | valve DAC code | [`DacCode`] | LSB of the 12-bit DAC, 0 = null | 1 LSB | [−2047, 2047] | clamped |

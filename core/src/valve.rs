@@ -160,6 +160,12 @@ impl ValveCoeffs {
         DacCode::new_clamped(y.saturating_add(1 << 15) >> 16)
     }
 
+    /// The largest |command| the output stage passes, LSB (for anti-windup).
+    #[inline]
+    pub fn clamp_lsb(&self) -> CmdLsb {
+        CmdLsb::from_bits(self.clamp)
+    }
+
     /// The DAC code that puts the spool at its null: the safe output.
     #[inline]
     pub fn null_code(&self) -> DacCode {

@@ -1,1 +1,9 @@
-//! Axis control laws (in progress).
+//! Axis control laws: position (Feedforward, Paper, NextNode) and force (press).
+
+pub mod config;
+pub mod position;
+pub mod press;
+
+pub use config::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode};
+pub use position::{position_law, PosRef, PosState};
+pub use press::{PressCoeffs, PressConfig, PressConfigError, PressOutput, PressPhase, PressState};

@@ -1,0 +1,259 @@
+//! Configuration of one position-controlled slave axis, and its validated coefficients.
+//!
+//! The user gives gains in engineering units ([`AxisConfig`], `f32`); [`AxisConfig::build`]
+//! checks every value and converts it once to the fixed-point formats of
+//! [`crate::units`] for a given control period T. The per-tick law
+//! ([`super::position`]) then never fails.
+
+use crate::units::{CmdLsb, PosUm};
+use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
+use fixed::types::{I0F32, I16F16, I8F24};
+
+/// Which control law drives the axis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ControlMode {
+    /// Feedback on the error at the sampling instant, P + separated I (+ D), velocity and
+    /// acceleration feed-forward aimed at the interval in which the command acts.
+    #[default]
+    Feedforward,
+    /// SPEC §A eq. 6–9 exactly: incremental integral-separation PID on
+    /// e(k) = x*(k+1) − x(k), x* at the eq. 4 prediction of the master.
+    Paper,
+    /// The traditional law: positional PID toward the table node at the far end of the
+    /// current segment (in the direction of master motion); no prediction, no
+    /// feed-forward.
+    NextNode,
+}
+
+/// One position axis in engineering units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AxisConfig {
+    /// Control law.
+    pub mode: ControlMode,
+    /// Proportional gain Kp, DAC LSB per µm (0 … 1000).
+    pub kp_lsb_per_um: f32,
+    /// Integral gain Ki, DAC LSB per (µm·s) (0 … 1e5).
+    pub ki_lsb_per_um_s: f32,
+    /// Derivative gain Kd, DAC LSB per (µm/s) (0 … 10).
+    pub kd_lsb_s_per_um: f32,
+    /// Integral separation m: integrate only while |e| ≤ m, µm (> 0).
+    pub i_zone_um: f32,
+    /// Integrator clamp, DAC LSB (0 … 2047).
+    pub i_limit_lsb: f32,
+    /// Velocity feed-forward for positive (extending) target speed, LSB per (µm/s) (0 … 100).
+    pub kv_pos_lsb_per_um_s: f32,
+    /// Velocity feed-forward for negative (retracting) target speed, LSB per (µm/s) (0 … 100).
+    pub kv_neg_lsb_per_um_s: f32,
+    /// Acceleration feed-forward, LSB per (µm/s²) (0 … 0.4).
+    pub ka_lsb_per_um_s2: f32,
+    /// Valve response delay to aim the feed-forward at, µs (0 … 100 000). For a 2nd-order
+    /// spool of ω_v, ζ_v it is about 2ζ_v/ω_v (4.2 ms for 60 Hz, ζ 0.8).
+    pub valve_lag_us: f32,
+    /// Following-error fault limit, µm (> 0).
+    pub following_error_um: f32,
+    /// Valve output calibration.
+    pub valve: ValveCal,
+}
+
+impl Default for AxisConfig {
+    fn default() -> Self {
+        Self {
+            mode: ControlMode::Feedforward,
+            kp_lsb_per_um: 0.2,
+            ki_lsb_per_um_s: 0.0,
+            kd_lsb_s_per_um: 0.0,
+            i_zone_um: 1000.0,
+            i_limit_lsb: 200.0,
+            kv_pos_lsb_per_um_s: 0.0,
+            kv_neg_lsb_per_um_s: 0.0,
+            ka_lsb_per_um_s2: 0.0,
+            valve_lag_us: 4200.0,
+            following_error_um: 5000.0,
+            valve: ValveCal::default(),
+        }
+    }
+}
+
+/// An axis parameter out of range (the field it names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AxisConfigError {
+    /// `kp_lsb_per_um`.
+    Kp,
+    /// `ki_lsb_per_um_s` (or Ki·T too large for its format).
+    Ki,
+    /// `kd_lsb_s_per_um` (or Kd/T too large for its format).
+    Kd,
+    /// `i_zone_um`.
+    IZone,
+    /// `i_limit_lsb`.
+    ILimit,
+    /// `kv_pos_lsb_per_um_s` or `kv_neg_lsb_per_um_s`.
+    Kv,
+    /// `ka_lsb_per_um_s2`.
+    Ka,
+    /// `valve_lag_us`.
+    ValveLag,
+    /// `following_error_um`.
+    FollowingError,
+    /// The control period (50 µs … 1 s).
+    Period,
+    /// The valve calibration.
+    Valve(ValveCalError),
+}
+
+/// Validated fixed-point coefficients of one axis (see the format table in
+/// [`crate::units`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AxisCoeffs {
+    /// Control law.
+    pub mode: ControlMode,
+    /// Kp, LSB/µm, `I16F16` raw.
+    pub kp: i32,
+    /// Ki·T, LSB/(µm·tick), `I8F24` raw.
+    pub ki_tick: i32,
+    /// Kd/T, LSB/(µm/tick), `I16F16` raw.
+    pub kd_tick: i32,
+    /// m, µm, `I24F8` raw.
+    pub i_zone: i32,
+    /// Integrator clamp, LSB, `I16F16` raw.
+    pub i_limit: i32,
+    /// kv⁺, LSB/(µm/s), `I8F24` raw.
+    pub kv_pos: i32,
+    /// kv⁻, LSB/(µm/s), `I8F24` raw.
+    pub kv_neg: i32,
+    /// ka, LSB/(µm/s²), `I0F32` raw.
+    pub ka: i32,
+    /// Feed-forward aim after the sampling instant, ticks, Q16 (1.5·T + valve lag).
+    pub lead_q16: i64,
+    /// Following-error limit, µm, `I24F8` raw.
+    pub fe_limit: i32,
+    /// Valve output stage.
+    pub valve: ValveCoeffs,
+}
+
+fn check(x: f32, lo: f32, hi: f32, e: AxisConfigError) -> Result<f32, AxisConfigError> {
+    if x.is_finite() && x >= lo && x <= hi {
+        Ok(x)
+    } else {
+        Err(e)
+    }
+}
+
+fn fit<F: fixed::traits::Fixed>(x: f64, e: AxisConfigError) -> Result<F, AxisConfigError> {
+    F::checked_from_num(x).ok_or(e)
+}
+
+impl AxisConfig {
+    /// Validates the configuration for a control period `period_us` and converts it.
+    pub fn build(&self, period_us: u32) -> Result<AxisCoeffs, AxisConfigError> {
+        use AxisConfigError as E;
+        if !(50..=1_000_000).contains(&period_us) {
+            return Err(E::Period);
+        }
+        let t = f64::from(period_us) * 1e-6;
+        let kp = f64::from(check(self.kp_lsb_per_um, 0.0, 1000.0, E::Kp)?);
+        let ki = f64::from(check(self.ki_lsb_per_um_s, 0.0, 1e5, E::Ki)?);
+        let kd = f64::from(check(self.kd_lsb_s_per_um, 0.0, 10.0, E::Kd)?);
+        let zone = f64::from(check(self.i_zone_um, 1e-3, 1e6, E::IZone)?);
+        let ilim = f64::from(check(self.i_limit_lsb, 0.0, 2047.0, E::ILimit)?);
+        let kvp = f64::from(check(self.kv_pos_lsb_per_um_s, 0.0, 100.0, E::Kv)?);
+        let kvn = f64::from(check(self.kv_neg_lsb_per_um_s, 0.0, 100.0, E::Kv)?);
+        let ka = f64::from(check(self.ka_lsb_per_um_s2, 0.0, 0.4, E::Ka)?);
+        let lag = f64::from(check(self.valve_lag_us, 0.0, 100_000.0, E::ValveLag)?);
+        let fe = f64::from(check(
+            self.following_error_um,
+            1e-3,
+            1e6,
+            E::FollowingError,
+        )?);
+        let valve = self.valve.build().map_err(E::Valve)?;
+        let lead_ticks = 1.5 + lag / f64::from(period_us);
+        Ok(AxisCoeffs {
+            mode: self.mode,
+            kp: fit::<I16F16>(kp, E::Kp)?.to_bits(),
+            ki_tick: fit::<I8F24>(ki * t, E::Ki)?.to_bits(),
+            kd_tick: fit::<I16F16>(kd / t, E::Kd)?.to_bits(),
+            i_zone: fit::<PosUm>(zone, E::IZone)?.to_bits(),
+            i_limit: fit::<CmdLsb>(ilim, E::ILimit)?.to_bits(),
+            kv_pos: fit::<I8F24>(kvp, E::Kv)?.to_bits(),
+            kv_neg: fit::<I8F24>(kvn, E::Kv)?.to_bits(),
+            ka: fit::<I0F32>(ka, E::Ka)?.to_bits(),
+            lead_q16: (lead_ticks * 65536.0) as i64,
+            fe_limit: fit::<PosUm>(fe, E::FollowingError)?.to_bits(),
+            valve,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn converts_units() {
+        let c = AxisConfig {
+            kp_lsb_per_um: 0.5,
+            ki_lsb_per_um_s: 10.0,
+            kd_lsb_s_per_um: 0.001,
+            kv_pos_lsb_per_um_s: 0.017,
+            ..AxisConfig::default()
+        }
+        .build(1000)
+        .unwrap();
+        assert_eq!(c.kp, 1 << 15);
+        assert_eq!(c.ki_tick, (0.01f64 * 16_777_216.0).round() as i32);
+        assert_eq!(c.kd_tick, 1 << 16);
+        assert_eq!(c.lead_q16, (5.7 * 65536.0) as i64);
+    }
+
+    #[test]
+    fn names_the_bad_field() {
+        let bad = |f: fn(&mut AxisConfig)| {
+            let mut c = AxisConfig::default();
+            f(&mut c);
+            c.build(1000)
+        };
+        assert_eq!(bad(|c| c.kp_lsb_per_um = -1.0), Err(AxisConfigError::Kp));
+        assert_eq!(
+            bad(|c| c.ki_lsb_per_um_s = f32::NAN),
+            Err(AxisConfigError::Ki)
+        );
+        assert_eq!(bad(|c| c.kd_lsb_s_per_um = 20.0), Err(AxisConfigError::Kd));
+        assert_eq!(bad(|c| c.i_zone_um = 0.0), Err(AxisConfigError::IZone));
+        assert_eq!(
+            bad(|c| c.i_limit_lsb = 3000.0),
+            Err(AxisConfigError::ILimit)
+        );
+        assert_eq!(
+            bad(|c| c.kv_neg_lsb_per_um_s = -0.1),
+            Err(AxisConfigError::Kv)
+        );
+        assert_eq!(bad(|c| c.ka_lsb_per_um_s2 = 1.0), Err(AxisConfigError::Ka));
+        assert_eq!(
+            bad(|c| c.valve_lag_us = f32::INFINITY),
+            Err(AxisConfigError::ValveLag)
+        );
+        assert_eq!(
+            bad(|c| c.following_error_um = 0.0),
+            Err(AxisConfigError::FollowingError)
+        );
+        assert_eq!(
+            bad(|c| c.valve.gain_pos = 0.0),
+            Err(AxisConfigError::Valve(ValveCalError::Gain))
+        );
+        assert_eq!(
+            AxisConfig::default().build(20),
+            Err(AxisConfigError::Period)
+        );
+        // Kd/T out of I16F16 at 50 µs: 10 / 5e-5 = 2e5
+        let c = AxisConfig {
+            kd_lsb_s_per_um: 10.0,
+            ..AxisConfig::default()
+        };
+        assert_eq!(c.build(50), Err(AxisConfigError::Kd));
+    }
+}
