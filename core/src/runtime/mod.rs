@@ -1,1 +1,36 @@
-//! (placeholder: filled by its issue)
+//! The runtime: states, fault rules and board I/O around the control law.
+//!
+//! Everything the controller board does between the drivers and the maths lives here,
+//! host-tested, so the firmware is only drivers and scheduling and the host simulator's
+//! virtual board runs exactly the same code:
+//!
+//! - [`machine`]: the state machine Idle / Following / Holding / Fault, commands and
+//!   the per-tick order of operations;
+//! - [`fault`]: fault causes and their 16-bit codes (table there);
+//! - [`config`]: limits in engineering units → per-tick integers;
+//! - [`controller`]: the trait the control law implements;
+//! - [`io`]: the traits a board implements (encoders, pressures, E-stop, valves);
+//! - [`encoder`]: 16 → 32-bit counter extension and the plausibility check;
+//! - [`stall`]: master-stall detection; [`timing`]: tick execution-time statistics;
+//! - [`pressure`]: transducer scaling.
+
+pub mod config;
+pub mod controller;
+pub mod encoder;
+pub mod fault;
+pub mod io;
+pub mod machine;
+pub mod pressure;
+pub mod stall;
+pub mod timing;
+
+#[cfg(test)]
+mod tests;
+
+pub use config::{MasterSource, RuntimeCoeffs, RuntimeConfig, RuntimeConfigError};
+pub use controller::{ControlInputs, ControlOutputs, Controller};
+pub use fault::{Fault, FaultKind, FaultRecord, FaultSet};
+pub use io::{Board, EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};
+pub use machine::{
+    BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
+};

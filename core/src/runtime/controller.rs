@@ -1,0 +1,126 @@
+//! The control law as the runtime sees it: one call per tick, master and slave positions
+//! in, valve codes and following errors out.
+//!
+//! The runtime owns states, faults and the valve enable; the law behind this trait owns
+//! the maths (prediction, table interpolation, PID, valve calibration). The follower of
+//! SPEC §A implements it (`runtime::follower_law`); tests use a mock. The runtime calls
+//! [`Controller::restart`] whenever control begins (Idle → Following/Holding), so the law
+//! can clear its history and integrators and start bumplessly from the measured state.
+
+use crate::units::{DacCode, Master, PosUm};
+
+/// What the law gets each tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControlInputs<const S: usize> {
+    /// Master position, master counts (frozen while holding).
+    pub master: Master,
+    /// Measured slave positions latched at the period start, µm.
+    pub pos_um: [PosUm; S],
+}
+
+/// What the law returns each tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControlOutputs<const S: usize> {
+    /// Calibrated valve codes to write this tick (0 = the DAC's mid-scale, *not*
+    /// necessarily the valve null: see [`Controller::null_codes`]).
+    pub dac: [DacCode; S],
+    /// Following error target − position per slave, µm (the target the law is chasing).
+    pub error_um: [PosUm; S],
+    /// The master has passed the end of the table: the slaves hold the final position.
+    pub end_of_table: bool,
+    /// A slave the law itself considers faulted (the runtime latches `Fault::Controller`).
+    pub axis_fault: [bool; S],
+}
+
+impl<const S: usize> ControlOutputs<S> {
+    /// Outputs with every code at `dac`, no error and no fault.
+    pub const fn at(dac: [DacCode; S]) -> Self {
+        Self {
+            dac,
+            error_um: [PosUm::ZERO; S],
+            end_of_table: false,
+            axis_fault: [false; S],
+        }
+    }
+}
+
+/// A control law the runtime can run (see the module docs).
+pub trait Controller<const S: usize> {
+    /// Re-arms the law for control starting from `inputs` (history, integrators and
+    /// output state reset). Called before the first [`Controller::tick`] of a run.
+    fn restart(&mut self, inputs: &ControlInputs<S>);
+
+    /// One control period. Must not fail or panic for any input.
+    fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S>;
+
+    /// The code that puts each slave's valve spool at its null (the calibrated safe
+    /// output written in Idle and Fault).
+    fn null_codes(&self) -> [DacCode; S];
+}
+
+#[cfg(test)]
+pub(crate) mod mock {
+    //! A mock law: a proportional controller toward `target_um` (or a table-free
+    //! "target = master · ratio"), with injectable faults and end of table.
+    use super::*;
+
+    /// A scripted controller for the runtime tests.
+    #[derive(Clone, Debug)]
+    pub struct MockLaw<const S: usize> {
+        /// µm of target per master count.
+        pub ratio: i32,
+        /// Code per µm of error.
+        pub gain: i32,
+        /// Master value past which `end_of_table` is reported.
+        pub end_master: i64,
+        /// Slaves reported as faulted.
+        pub axis_fault: [bool; S],
+        /// Valve nulls.
+        pub nulls: [DacCode; S],
+        /// How many times `restart` was called.
+        pub restarts: u32,
+    }
+
+    impl<const S: usize> MockLaw<S> {
+        pub fn new() -> Self {
+            Self {
+                ratio: 1,
+                gain: 2,
+                end_master: 1 << 40,
+                axis_fault: [false; S],
+                nulls: [DacCode::new_clamped(7); S],
+                restarts: 0,
+            }
+        }
+
+        pub fn target(&self, master: Master) -> PosUm {
+            PosUm::saturating_from_num(master.to_num::<i64>().saturating_mul(self.ratio.into()))
+        }
+    }
+
+    impl<const S: usize> Controller<S> for MockLaw<S> {
+        fn restart(&mut self, _inputs: &ControlInputs<S>) {
+            self.restarts += 1;
+        }
+
+        fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S> {
+            let target = self.target(inputs.master);
+            let mut out = ControlOutputs::at(self.nulls);
+            for i in 0..S {
+                let e = target.saturating_sub(inputs.pos_um[i]);
+                out.error_um[i] = e;
+                let code = e.to_num::<i32>().saturating_mul(self.gain);
+                out.dac[i] = DacCode::new_clamped(code.saturating_add(self.nulls[i].get().into()));
+                out.axis_fault[i] = self.axis_fault[i];
+            }
+            out.end_of_table = inputs.master.to_num::<i64>() > self.end_master;
+            out
+        }
+
+        fn null_codes(&self) -> [DacCode; S] {
+            self.nulls
+        }
+    }
+}

@@ -1,0 +1,194 @@
+//! Faults of the runtime: what they are, their codes, and the set of causes seen.
+//!
+//! A fault drives every valve to its null output in the tick that detects it, drops the
+//! valve-power enable and latches: the runtime stays in `Fault` until a `ClearFault`
+//! command arrives *and* the cause is gone (see [`super::machine`]).
+//!
+//! Every fault has a 16-bit code `kind << 8 | index` (index = axis or encoder channel,
+//! 0 where there is none), printed in hex on the host and in defmt logs:
+//!
+//! | code | fault | raised when | cleared when |
+//! |---|---|---|---|
+//! | `0x0100` | E-stop | the E-stop input is active (any state) | input released |
+//! | `0x0200` | watchdog | the board booted from an independent-watchdog reset | at once (the reset is over) |
+//! | `0x0300` | tick overrun | a tick was still running when the next period began, or a period was skipped | the tick that clears has no overrun |
+//! | `0x0400` | master stalled | following, the master has moved and then stood still (< `stall_min_move_counts`) for `stall_timeout_s` | at once (no longer following) |
+//! | `0x05cc` | encoder jump, channel `cc` (0 = master, 1… = slaves) | one tick's count change exceeds the channel's plausible maximum | the tick that clears has no jump |
+//! | `0x06aa` | following error, slave `aa` (0-based) | following or holding, \|target − position\| > the axis limit | at once (not controlling) |
+//! | `0x07aa` | controller fault on slave `aa` | the control law flags the axis (e.g. output saturated too long) | at once (not controlling) |
+
+/// One fault cause.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Fault {
+    /// The E-stop input is active.
+    EStop,
+    /// The board came out of an independent-watchdog reset.
+    Watchdog,
+    /// The tick overran its period (or a period was skipped).
+    Overrun,
+    /// Following, the master stopped moving for longer than the stall timeout.
+    MasterStalled,
+    /// An implausible encoder step in one tick.
+    EncoderJump {
+        /// Encoder channel: 0 = master, 1 + i = slave i.
+        channel: u8,
+    },
+    /// |target − position| beyond the slave's limit.
+    FollowingError {
+        /// Slave axis (0-based).
+        axis: u8,
+    },
+    /// The control law reported a fault on a slave.
+    Controller {
+        /// Slave axis (0-based).
+        axis: u8,
+    },
+}
+
+/// The kind of a fault, without its index (bit position in a [`FaultSet`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum FaultKind {
+    /// See [`Fault::EStop`].
+    EStop = 1,
+    /// See [`Fault::Watchdog`].
+    Watchdog = 2,
+    /// See [`Fault::Overrun`].
+    Overrun = 3,
+    /// See [`Fault::MasterStalled`].
+    MasterStalled = 4,
+    /// See [`Fault::EncoderJump`].
+    EncoderJump = 5,
+    /// See [`Fault::FollowingError`].
+    FollowingError = 6,
+    /// See [`Fault::Controller`].
+    Controller = 7,
+}
+
+impl Fault {
+    /// The fault's kind.
+    pub const fn kind(self) -> FaultKind {
+        match self {
+            Fault::EStop => FaultKind::EStop,
+            Fault::Watchdog => FaultKind::Watchdog,
+            Fault::Overrun => FaultKind::Overrun,
+            Fault::MasterStalled => FaultKind::MasterStalled,
+            Fault::EncoderJump { .. } => FaultKind::EncoderJump,
+            Fault::FollowingError { .. } => FaultKind::FollowingError,
+            Fault::Controller { .. } => FaultKind::Controller,
+        }
+    }
+
+    /// The axis or channel index (0 for faults without one).
+    pub const fn index(self) -> u8 {
+        match self {
+            Fault::EncoderJump { channel } => channel,
+            Fault::FollowingError { axis } | Fault::Controller { axis } => axis,
+            _ => 0,
+        }
+    }
+
+    /// The 16-bit code `kind << 8 | index` (see the module table).
+    pub const fn code(self) -> u16 {
+        ((self.kind() as u16) << 8) | self.index() as u16
+    }
+
+    /// The fault with this code, if it is one.
+    pub const fn from_code(code: u16) -> Option<Fault> {
+        let index = (code & 0xff) as u8;
+        let f = match code >> 8 {
+            1 => Fault::EStop,
+            2 => Fault::Watchdog,
+            3 => Fault::Overrun,
+            4 => Fault::MasterStalled,
+            5 => Fault::EncoderJump { channel: index },
+            6 => Fault::FollowingError { axis: index },
+            7 => Fault::Controller { axis: index },
+            _ => return None,
+        };
+        if f.code() == code {
+            Some(f)
+        } else {
+            None
+        }
+    }
+}
+
+/// The set of fault kinds seen since the fault latched (bit `kind` set).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FaultSet(pub u16);
+
+impl FaultSet {
+    /// No fault.
+    pub const EMPTY: FaultSet = FaultSet(0);
+
+    /// Adds a fault's kind.
+    pub fn insert(&mut self, f: Fault) {
+        self.0 |= 1u16 << (f.kind() as u16);
+    }
+
+    /// Whether a kind is in the set.
+    pub const fn contains(self, k: FaultKind) -> bool {
+        self.0 & (1u16 << (k as u16)) != 0
+    }
+
+    /// Whether the set is empty.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+}
+
+/// The latched (first) fault and the tick that detected it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FaultRecord {
+    /// The first cause.
+    pub fault: Fault,
+    /// Tick counter value when it latched.
+    pub tick: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn codes_round_trip_and_are_distinct() {
+        let all = [
+            Fault::EStop,
+            Fault::Watchdog,
+            Fault::Overrun,
+            Fault::MasterStalled,
+            Fault::EncoderJump { channel: 0 },
+            Fault::EncoderJump { channel: 2 },
+            Fault::FollowingError { axis: 1 },
+            Fault::Controller { axis: 3 },
+        ];
+        for (i, a) in all.iter().enumerate() {
+            assert_eq!(Fault::from_code(a.code()), Some(*a));
+            for b in all.iter().skip(i + 1) {
+                assert_ne!(a.code(), b.code());
+            }
+        }
+        assert_eq!(Fault::EStop.code(), 0x0100);
+        assert_eq!(Fault::EncoderJump { channel: 2 }.code(), 0x0502);
+        assert_eq!(Fault::FollowingError { axis: 1 }.code(), 0x0601);
+        assert_eq!(Fault::from_code(0x0101), None);
+        assert_eq!(Fault::from_code(0x0800), None);
+        assert_eq!(Fault::from_code(0), None);
+    }
+
+    #[test]
+    fn set_collects_kinds() {
+        let mut s = FaultSet::EMPTY;
+        assert!(s.is_empty());
+        s.insert(Fault::EStop);
+        s.insert(Fault::FollowingError { axis: 1 });
+        assert!(s.contains(FaultKind::EStop));
+        assert!(s.contains(FaultKind::FollowingError));
+        assert!(!s.contains(FaultKind::Overrun));
+    }
+}

@@ -1,0 +1,59 @@
+//! The board as the runtime sees it: the traits a real board (firmware) and a virtual
+//! board (host simulator, tests) implement, so both run the same runtime.
+//!
+//! One tick through [`super::Runtime::tick_io`] calls, in this order:
+//! 1. [`EncoderInput::latch`] — every encoder, as close to the period start as possible;
+//! 2. [`SafetyInput::estop_active`];
+//! 3. [`PressureInput::read`];
+//! 4. the state machine and the control law;
+//! 5. [`ValveOutput::write`] with every valve's code, then [`ValveOutput::set_enable`].
+
+use crate::units::{Counts, DacCode, PressureBar};
+
+/// Encoder counts latched together at the start of a period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EncoderSample<const S: usize> {
+    /// Master encoder count (channel 0).
+    pub master: Counts,
+    /// Slave encoder counts (channels 1 … S).
+    pub slaves: [Counts; S],
+}
+
+/// Quadrature encoder inputs, already extended to 32 bits (see
+/// [`super::encoder::Extender16`] for 16-bit counters).
+pub trait EncoderInput<const S: usize> {
+    /// Reads every channel, back to back.
+    fn latch(&mut self) -> EncoderSample<S>;
+}
+
+/// Chamber pressure inputs.
+pub trait PressureInput<const P: usize> {
+    /// The latest pressures, bar (the board's own filtering applied).
+    fn read(&mut self) -> [PressureBar; P];
+}
+
+/// The E-stop input.
+pub trait SafetyInput {
+    /// `true` while the E-stop chain is open (stop requested, or the wire is broken).
+    fn estop_active(&mut self) -> bool;
+}
+
+/// Valve outputs and the valve-power enable.
+pub trait ValveOutput<const S: usize> {
+    /// Writes every slave's valve code (`DacCode` 0 = DAC mid-scale).
+    fn write(&mut self, codes: &[DacCode; S]);
+    /// Switches the valve power (amplifier enable). `false` = valves unpowered.
+    fn set_enable(&mut self, on: bool);
+}
+
+/// Everything a board provides to the runtime.
+pub trait Board<const S: usize, const P: usize>:
+    EncoderInput<S> + PressureInput<P> + SafetyInput + ValveOutput<S>
+{
+}
+
+impl<T, const S: usize, const P: usize> Board<S, P> for T where
+    T: EncoderInput<S> + PressureInput<P> + SafetyInput + ValveOutput<S>
+{
+}

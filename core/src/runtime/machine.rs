@@ -1,0 +1,582 @@
+//! The runtime state machine: Idle, Following, Holding, Fault.
+//!
+//! ```text
+//!            Start                         Hold
+//!   Idle ───────────────▶ Following ◀──────────────▶ Holding
+//!    ▲  ◀─────── Stop ───────┘   Start (resume)    │   (commanded, or
+//!    │  ◀─────────────────── Stop ─────────────────┘    end of table)
+//!    │ ClearFault (cause gone)
+//!   Fault ◀──────── any fault, from every state (latched)
+//! ```
+//!
+//! One [`Runtime::step`] per control period, in this order:
+//! 1. encoder counts → master (counts) and slave positions (µm);
+//! 2. instantaneous causes: E-stop, tick overrun, implausible encoder steps; each one
+//!    latches a fault at once;
+//! 3. at most one command (so a command never races the tick);
+//! 4. Following / Holding: the control law runs; a following error beyond the axis limit,
+//!    a fault flagged by the law, or (following, encoder master) a stalled master latches
+//!    a fault; the law's end of table moves Following → Holding;
+//! 5. outputs: Following / Holding write the law's codes with the enable on; Idle and
+//!    Fault write every valve's null code with the enable off — in the very tick a fault
+//!    is detected, whatever the law computed.
+//!
+//! Holding feeds the law the master frozen at the moment of the hold, so every slave
+//! holds the table position of that master; Start resumes only if the live master is
+//! still within `resume_window_counts` of it (otherwise the target would jump). A fault
+//! leaves `Fault` only through `ClearFault`, and only in a tick where none of its
+//! instantaneous causes (E-stop, overrun, encoder step) is present; the latched record
+//! keeps the first cause and a set of every kind seen since.
+
+use super::config::{MasterSource, RuntimeCoeffs};
+use super::controller::{ControlInputs, Controller};
+use super::encoder::{plausible, step};
+use super::fault::{Fault, FaultRecord, FaultSet};
+use super::io::{Board, EncoderSample};
+use super::stall::StallMonitor;
+use super::timing::TickTiming;
+use crate::q::sat_i32;
+use crate::units::{Counts, DacCode, Master, PosUm, PressureBar};
+
+/// Why the runtime is holding.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum HoldReason {
+    /// A Hold command.
+    Commanded,
+    /// The master passed the end of the table.
+    EndOfTable,
+}
+
+/// Runtime state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum State {
+    /// Not controlling: valves at null, enable off.
+    Idle,
+    /// Slaves follow the master through the law.
+    Following,
+    /// Slaves hold the table position of a frozen master.
+    Holding(HoldReason),
+    /// Latched fault: valves at null, enable off.
+    Fault,
+}
+
+/// A command to the runtime (from the host link; applied at the next tick).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Command {
+    /// Idle → Following; Holding (commanded) → Following.
+    Start,
+    /// Idle or Following → Holding.
+    Hold,
+    /// Following or Holding → Idle (valves to null, enable off).
+    Stop,
+    /// Fault → Idle, if the cause is gone.
+    ClearFault,
+}
+
+/// Why a command was refused (nothing changed).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CommandError {
+    /// No control law is installed.
+    NoController,
+    /// The runtime is in Fault: clear it first.
+    Faulted,
+    /// ClearFault while a cause is still present.
+    CauseActive(Fault),
+    /// Resume refused: the master moved more than the resume window while holding.
+    MasterMoved,
+    /// Resume refused: holding at the end of the table.
+    EndOfTable,
+    /// A new law can only be installed in Idle, Fault or at the end of the table.
+    Busy,
+}
+
+/// Whether the board came out of a watchdog reset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BootCause {
+    /// Power-on, pin or software reset: start in Idle.
+    Normal,
+    /// Independent-watchdog reset: start latched in `Fault::Watchdog`.
+    Watchdog,
+}
+
+/// Everything sampled at the start of a period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Sample<const S: usize, const P: usize> {
+    /// Encoder counts.
+    pub enc: EncoderSample<S>,
+    /// Chamber pressures, bar.
+    pub pressure_bar: [PressureBar; P],
+    /// E-stop input active.
+    pub estop: bool,
+    /// The scheduler saw the previous tick overrun (or a skipped period).
+    pub overrun: bool,
+}
+
+/// What one tick writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TickOutputs<const S: usize> {
+    /// Valve codes.
+    pub dac: [DacCode; S],
+    /// Valve-power enable.
+    pub enable: bool,
+    /// The answer to this tick's command, if there was one.
+    pub reply: Option<Result<(), CommandError>>,
+}
+
+/// A snapshot of the runtime for status and telemetry (updated every tick).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Status<const S: usize, const P: usize> {
+    /// Tick counter (wraps).
+    pub tick: u32,
+    /// State.
+    pub state: State,
+    /// Latched first fault.
+    pub fault: Option<FaultRecord>,
+    /// Every fault kind seen since the latch.
+    pub fault_set: FaultSet,
+    /// Master as fed to the law (frozen while holding), master counts.
+    pub master: Master,
+    /// Measured slave positions, µm.
+    pub pos_um: [PosUm; S],
+    /// Targets (position + error while controlling, else the position), µm.
+    pub target_um: [PosUm; S],
+    /// Following errors (0 when not controlling), µm.
+    pub error_um: [PosUm; S],
+    /// Valve codes written.
+    pub dac: [DacCode; S],
+    /// Valve-power enable written.
+    pub enable: bool,
+    /// E-stop input.
+    pub estop: bool,
+    /// Chamber pressures, bar.
+    pub pressure_bar: [PressureBar; P],
+    /// Tick execution time.
+    pub timing: TickTiming,
+}
+
+/// The runtime: states, fault rules and outputs around a control law `C`.
+#[derive(Clone, Debug)]
+pub struct Runtime<C, const S: usize, const P: usize> {
+    cfg: RuntimeCoeffs<S>,
+    law: Option<C>,
+    state: State,
+    fault: Option<FaultRecord>,
+    fault_set: FaultSet,
+    prev_enc: Option<EncoderSample<S>>,
+    time_master: i64,
+    held_master: Master,
+    stall: StallMonitor,
+    status: Status<S, P>,
+}
+
+/// Slave position from a count: `count · scale + offset` (scale in Q.32, result I24F8).
+#[inline]
+fn pos_from_counts(c: Counts, scale_q32: i64, offset: PosUm) -> PosUm {
+    // Saturating: a product beyond i64 is a position far outside the I24F8 range anyway.
+    let q8 = i64::from(c.0).saturating_mul(scale_q32).wrapping_shr(24);
+    PosUm::from_bits(sat_i32(q8)).saturating_add(offset)
+}
+
+impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
+    /// A runtime in Idle (or latched in `Fault::Watchdog` after a watchdog reset).
+    pub fn new(cfg: RuntimeCoeffs<S>, law: Option<C>, boot: BootCause) -> Self {
+        let mut rt = Self {
+            cfg,
+            law,
+            state: State::Idle,
+            fault: None,
+            fault_set: FaultSet::EMPTY,
+            prev_enc: None,
+            time_master: 0,
+            held_master: Master::ZERO,
+            stall: StallMonitor::default(),
+            status: Status {
+                tick: 0,
+                state: State::Idle,
+                fault: None,
+                fault_set: FaultSet::EMPTY,
+                master: Master::ZERO,
+                pos_um: [PosUm::ZERO; S],
+                target_um: [PosUm::ZERO; S],
+                error_um: [PosUm::ZERO; S],
+                dac: [DacCode::NULL; S],
+                enable: false,
+                estop: false,
+                pressure_bar: [PressureBar::ZERO; P],
+                timing: TickTiming::default(),
+            },
+        };
+        rt.status.dac = rt.null_codes();
+        if boot == BootCause::Watchdog {
+            rt.raise(Fault::Watchdog);
+            rt.status.state = rt.state;
+            rt.status.fault = rt.fault;
+            rt.status.fault_set = rt.fault_set;
+        }
+        rt
+    }
+
+    /// Current state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// The latched fault, if any.
+    pub fn fault(&self) -> Option<FaultRecord> {
+        self.fault
+    }
+
+    /// The latest status snapshot.
+    pub fn status(&self) -> &Status<S, P> {
+        &self.status
+    }
+
+    /// The configuration in use.
+    pub fn coeffs(&self) -> &RuntimeCoeffs<S> {
+        &self.cfg
+    }
+
+    /// The installed law.
+    pub fn law(&self) -> Option<&C> {
+        self.law.as_ref()
+    }
+
+    /// The installed law, mutable (e.g. to change gains between runs).
+    pub fn law_mut(&mut self) -> Option<&mut C> {
+        self.law.as_mut()
+    }
+
+    /// Records the execution time of the tick that just ran (cycles).
+    pub fn record_tick_cycles(&mut self, cycles: u32) {
+        self.status.timing.record(cycles);
+    }
+
+    /// Clears the timing statistics.
+    pub fn reset_timing(&mut self) {
+        self.status.timing.reset();
+    }
+
+    /// Whether a new law may be installed now: Idle, Fault, or holding at table end.
+    pub fn at_safe_point(&self) -> bool {
+        matches!(
+            self.state,
+            State::Idle | State::Fault | State::Holding(HoldReason::EndOfTable)
+        )
+    }
+
+    /// Installs a new law at a safe point and returns the old one. Holding at the end
+    /// of the table goes to Idle (valves to null at the next tick).
+    pub fn install(&mut self, law: C) -> Result<Option<C>, CommandError> {
+        if !self.at_safe_point() {
+            return Err(CommandError::Busy);
+        }
+        if matches!(self.state, State::Holding(_)) {
+            self.state = State::Idle;
+        }
+        Ok(self.law.replace(law))
+    }
+
+    /// Replaces the configuration (allowed in Idle and Fault only).
+    pub fn set_coeffs(&mut self, cfg: RuntimeCoeffs<S>) -> Result<(), CommandError> {
+        if !matches!(self.state, State::Idle | State::Fault) {
+            return Err(CommandError::Busy);
+        }
+        self.cfg = cfg;
+        self.prev_enc = None;
+        Ok(())
+    }
+
+    /// Every valve's null code (the law's calibration, or mid-scale without a law).
+    pub fn null_codes(&self) -> [DacCode; S] {
+        self.law
+            .as_ref()
+            .map_or([DacCode::NULL; S], Controller::null_codes)
+    }
+
+    fn raise(&mut self, f: Fault) {
+        self.fault_set.insert(f);
+        if self.state != State::Fault {
+            self.state = State::Fault;
+            self.fault = Some(FaultRecord {
+                fault: f,
+                tick: self.status.tick,
+            });
+        }
+    }
+
+    fn master_from(&self, enc: Counts) -> Master {
+        let c = i64::from(enc.0);
+        let c = if self.cfg.master_invert {
+            c.saturating_neg()
+        } else {
+            c
+        };
+        match self.cfg.master_source {
+            // |c| ≤ 2^31: c·2^16 fits i64.
+            MasterSource::Encoder => Master::from_bits(c.wrapping_shl(16)),
+            MasterSource::Time => Master::from_bits(self.time_master.saturating_mul(1 << 16)),
+        }
+    }
+
+    /// Latches every instantaneous cause of this sample and returns the first one.
+    fn latch_causes(&mut self, s: &Sample<S, P>) -> Option<Fault> {
+        let mut first = None;
+        let mut cause = |rt: &mut Self, f: Fault| {
+            rt.raise(f);
+            first.get_or_insert(f);
+        };
+        if s.estop {
+            cause(self, Fault::EStop);
+        }
+        if s.overrun {
+            cause(self, Fault::Overrun);
+        }
+        if let Some(prev) = self.prev_enc {
+            let master_used = self.cfg.master_source == MasterSource::Encoder;
+            if master_used
+                && !plausible(step(prev.master, s.enc.master), self.cfg.master_step_limit)
+            {
+                cause(self, Fault::EncoderJump { channel: 0 });
+            }
+            let limits = self.cfg.slave_step_limit;
+            let slaves = prev
+                .slaves
+                .iter()
+                .zip(s.enc.slaves.iter())
+                .zip(limits.iter());
+            for (i, ((&a, &b), &lim)) in slaves.enumerate() {
+                if !plausible(step(a, b), lim) {
+                    let channel = u8::try_from(i.saturating_add(1)).unwrap_or(u8::MAX);
+                    cause(self, Fault::EncoderJump { channel });
+                }
+            }
+        }
+        self.prev_enc = Some(s.enc);
+        first
+    }
+
+    fn begin_control(&mut self, inputs: &ControlInputs<S>) {
+        if let Some(law) = self.law.as_mut() {
+            law.restart(inputs);
+        }
+        self.stall.reset(inputs.master);
+    }
+
+    fn command(
+        &mut self,
+        cmd: Command,
+        master: Master,
+        pos_um: &[PosUm; S],
+        first_cause: Option<Fault>,
+    ) -> Result<(), CommandError> {
+        let has_law = self.law.is_some();
+        match (cmd, self.state) {
+            (Command::ClearFault, State::Fault) => match first_cause {
+                Some(f) => Err(CommandError::CauseActive(f)),
+                None => {
+                    self.state = State::Idle;
+                    self.fault = None;
+                    self.fault_set = FaultSet::EMPTY;
+                    Ok(())
+                }
+            },
+            (Command::ClearFault | Command::Stop, _) => {
+                if matches!(self.state, State::Following | State::Holding(_)) {
+                    self.state = State::Idle;
+                }
+                Ok(())
+            }
+            (Command::Start | Command::Hold, State::Fault) => Err(CommandError::Faulted),
+            (Command::Start | Command::Hold, _) if !has_law => Err(CommandError::NoController),
+            (Command::Start, State::Following) | (Command::Hold, State::Holding(_)) => Ok(()),
+            (Command::Start | Command::Hold, State::Idle) => {
+                self.time_master = 0;
+                let m = if self.cfg.master_source == MasterSource::Time {
+                    Master::ZERO
+                } else {
+                    master
+                };
+                self.begin_control(&ControlInputs {
+                    master: m,
+                    pos_um: *pos_um,
+                });
+                if cmd == Command::Start {
+                    self.state = State::Following;
+                } else {
+                    self.held_master = m;
+                    self.state = State::Holding(HoldReason::Commanded);
+                }
+                Ok(())
+            }
+            (Command::Start, State::Holding(HoldReason::EndOfTable)) => {
+                Err(CommandError::EndOfTable)
+            }
+            (Command::Start, State::Holding(HoldReason::Commanded)) => {
+                if master.saturating_sub(self.held_master).unsigned_abs()
+                    > self.cfg.resume_window_counts
+                {
+                    return Err(CommandError::MasterMoved);
+                }
+                self.stall.reset(master);
+                self.state = State::Following;
+                Ok(())
+            }
+            (Command::Hold, State::Following) => {
+                self.held_master = master;
+                self.state = State::Holding(HoldReason::Commanded);
+                Ok(())
+            }
+        }
+    }
+
+    /// One control period (see the module docs for the order of operations).
+    pub fn step(&mut self, s: &Sample<S, P>, cmd: Option<Command>) -> TickOutputs<S> {
+        self.status.tick = self.status.tick.wrapping_add(1);
+        if s.overrun {
+            self.status.timing.record_overrun();
+        }
+
+        // 1. positions.
+        let mut pos_um = [PosUm::ZERO; S];
+        let axes = s
+            .enc
+            .slaves
+            .iter()
+            .zip(self.cfg.slave_scale_q32.iter())
+            .zip(self.cfg.slave_offset_um.iter());
+        for (p, ((&c, &k), &off)) in pos_um.iter_mut().zip(axes) {
+            *p = pos_from_counts(c, k, off);
+        }
+        let live_master = self.master_from(s.enc.master);
+
+        // 2. instantaneous causes latch at once.
+        let first_cause = self.latch_causes(s);
+
+        // 3. the command.
+        let reply = cmd.map(|c| self.command(c, live_master, &pos_um, first_cause));
+
+        // 4. control.
+        let mut error_um = [PosUm::ZERO; S];
+        let mut law_dac = None;
+        let mut fed_master = live_master;
+        if matches!(self.state, State::Following | State::Holding(_)) {
+            if self.cfg.master_source == MasterSource::Time {
+                fed_master = self.master_from(s.enc.master);
+            }
+            if matches!(self.state, State::Holding(_)) {
+                fed_master = self.held_master;
+            }
+            let inputs = ControlInputs {
+                master: fed_master,
+                pos_um,
+            };
+            if let Some(law) = self.law.as_mut() {
+                let out = law.tick(&inputs);
+                error_um = out.error_um;
+                law_dac = Some(out.dac);
+                self.check_law(&out.error_um, &out.axis_fault);
+                if self.state == State::Following {
+                    if out.end_of_table {
+                        self.held_master = fed_master;
+                        self.state = State::Holding(HoldReason::EndOfTable);
+                    } else if self.cfg.master_source == MasterSource::Encoder
+                        && self.stall.update(
+                            fed_master,
+                            self.cfg.stall_min_move_counts,
+                            self.cfg.stall_timeout_ticks,
+                        )
+                    {
+                        self.raise(Fault::MasterStalled);
+                    }
+                }
+            }
+            if self.state == State::Following && self.cfg.master_source == MasterSource::Time {
+                self.time_master = self.time_master.saturating_add(1);
+            }
+        }
+
+        // 5. outputs.
+        let controlling = matches!(self.state, State::Following | State::Holding(_));
+        let (dac, enable) = match (controlling, law_dac) {
+            (true, Some(d)) => (d, true),
+            _ => (self.null_codes(), false),
+        };
+        if !controlling {
+            error_um = [PosUm::ZERO; S];
+        }
+        let st = &mut self.status;
+        st.state = self.state;
+        st.fault = self.fault;
+        st.fault_set = self.fault_set;
+        st.master = fed_master;
+        st.pos_um = pos_um;
+        for ((t, &p), &e) in st
+            .target_um
+            .iter_mut()
+            .zip(pos_um.iter())
+            .zip(error_um.iter())
+        {
+            *t = p.saturating_add(e);
+        }
+        st.error_um = error_um;
+        st.dac = dac;
+        st.enable = enable;
+        st.estop = s.estop;
+        st.pressure_bar = s.pressure_bar;
+        TickOutputs { dac, enable, reply }
+    }
+
+    fn check_law(&mut self, error_um: &[PosUm; S], axis_fault: &[bool; S]) {
+        let per_axis = error_um
+            .iter()
+            .zip(axis_fault.iter())
+            .zip(self.cfg.following_error_limit_um.iter());
+        let mut raised = [None; 2];
+        for (i, ((e, &flt), lim)) in per_axis.enumerate() {
+            let axis = u8::try_from(i).unwrap_or(u8::MAX);
+            let [fe, ctl] = &mut raised;
+            if e.unsigned_abs() > lim.unsigned_abs() {
+                fe.get_or_insert(Fault::FollowingError { axis });
+            }
+            if flt {
+                ctl.get_or_insert(Fault::Controller { axis });
+            }
+        }
+        for f in raised.into_iter().flatten() {
+            self.raise(f);
+        }
+    }
+
+    /// One period on a board: latch the encoders, read the E-stop and the pressures,
+    /// [`Runtime::step`], write the valves then the enable. Returns the command's reply.
+    pub fn tick_io<B: Board<S, P>>(
+        &mut self,
+        board: &mut B,
+        cmd: Option<Command>,
+        overrun: bool,
+    ) -> Option<Result<(), CommandError>> {
+        let enc = board.latch();
+        let estop = board.estop_active();
+        let pressure_bar = super::io::PressureInput::read(board);
+        let out = self.step(
+            &Sample {
+                enc,
+                pressure_bar,
+                estop,
+                overrun,
+            },
+            cmd,
+        );
+        board.write(&out.dac);
+        board.set_enable(out.enable);
+        out.reply
+    }
+}
