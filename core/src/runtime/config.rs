@@ -49,6 +49,9 @@ pub struct RuntimeConfig<const S: usize> {
     /// The master "moves" if it changes by at least this many counts (≥ 1) within the
     /// stall timeout.
     pub stall_min_move_counts: u32,
+    /// A master standing still within this distance of either end of the law's master
+    /// span (or beyond it) is not a stall, master counts.
+    pub stall_end_window_counts: u32,
     /// Holding → Following is refused if the master moved more than this while holding,
     /// master counts.
     pub resume_window_counts: u32,
@@ -69,6 +72,7 @@ impl<const S: usize> Default for RuntimeConfig<S> {
             following_error_limit_um: [2_000.0; S],
             stall_timeout_s: 1.0,
             stall_min_move_counts: 10,
+            stall_end_window_counts: 100,
             resume_window_counts: 100,
         }
     }
@@ -135,6 +139,8 @@ pub struct RuntimeCoeffs<const S: usize> {
     pub stall_timeout_ticks: u32,
     /// Stall movement threshold, master counts.
     pub stall_min_move_counts: u32,
+    /// Stall end window, master counts.
+    pub stall_end_window_counts: u32,
     /// Resume window, master counts.
     pub resume_window_counts: u32,
 }
@@ -188,6 +194,7 @@ impl<const S: usize> RuntimeConfig<S> {
             following_error_limit_um: [I24F8::ZERO; S],
             stall_timeout_ticks: 0,
             stall_min_move_counts: self.stall_min_move_counts,
+            stall_end_window_counts: self.stall_end_window_counts,
             resume_window_counts: self.resume_window_counts,
         };
         let axes = self

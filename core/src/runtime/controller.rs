@@ -30,8 +30,18 @@ pub struct ControlOutputs<const S: usize> {
     pub error_um: [PosUm; S],
     /// The master has passed the end of the table: the slaves hold the final position.
     pub end_of_table: bool,
-    /// A slave the law itself considers faulted (the runtime latches `Fault::Controller`).
-    pub axis_fault: [bool; S],
+    /// A slave the law itself considers faulted (the runtime latches the fault).
+    pub axis_fault: [Option<LawFault>; S],
+}
+
+/// A fault the law reports on one slave.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LawFault {
+    /// The law's own following-error limit (latched as `Fault::FollowingError`).
+    FollowingError,
+    /// Anything else (latched as `Fault::Controller`).
+    Other,
 }
 
 impl<const S: usize> ControlOutputs<S> {
@@ -41,7 +51,7 @@ impl<const S: usize> ControlOutputs<S> {
             dac,
             error_um: [PosUm::ZERO; S],
             end_of_table: false,
-            axis_fault: [false; S],
+            axis_fault: [None; S],
         }
     }
 }
@@ -58,6 +68,12 @@ pub trait Controller<const S: usize> {
     /// The code that puts each slave's valve spool at its null (the calibrated safe
     /// output written in Idle and Fault).
     fn null_codes(&self) -> [DacCode; S];
+
+    /// The master range the law covers (first, last), if it has one: a master standing
+    /// still within `stall_end_window_counts` of either end is not a stall.
+    fn master_span(&self) -> Option<(Master, Master)> {
+        None
+    }
 }
 
 #[cfg(test)]
@@ -76,7 +92,7 @@ pub(crate) mod mock {
         /// Master value past which `end_of_table` is reported.
         pub end_master: i64,
         /// Slaves reported as faulted.
-        pub axis_fault: [bool; S],
+        pub axis_fault: [Option<LawFault>; S],
         /// Valve nulls.
         pub nulls: [DacCode; S],
         /// How many times `restart` was called.
@@ -89,7 +105,7 @@ pub(crate) mod mock {
                 ratio: 1,
                 gain: 2,
                 end_master: 1 << 40,
-                axis_fault: [false; S],
+                axis_fault: [None; S],
                 nulls: [DacCode::new_clamped(7); S],
                 restarts: 0,
             }

@@ -21,15 +21,17 @@
 //!    Fault write every valve's null code with the enable off — in the very tick a fault
 //!    is detected, whatever the law computed.
 //!
-//! Holding feeds the law the master frozen at the moment of the hold, so every slave
-//! holds the table position of that master; Start resumes only if the live master is
-//! still within `resume_window_counts` of it (otherwise the target would jump). A fault
+//! A commanded hold feeds the law the master frozen at the moment of the hold, so every
+//! slave holds the table position of that master; Start resumes only if the live master
+//! is still within `resume_window_counts` of it (otherwise the target would jump). At
+//! the end of the table the law keeps getting the live master: holding the final
+//! position is the law's own end-of-table behaviour (SPEC §A step 8). A fault
 //! leaves `Fault` only through `ClearFault`, and only in a tick where none of its
 //! instantaneous causes (E-stop, overrun, encoder step) is present; the latched record
 //! keeps the first cause and a set of every kind seen since.
 
 use super::config::{MasterSource, RuntimeCoeffs};
-use super::controller::{ControlInputs, Controller};
+use super::controller::{ControlInputs, Controller, LawFault};
 use super::encoder::{plausible, step};
 use super::fault::{Fault, FaultRecord, FaultSet};
 use super::io::{Board, EncoderSample};
@@ -363,6 +365,18 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         first
     }
 
+    /// Whether `m` is within the end window of the law's master span.
+    fn near_table_end(&self, m: Master) -> bool {
+        let w = self.cfg.stall_end_window_counts;
+        let span = self.law.as_ref().and_then(Controller::master_span);
+        span.is_some_and(|(first, last)| {
+            m.saturating_sub(first).unsigned_abs() <= w
+                || m.saturating_sub(last).unsigned_abs() <= w
+                || m < first
+                || m > last
+        })
+    }
+
     fn begin_control(&mut self, inputs: &ControlInputs<S>) {
         if let Some(law) = self.law.as_mut() {
             law.restart(inputs);
@@ -471,7 +485,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             if self.cfg.master_source == MasterSource::Time {
                 fed_master = self.master_from(s.enc.master);
             }
-            if matches!(self.state, State::Holding(_)) {
+            if self.state == State::Holding(HoldReason::Commanded) {
                 fed_master = self.held_master;
             }
             let inputs = ControlInputs {
@@ -493,6 +507,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                             self.cfg.stall_min_move_counts,
                             self.cfg.stall_timeout_ticks,
                         )
+                        && !self.near_table_end(fed_master)
                     {
                         self.raise(Fault::MasterStalled);
                     }
@@ -534,20 +549,26 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         TickOutputs { dac, enable, reply }
     }
 
-    fn check_law(&mut self, error_um: &[PosUm; S], axis_fault: &[bool; S]) {
+    fn check_law(&mut self, error_um: &[PosUm; S], axis_fault: &[Option<LawFault>; S]) {
         let per_axis = error_um
             .iter()
             .zip(axis_fault.iter())
             .zip(self.cfg.following_error_limit_um.iter());
         let mut raised = [None; 2];
-        for (i, ((e, &flt), lim)) in per_axis.enumerate() {
+        for (i, ((e, flt), lim)) in per_axis.enumerate() {
             let axis = u8::try_from(i).unwrap_or(u8::MAX);
             let [fe, ctl] = &mut raised;
             if e.unsigned_abs() > lim.unsigned_abs() {
                 fe.get_or_insert(Fault::FollowingError { axis });
             }
-            if flt {
-                ctl.get_or_insert(Fault::Controller { axis });
+            match flt {
+                Some(LawFault::FollowingError) => {
+                    fe.get_or_insert(Fault::FollowingError { axis });
+                }
+                Some(LawFault::Other) => {
+                    ctl.get_or_insert(Fault::Controller { axis });
+                }
+                None => {}
             }
         }
         for f in raised.into_iter().flatten() {

@@ -8,7 +8,8 @@
 //!   the per-tick order of operations;
 //! - [`fault`]: fault causes and their 16-bit codes (table there);
 //! - [`config`]: limits in engineering units → per-tick integers;
-//! - [`controller`]: the trait the control law implements;
+//! - [`controller`]: the trait the control law implements; [`follower_law`]: the SPEC §A
+//!   follower behind it;
 //! - [`io`]: the traits a board implements (encoders, pressures, E-stop, valves);
 //! - [`encoder`]: 16 → 32-bit counter extension and the plausibility check;
 //! - [`stall`]: master-stall detection; [`timing`]: tick execution-time statistics;
@@ -18,6 +19,7 @@ pub mod config;
 pub mod controller;
 pub mod encoder;
 pub mod fault;
+pub mod follower_law;
 pub mod io;
 pub mod machine;
 pub mod pressure;
@@ -28,7 +30,7 @@ pub mod timing;
 mod tests;
 
 pub use config::{MasterSource, RuntimeCoeffs, RuntimeConfig, RuntimeConfigError};
-pub use controller::{ControlInputs, ControlOutputs, Controller};
+pub use controller::{ControlInputs, ControlOutputs, Controller, LawFault};
 pub use fault::{Fault, FaultKind, FaultRecord, FaultSet};
 pub use io::{Board, EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};
 pub use machine::{

@@ -239,11 +239,11 @@ fn end_of_table_holds_and_refuses_resume() {
 fn controller_fault_and_overrun() {
     let mut r = rt();
     r.step(&sample(0, [0, 0]), Some(Command::Start));
-    r.law_mut().unwrap().axis_fault = [false, true];
+    r.law_mut().unwrap().axis_fault = [None, Some(LawFault::Other)];
     let out = r.step(&sample(0, [0, 0]), None);
     assert_eq!(r.fault().unwrap().fault, Fault::Controller { axis: 1 });
     assert_eq!(out.dac, nulls());
-    r.law_mut().unwrap().axis_fault = [false; 2];
+    r.law_mut().unwrap().axis_fault = [None; 2];
     r.step(&sample(0, [0, 0]), Some(Command::ClearFault));
     let mut s = sample(0, [0, 0]);
     s.overrun = true;
@@ -376,7 +376,7 @@ proptest! {
             let slaves = [master.wrapping_add(e.slave_dev[0]), master.wrapping_add(e.slave_dev[1])];
             {
                 let law = r.law_mut().unwrap();
-                law.axis_fault = [e.law_fault, false];
+                law.axis_fault = [e.law_fault.then_some(LawFault::Other), None];
                 law.end_master = if e.end { i64::MIN } else { 1 << 40 };
             }
             let mut s = sample(master, slaves);

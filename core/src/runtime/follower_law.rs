@@ -1,0 +1,173 @@
+//! The SPEC §A follower ([`Follower`]) as the runtime's control law.
+//!
+//! | runtime | follower |
+//! |---|---|
+//! | [`Controller::restart`] | [`Follower::restart`] + [`Follower::clear_faults`] (a new run starts clean: the runtime only restarts a law after Idle, i.e. after any fault was cleared) |
+//! | [`Controller::tick`] | [`Follower::tick`]; `dac`, `error_um`, `end_of_table` pass through, `AxisFault::FollowingError` → [`LawFault::FollowingError`] |
+//! | [`Controller::null_codes`] | [`Follower::safe_outputs`] (each axis' calibrated valve null) |
+//! | [`Controller::master_span`] | the table's first and last master values |
+//!
+//! The follower's own period (`FollowerConfig::period_us`) must equal the runtime's
+//! (`RuntimeConfig::period_us`); the board builds both from one constant. Its master-jump
+//! flag is not mapped: the runtime's encoder plausibility check is stricter.
+
+use super::controller::{ControlInputs, ControlOutputs, Controller, LawFault};
+use crate::follower::{AxisFault, Follower, FollowerInputs};
+use crate::units::{DacCode, Master};
+
+impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
+    fn restart(&mut self, _inputs: &ControlInputs<S>) {
+        Follower::restart(self);
+        self.clear_faults();
+    }
+
+    #[inline]
+    fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S> {
+        let out = Follower::tick(
+            self,
+            &FollowerInputs {
+                master: inputs.master,
+                pos_um: inputs.pos_um,
+            },
+        );
+        ControlOutputs {
+            dac: out.dac,
+            error_um: out.error_um,
+            end_of_table: out.end_of_table,
+            axis_fault: out.fault.map(|f| {
+                f.map(|f| match f {
+                    AxisFault::FollowingError => LawFault::FollowingError,
+                })
+            }),
+        }
+    }
+
+    fn null_codes(&self) -> [DacCode; S] {
+        self.safe_outputs()
+    }
+
+    fn master_span(&self) -> Option<(Master, Master)> {
+        Some((self.table().master_first(), self.table().master_last()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::*;
+    use crate::axis::AxisConfig;
+    use crate::follower::{Follower, FollowerConfig};
+    use crate::table::{AxisLimits, CamTable, Node, TableLimits};
+    use crate::units::{Counts, Master, MasterRate, PosUm, PressureBar, VelUmPerS};
+    use crate::valve::ValveCal;
+    use std::vec::Vec;
+
+    /// x = 20 mm + 5 µm per master count over 0 … 10 000 counts (one slave).
+    fn follower() -> Follower<1, 16> {
+        let nodes: Vec<Node<1>> = (0..=10)
+            .map(|j| Node {
+                master: Master::from_num(j * 1000),
+                slave_um: [PosUm::from_num(20_000 + j * 5000)],
+            })
+            .collect();
+        let limits = TableLimits {
+            master_speed_per_s: MasterRate::from_num(10_000),
+            axes: [AxisLimits {
+                min_um: PosUm::from_num(0),
+                max_um: PosUm::from_num(500_000),
+                max_speed_um_per_s: VelUmPerS::from_num(100_000),
+            }],
+        };
+        let table = CamTable::try_from_nodes(&nodes, &limits).unwrap();
+        let cfg = FollowerConfig {
+            axes: [AxisConfig {
+                kp_lsb_per_um: 0.5,
+                following_error_um: 3000.0,
+                valve: ValveCal {
+                    null_lsb: -12.0,
+                    ..ValveCal::default()
+                },
+                ..AxisConfig::default()
+            }],
+            ..FollowerConfig::default()
+        };
+        Follower::new(&cfg, table).unwrap()
+    }
+
+    fn sample(master: i32, slave: i32) -> Sample<1, 0> {
+        Sample {
+            enc: EncoderSample {
+                master: Counts(master),
+                slaves: [Counts(slave)],
+            },
+            pressure_bar: [PressureBar::ZERO; 0],
+            estop: false,
+            overrun: false,
+        }
+    }
+
+    #[test]
+    fn runs_the_follower_to_the_end_of_the_table() {
+        let cfg = RuntimeConfig::<1>::default().build().unwrap();
+        let mut r: Runtime<Follower<1, 16>, 1, 0> =
+            Runtime::new(cfg, Some(follower()), BootCause::Normal);
+        assert_eq!(r.null_codes()[0].get(), -12);
+        let out = r.step(&sample(0, 20_000), None);
+        assert_eq!(out.dac[0].get(), -12, "idle writes the calibrated null");
+        // Integrating plant, 1 µm per 4 LSB above null per tick; master 2 counts/tick.
+        let mut x = 20_000i64;
+        let mut cmd = Some(Command::Start);
+        let mut worst = 0i64;
+        for k in 0..6000i64 {
+            let m = (k * 2).min(10_500);
+            let out = r.step(&sample(m as i32, x as i32), cmd.take());
+            x += i64::from(out.dac[0].get() + 12) / 4;
+            if (200..5000).contains(&k) {
+                let target = 20_000 + 5 * m.min(10_000);
+                worst = worst.max((target - x).abs());
+            }
+        }
+        assert_eq!(
+            r.state(),
+            State::Holding(HoldReason::EndOfTable),
+            "{:?}",
+            r.fault()
+        );
+        assert!(worst < 100, "worst error {worst} µm");
+        assert!((x - 70_000).abs() < 30, "held at {x}");
+        // Standing still at the end for longer than the stall timeout: no fault.
+        for _ in 0..3000 {
+            r.step(&sample(10_500, x as i32), None);
+        }
+        assert_eq!(r.state(), State::Holding(HoldReason::EndOfTable));
+    }
+
+    #[test]
+    fn the_followers_own_limit_latches_a_following_error() {
+        let cfg = RuntimeConfig::<1> {
+            following_error_limit_um: [1.0e6],
+            ..Default::default()
+        };
+        let mut r: Runtime<Follower<1, 16>, 1, 0> =
+            Runtime::new(cfg.build().unwrap(), Some(follower()), BootCause::Normal);
+        r.step(&sample(0, 20_000), Some(Command::Start));
+        // Slave 4 mm off (follower limit 3 mm), moving 1000 counts a tick (plausible).
+        for (k, x) in [21_000, 22_000, 23_000, 24_000].iter().enumerate() {
+            r.step(&sample(0, *x), None);
+            if k < 2 {
+                assert_eq!(r.state(), State::Following);
+            }
+        }
+        let rec = r.fault().unwrap();
+        assert_eq!(rec.fault, Fault::FollowingError { axis: 0 });
+        assert_eq!(r.status().dac[0].get(), -12);
+        // Clear, restart: the follower's latched axis fault is cleared too.
+        r.step(&sample(0, 20_000), None);
+        assert_eq!(
+            r.step(&sample(0, 20_000), Some(Command::ClearFault)).reply,
+            Some(Ok(()))
+        );
+        r.step(&sample(0, 20_000), Some(Command::Start));
+        r.step(&sample(0, 20_000), None);
+        assert_eq!(r.state(), State::Following);
+    }
+}
