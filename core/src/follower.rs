@@ -134,6 +134,9 @@ pub struct Follower<const S: usize, const N: usize> {
     cur_pred: usize,
     rt: [AxisRt; S],
     ended: bool,
+    /// Which end `ended` latched at (true: the last node): fixed while ended, so a master
+    /// estimate ringing through zero speed after the end cannot swap the held position.
+    end_high: bool,
 }
 
 impl<const S: usize, const N: usize> Follower<S, N> {
@@ -162,6 +165,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             cur_pred: 0,
             rt: [AxisRt::default(); S],
             ended: false,
+            end_high: true,
         })
     }
 
@@ -224,6 +228,9 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         if (rate > 0 && inp.master >= t.master_last())
             || (rate < 0 && inp.master < t.master_first())
         {
+            if !self.ended {
+                self.end_high = rate > 0;
+            }
             self.ended = true;
         }
         let lk_now = t.locate(&mut self.cur_now, now.pos);
@@ -242,7 +249,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         for (i, (c, rt)) in self.axes.iter().zip(self.rt.iter_mut()).enumerate() {
             let x = inp.pos_um.get(i).copied().unwrap_or(PosUm::ZERO);
             let target = if self.ended {
-                let end = if hold_high {
+                let end = if self.end_high {
                     t.master_last()
                 } else {
                     t.master_first()
