@@ -1,0 +1,289 @@
+//! The real-time adaptive contour-error estimator (SPEC §C, steps 2–6).
+//!
+//! Given the actual point P and a [`ContourWindow`]:
+//!
+//! 1. **Nearest ordinary point** S_m: a linear scan of the window, |P − S_k|² (N
+//!    evaluations).
+//! 2. **Segment choice**: the distances from P to (S_{m−1}, S_m) and (S_m, S_{m+1})
+//!    (whichever exist); the nearer one holds the foot point.
+//! 3. **Bisection** over that segment's extra points E_0 = S_a, E_1 … E_h, E_{h+1} = S_b:
+//!    with lo = 0, hi = h + 1, while hi − lo ≥ 2, mid = ⌊(lo + hi)/2⌋ and
+//!    `(P − E_mid)·(E_hi − E_lo) ≥ 0 ? lo = mid : hi = mid` — the foot lies beyond E_mid
+//!    when P projects forward of it on the local chord direction (for a circle the
+//!    chord E_lo→E_hi is exactly parallel to the tangent at a midpoint). Each step halves
+//!    hi − lo, so it stops after at most ⌈log₂(h + 1)⌉ ≤ ⌈log₂(H + 1)⌉ steps
+//!    ([`max_bisection_steps`]) for *any* window contents.
+//! 4. **Final chord** (E_lo, E_hi): the distance from P to it is |ε|, the perpendicular's
+//!    foot (clamped to the chord) is the foot point F.
+//! 5. **Sign**: ε = |ε|·sgn(N·(P − F)) with N the right-hand normal of the final chord
+//!    (its direction of travel turned −90°): **ε > 0 when P lies to the right of the
+//!    path**. This is SPEC §D's convention, ε ≈ −C1·E1 + C2·E2 with E = V − P, so the
+//!    cross-coupled controller can use it as is.
+//!
+//! **Worst case per call** (`N` ordinary points, `H` extra points per segment): N squared
+//! distances (2 subtractions, 2 `i32×i32→i64` products each), 3 segment distances (each
+//! one normalisation = one `u64` integer square root + one 64-bit division, and at most
+//! one more square root), ⌈log₂(H + 1)⌉ bisection steps (6 subtractions and 2 products
+//! each). No allocation, no float, no panic; the window is only read.
+
+use super::fx::clamp_to_i32;
+use super::geom::{dot, norm2, rel, seg_dist, sub, SegDist};
+use super::window::{ContourWindow, OrdinaryPoint};
+use super::{PosFine, RelUm, UnitQ30, Xy};
+use crate::units::PosUm;
+
+/// The result of one estimate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ContourEstimate {
+    /// Signed contour error ε, µm (`I20F12`, 0.24 nm, ±524 mm): > 0 when the actual point
+    /// is to the right of the path's direction of travel.
+    pub eps_um: RelUm,
+    /// Foot point F on the final chord, µm.
+    pub foot: Xy<PosFine>,
+    /// Unit tangent of the final chord (direction of travel), Q2.30: (cos θ, sin θ) of
+    /// SPEC §D.
+    pub tangent: Xy<UnitQ30>,
+    /// Index (0 = oldest) of the ordinary point ending the chosen segment; 0 when the
+    /// window holds a single point.
+    pub segment: u16,
+    /// Index of the final chord within that segment (0 … h).
+    pub sub_chord: u16,
+    /// Bisection steps taken (≤ [`max_bisection_steps`]).
+    pub bisection_steps: u8,
+    /// P is more than 262 mm from the nearest ordinary point: distances saturated.
+    pub saturated: bool,
+}
+
+impl ContourEstimate {
+    /// ε in the controller's position format (`PosUm`, rounded to 3.9 nm).
+    pub fn eps_pos_um(&self) -> PosUm {
+        PosUm::from_bits(super::fx::shr_round_i64(i64::from(self.eps_um.to_bits()), 4) as i32)
+    }
+}
+
+/// ⌈log₂(h + 1)⌉: the most bisection steps over h extra points.
+pub const fn max_bisection_steps(h: usize) -> u32 {
+    let n = h.saturating_add(1);
+    if n <= 1 {
+        0
+    } else {
+        usize::BITS.wrapping_sub(n.wrapping_sub(1).leading_zeros())
+    }
+}
+
+/// Point k of a segment's bisection sequence: 0 = S_a, h + 1 = S_b (= `d`), else
+/// extra point k (all relative to S_a).
+#[inline]
+fn seq_point(extras: &[Xy<i32>], d: Xy<i32>, k: usize) -> Xy<i32> {
+    if k == 0 {
+        Xy::new(0, 0)
+    } else {
+        match extras.get(k.wrapping_sub(1)) {
+            Some(&e) => e,
+            None => d,
+        }
+    }
+}
+
+/// Bisection over a segment's extra points (step 3 of the module docs).
+///
+/// `w` = P − S_a, `d` = S_b − S_a, `extras` relative to S_a. Returns (lo, hi, steps)
+/// with hi = lo + 1 (or hi = lo = 0 for an empty sequence), `steps` ≤
+/// ⌈log₂(extras.len() + 1)⌉.
+pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usize, u8) {
+    let mut lo = 0usize;
+    let mut hi = extras.len().saturating_add(1);
+    let mut steps = 0u8;
+    // hi − lo halves (rounding up) every step: ⌈log₂(h + 1)⌉ steps; the bound is a
+    // belt-and-braces guard, never reached.
+    for _ in 0..usize::BITS {
+        if hi.wrapping_sub(lo) < 2 {
+            break;
+        }
+        let mid = lo.wrapping_add(hi.wrapping_sub(lo) / 2);
+        let pl = seq_point(extras, d, lo);
+        let ph = seq_point(extras, d, hi);
+        let pm = seq_point(extras, d, mid);
+        if dot(sub(w, pm), sub(ph, pl)) >= 0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        steps = steps.wrapping_add(1);
+    }
+    (lo, hi, steps)
+}
+
+/// The chosen segment: ordinary indices (a, b = a + 1) and P's distance to it.
+pub(crate) struct Choice {
+    pub a: usize,
+    pub seg: SegDist,
+}
+
+impl<const N: usize, const H: usize> ContourWindow<N, H> {
+    /// Raw absolute position of ordinary point `i`.
+    fn pos_raw(&self, i: usize) -> Option<Xy<i64>> {
+        self.point(i).map(|p| p.pos.map(PosFine::to_bits))
+    }
+
+    fn tangent_raw(&self, i: usize) -> Xy<i32> {
+        self.point(i)
+            .map(|p| p.tangent.map(UnitQ30::to_bits))
+            .unwrap_or(Xy::new(0, 0))
+    }
+
+    /// P's distance to the segment (S_a, S_{a+1}).
+    pub(crate) fn segment_distance(&self, p: Xy<i64>, a: usize) -> Option<SegDist> {
+        let sa = self.pos_raw(a)?;
+        let sb = self.pos_raw(a.checked_add(1)?)?;
+        let (w, _) = rel(p, sa);
+        let (d, _) = rel(sb, sa);
+        Some(seg_dist(w, d, self.tangent_raw(a)))
+    }
+
+    /// Steps 1–2: the nearest ordinary point and the nearer of its two segments. `None`
+    /// for an empty window; for a single point the "segment" is that point.
+    pub(crate) fn choose_segment(&self, p: Xy<i64>) -> Option<(Choice, bool)> {
+        let n = self.len();
+        let mut best = (u64::MAX, 0usize, false);
+        for i in 0..n {
+            if let Some(s) = self.pos_raw(i) {
+                let (w, sat) = rel(p, s);
+                let d2 = norm2(w);
+                if d2 < best.0 {
+                    best = (d2, i, sat);
+                }
+            }
+        }
+        let (_, m, saturated) = best;
+        if n == 1 {
+            let s = self.pos_raw(0)?;
+            let (w, _) = rel(p, s);
+            let seg = seg_dist(w, Xy::new(0, 0), self.tangent_raw(0));
+            return Some((Choice { a: 0, seg }, saturated));
+        }
+        let incoming = m
+            .checked_sub(1)
+            .and_then(|a| Some((a, self.segment_distance(p, a)?)));
+        let outgoing = self.segment_distance(p, m).map(|s| (m, s));
+        let (a, seg) = match (incoming, outgoing) {
+            (Some(i), Some(o)) => {
+                if o.1.dist < i.1.dist {
+                    o
+                } else {
+                    i
+                }
+            }
+            (Some(i), None) => i,
+            (None, Some(o)) => o,
+            (None, None) => return None,
+        };
+        Some((Choice { a, seg }, saturated))
+    }
+
+    /// The adaptive estimate of the contour error of the actual point `p` (µm, the
+    /// axes' position format). `None` only for an empty window. See the module docs for
+    /// the method and its worst-case cost.
+    pub fn estimate(&self, p: Xy<PosUm>) -> Option<ContourEstimate> {
+        self.estimate_fine(Xy::new(
+            PosFine::from_bits(i64::from(p.x.to_bits()).wrapping_shl(4)),
+            PosFine::from_bits(i64::from(p.y.to_bits()).wrapping_shl(4)),
+        ))
+    }
+
+    /// [`Self::estimate`] for a point given in the fine format.
+    pub fn estimate_fine(&self, p: Xy<PosFine>) -> Option<ContourEstimate> {
+        let p = p.map(PosFine::to_bits);
+        let (choice, saturated) = self.choose_segment(p)?;
+        let a = choice.a;
+        let b = a.wrapping_add(1);
+        let sa = self.pos_raw(a)?;
+        let extras = if self.len() >= 2 {
+            self.extras_raw(b)
+        } else {
+            &[]
+        };
+        if extras.is_empty() {
+            let b = b.min(self.len().wrapping_sub(1));
+            return Some(finish(sa, choice.seg, b, 0, 0, saturated));
+        }
+        let sb = self.pos_raw(b)?;
+        let (w, _) = rel(p, sa);
+        let (d, _) = rel(sb, sa);
+        let (lo, hi, steps) = bisect(w, d, extras);
+        let el = seq_point(extras, d, lo);
+        let eh = seq_point(extras, d, hi);
+        let seg = seg_dist(sub(w, el), sub(eh, el), choice.seg.unit);
+        let foot_base = Xy::new(
+            sa.x.saturating_add(i64::from(el.x)),
+            sa.y.saturating_add(i64::from(el.y)),
+        );
+        Some(finish(foot_base, seg, b, lo, steps, saturated))
+    }
+
+    /// The newest ordinary point (the reference) — for the tangent baseline.
+    pub fn reference(&self) -> Option<&OrdinaryPoint> {
+        self.newest()
+    }
+}
+
+/// Packs a segment distance (foot relative to `base`) into an estimate.
+pub(crate) fn finish(
+    base: Xy<i64>,
+    seg: SegDist,
+    b: usize,
+    sub_chord: usize,
+    steps: u8,
+    saturated: bool,
+) -> ContourEstimate {
+    ContourEstimate {
+        eps_um: RelUm::from_bits(clamp_to_i32(seg.eps, i32::MAX)),
+        foot: Xy::new(
+            PosFine::from_bits(base.x.saturating_add(i64::from(seg.foot.x))),
+            PosFine::from_bits(base.y.saturating_add(i64::from(seg.foot.y))),
+        ),
+        tangent: seg.unit.map(UnitQ30::from_bits),
+        segment: b.min(usize::from(u16::MAX)) as u16,
+        sub_chord: sub_chord.min(usize::from(u16::MAX)) as u16,
+        bisection_steps: steps,
+        saturated,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bisection_bound_table() {
+        let cases = [
+            (0, 0),
+            (1, 1),
+            (2, 2),
+            (3, 2),
+            (4, 3),
+            (7, 3),
+            (8, 4),
+            (63, 6),
+            (64, 7),
+        ];
+        for (h, s) in cases {
+            assert_eq!(max_bisection_steps(h), s, "h={h}");
+        }
+    }
+
+    #[test]
+    fn bisection_finds_the_bracketing_chord_on_a_line() {
+        // 9 extra points every 10 µm along +x; P above x = 47 µm.
+        let um = 4096;
+        let extras: [Xy<i32>; 9] = core::array::from_fn(|k| Xy::new((k as i32 + 1) * 10 * um, 0));
+        let d = Xy::new(100 * um, 0);
+        let (lo, hi, steps) = bisect(Xy::new(47 * um, 3 * um), d, &extras);
+        assert_eq!((lo, hi), (4, 5));
+        assert!(u32::from(steps) <= max_bisection_steps(9));
+        // Before the start and beyond the end.
+        assert_eq!(bisect(Xy::new(-5 * um, 0), d, &extras).0, 0);
+        assert_eq!(bisect(Xy::new(500 * um, 0), d, &extras).1, 10);
+    }
+}

@@ -1,0 +1,147 @@
+//! Plane geometry on relative vectors in Q20.12 µm (`i32`): the distance from a point
+//! to a segment, its foot point and its sign.
+//!
+//! Inputs are saturated to ±2^30 LSB (±262 mm, [`super::window`]), so every product of
+//! two components fits an `i64` exactly and sums of two products saturate harmlessly.
+
+use super::fx::{clamp_to_i32, mul_shr_i32, normalize, sqrt_round_u64};
+use super::window::REL_LIMIT;
+use super::Xy;
+
+/// `a − b`, saturated to ±[`REL_LIMIT`].
+#[inline]
+pub(crate) fn sub(a: Xy<i32>, b: Xy<i32>) -> Xy<i32> {
+    Xy::new(
+        clamp_to_i32(i64::from(a.x).wrapping_sub(i64::from(b.x)), REL_LIMIT),
+        clamp_to_i32(i64::from(a.y).wrapping_sub(i64::from(b.y)), REL_LIMIT),
+    )
+}
+
+/// `a − b` of two absolute Q52.12 positions as a relative vector, saturated; the flag
+/// says whether it saturated.
+#[inline]
+pub(crate) fn rel(a: Xy<i64>, b: Xy<i64>) -> (Xy<i32>, bool) {
+    let dx = a.x.saturating_sub(b.x);
+    let dy = a.y.saturating_sub(b.y);
+    let lim = i64::from(REL_LIMIT);
+    let sat =
+        !(lim.wrapping_neg()..=lim).contains(&dx) || !(lim.wrapping_neg()..=lim).contains(&dy);
+    (
+        Xy::new(clamp_to_i32(dx, REL_LIMIT), clamp_to_i32(dy, REL_LIMIT)),
+        sat,
+    )
+}
+
+/// a · b (Q24 for Q12 inputs).
+#[inline]
+pub(crate) fn dot(a: Xy<i32>, b: Xy<i32>) -> i64 {
+    (i64::from(a.x).wrapping_mul(i64::from(b.x)))
+        .saturating_add(i64::from(a.y).wrapping_mul(i64::from(b.y)))
+}
+
+/// |a|², exact (< 2^61 for saturated inputs).
+#[inline]
+pub(crate) fn norm2(a: Xy<i32>) -> u64 {
+    (i64::from(a.x).wrapping_mul(i64::from(a.x)) as u64)
+        .wrapping_add(i64::from(a.y).wrapping_mul(i64::from(a.y)) as u64)
+}
+
+/// Distance of a point from a segment A→B, with its foot point and sign.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct SegDist {
+    /// |P − F|, Q12 µm (≥ 0).
+    pub dist: i64,
+    /// Signed error ε: +dist when P lies to the right of A→B, −dist to the left.
+    pub eps: i64,
+    /// Foot point F relative to A, Q12 µm.
+    pub foot: Xy<i32>,
+    /// Unit direction of A→B, Q2.30 (the fallback tangent for a zero-length segment).
+    pub unit: Xy<i32>,
+}
+
+/// Distance from P to the segment A→B, given w = P − A and d = B − A (Q12, saturated):
+///
+/// ```text
+/// û = d/|d|,  along = û·w,  perp = û × w            (perp > 0: P left of A→B)
+/// along ≤ 0      → F = A, dist = |w|
+/// along ≥ |d|    → F = B, dist = |w − d|
+/// otherwise      → F = A + û·along, dist = |perp|
+/// ε = −sgn(perp)·dist                                  (ties: +)
+/// ```
+///
+/// A zero-length segment is a point: dist = |w|, the sign from `fallback` (a unit
+/// tangent, Q2.30). Cost: one normalisation (square root + 64-bit division), at most one
+/// more square root, eight `i32×i32` products.
+pub(crate) fn seg_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>) -> SegDist {
+    let (unit, len) = match normalize(i64::from(d.x), i64::from(d.y)) {
+        Some(u) => (Xy::new(u.ux, u.uy), u.len),
+        None => (fallback, 0),
+    };
+    let along = mul_shr_i32(unit.x, w.x, 30).saturating_add(mul_shr_i32(unit.y, w.y, 30));
+    let perp = mul_shr_i32(unit.x, w.y, 30).saturating_sub(mul_shr_i32(unit.y, w.x, 30));
+    let (dist, foot) = if len == 0 || along <= 0 {
+        (sqrt_round_u64(norm2(w)) as i64, Xy::new(0, 0))
+    } else if along >= len {
+        (sqrt_round_u64(norm2(sub(w, d))) as i64, d)
+    } else {
+        // 0 < along < |d| ≤ 2^31: û·along fits.
+        let along32 = clamp_to_i32(along, i32::MAX);
+        (
+            perp.saturating_abs(),
+            Xy::new(
+                clamp_to_i32(mul_shr_i32(unit.x, along32, 30), REL_LIMIT),
+                clamp_to_i32(mul_shr_i32(unit.y, along32, 30), REL_LIMIT),
+            ),
+        )
+    };
+    SegDist {
+        dist,
+        eps: if perp > 0 { dist.wrapping_neg() } else { dist },
+        foot,
+        unit,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const UM: i32 = 4096;
+
+    #[test]
+    fn interior_and_ends() {
+        let d = Xy::new(100 * UM, 0);
+        let fb = Xy::new(1 << 30, 0);
+        // Left of a segment along +x: negative.
+        let s = seg_dist(Xy::new(30 * UM, 5 * UM), d, fb);
+        assert_eq!((s.dist, s.eps), (i64::from(5 * UM), -i64::from(5 * UM)));
+        assert_eq!(s.foot, Xy::new(30 * UM, 0));
+        // Right: positive.
+        let s = seg_dist(Xy::new(30 * UM, -5 * UM), d, fb);
+        assert_eq!(s.eps, i64::from(5 * UM));
+        // Before A: distance to A.
+        let s = seg_dist(Xy::new(-3 * UM, -4 * UM), d, fb);
+        assert_eq!(
+            (s.dist, s.eps, s.foot),
+            (i64::from(5 * UM), i64::from(5 * UM), Xy::new(0, 0))
+        );
+        // Beyond B.
+        let s = seg_dist(Xy::new(103 * UM, 4 * UM), d, fb);
+        assert_eq!(
+            (s.dist, s.eps, s.foot),
+            (i64::from(5 * UM), -i64::from(5 * UM), d)
+        );
+        // Zero-length: a point, sign from the fallback tangent.
+        let s = seg_dist(Xy::new(0, -7 * UM), Xy::new(0, 0), fb);
+        assert_eq!((s.dist, s.eps), (i64::from(7 * UM), i64::from(7 * UM)));
+    }
+
+    #[test]
+    fn saturated_inputs_do_not_overflow() {
+        let big = Xy::new(REL_LIMIT, -REL_LIMIT);
+        let s = seg_dist(big, Xy::new(-REL_LIMIT, REL_LIMIT), Xy::new(0, 0));
+        assert!(s.dist > 0);
+        let s = seg_dist(Xy::new(-REL_LIMIT, -REL_LIMIT), big, Xy::new(0, 0));
+        assert!(s.dist > 0);
+    }
+}
