@@ -3,5 +3,9 @@
 //! The library half of the `host-sim` tool, so the end-to-end tests in `tests/` drive the
 //! same plant, scenarios and controllers as the command line.
 
+pub mod camfile;
 pub mod cmd;
+pub mod contour_truth;
+pub mod die;
 pub mod plant;
+pub mod scenario;

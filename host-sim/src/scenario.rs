@@ -1,0 +1,907 @@
+//! Scenario files (TOML): the machine, its master motion, its table and its controllers.
+//!
+//! Every key has a default, and the defaults are the reference machine of
+//! `shared/PLANT.md`: an empty file simulates the tangent cylinder following the
+//! elliptical-die table plus the side press. Unknown keys are errors (serde
+//! `deny_unknown_fields`, reported by the TOML parser with their line), and impossible
+//! values are [`ScenarioError::Invalid`] naming the key, e.g.
+//! `axis.tangent.cylinder.rod_mm = 90: must be smaller than cylinder.bore_mm (80)`.
+//!
+//! Units are in the key names: `_mm`, `_um`, `_bar`, `_deg`, `_s`, `_hz`, `_l`
+//! (litres), `_l_per_min`, `_n` (newtons), `_kg`, SI elsewhere (`bulk_modulus_pa`,
+//! `leakage_m3_per_s_pa`, `viscous_n_s_per_m`, `stiffness_n_per_m`).
+
+use crate::camfile::{CamCsv, TableError};
+use crate::die::DieTable;
+use crate::plant::{
+    Contact, Cylinder, Encoder, HydraulicAxis, MasterMotion, MasterProfile, PressureAdc, Supply,
+    Valve,
+};
+use serde::Deserialize;
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+/// A problem with a scenario file.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file cannot be read.
+    #[error("cannot read scenario {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Not valid TOML, a wrong type, or an unknown key.
+    #[error("scenario {path}: {source}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message (names the key and the line).
+        source: Box<toml::de::Error>,
+    },
+    /// A value that cannot describe a real machine.
+    #[error("scenario: `{key}` = {value}: {reason}")]
+    Invalid {
+        /// Dotted path of the key, e.g. `axis.tangent.cylinder.rod_mm`.
+        key: String,
+        /// The offending value.
+        value: String,
+        /// Why it is impossible.
+        reason: String,
+    },
+    /// The cam table cannot be loaded.
+    #[error(transparent)]
+    Table(#[from] TableError),
+}
+
+fn invalid(
+    key: impl Into<String>,
+    value: impl ToString,
+    reason: impl Into<String>,
+) -> ScenarioError {
+    ScenarioError::Invalid {
+        key: key.into(),
+        value: value.to_string(),
+        reason: reason.into(),
+    }
+}
+
+/// A scenario.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scenario {
+    /// Name shown in reports (default: the file's stem; see [`Scenario::name`]).
+    #[serde(default)]
+    pub name: String,
+    /// Integration and control timing.
+    pub sim: SimCfg,
+    /// The hydraulic power unit.
+    pub supply: SupplyCfg,
+    /// The master motion.
+    pub master: MasterCfg,
+    /// The cam table.
+    pub table: TableCfg,
+    /// The axes (`[[axis]]`).
+    #[serde(rename = "axis")]
+    pub axes: Vec<AxisCfg>,
+    /// Directory that relative paths in the file are resolved against.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+/// `[sim]`: integration and control timing.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimCfg {
+    /// RK4 step, µs (PLANT.md: 10). The control period must be a whole number of steps.
+    pub step_us: f64,
+    /// Control period, µs.
+    pub period_us: u32,
+    /// Errors are measured after this time, s (PLANT.md: 1.5).
+    pub error_skip_s: f64,
+    /// Simulated time, s (default: the master's motion and hold).
+    pub duration_s: Option<f64>,
+}
+
+/// `[supply]`: the hydraulic power unit (an ideal constant-pressure source).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SupplyCfg {
+    /// Supply pressure p_s, bar (PLANT.md: 160).
+    pub supply_bar: f64,
+    /// Tank pressure, bar (PLANT.md: 0).
+    pub tank_bar: f64,
+    /// Chamber pressures are clamped to `[0, clamp_factor·p_s]` (PLANT.md: 1.1).
+    pub clamp_factor: f64,
+}
+
+/// `[master]`: the rotary table's motion and encoder.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct MasterCfg {
+    /// Start angle, degrees.
+    pub start_deg: f64,
+    /// End angle, degrees (reached exactly).
+    pub end_deg: f64,
+    /// Nominal speed, °/s.
+    pub speed_deg_per_s: f64,
+    /// Duration of each cosine speed ramp, s.
+    pub ramp_s: f64,
+    /// Relative speed ripple (0.03 = ±3 %).
+    pub ripple: f64,
+    /// Ripple frequency, Hz.
+    pub ripple_hz: f64,
+    /// Ripple phase at the start of the motion, degrees.
+    pub ripple_phase_deg: f64,
+    /// Rest before the motion starts, s.
+    pub start_s: f64,
+    /// Rest at the end angle after the motion, s.
+    pub hold_s: f64,
+    /// Master encoder resolution, degrees per count (PLANT.md: 0.001).
+    pub resolution_deg: f64,
+}
+
+/// `[table]`: where the cam table comes from.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct TableCfg {
+    /// CSV file (relative to the scenario file). Default: the elliptical-die table of
+    /// PLANT.md, generated.
+    pub file: Option<PathBuf>,
+}
+
+/// What an axis does.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// Follows its column of the cam table (column name = axis name).
+    #[default]
+    Follower,
+    /// Approaches under position control, then holds a force (the side press).
+    Force,
+}
+
+/// `[[axis]]`: one hydraulic axis.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct AxisCfg {
+    /// Name (a follower's table column has the same name).
+    pub name: String,
+    /// What the axis does.
+    pub role: Role,
+    /// Initial position, mm (default: a follower's table value at the start angle; a
+    /// force axis' 10 mm).
+    pub x0_mm: Option<f64>,
+    /// The valve.
+    pub valve: ValveCfg,
+    /// The cylinder and its load.
+    pub cylinder: CylinderCfg,
+    /// An optional spring contact (the workpiece).
+    pub contact: Option<ContactCfg>,
+    /// The sensors.
+    pub sensors: SensorCfg,
+}
+
+/// `[axis.valve]`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ValveCfg {
+    /// Spool natural frequency, Hz (PLANT.md: 60).
+    pub bandwidth_hz: f64,
+    /// Spool damping ratio (PLANT.md: 0.8).
+    pub damping: f64,
+    /// Rated flow per land at full opening, L/min (PLANT.md: 24).
+    pub rated_flow_l_per_min: f64,
+    /// Pressure drop per land at the rated flow, bar (PLANT.md: 35).
+    pub rated_dp_bar: f64,
+    /// Laminar leakage per land, m³/(s·Pa) (PLANT.md: 1e−13).
+    pub leakage_m3_per_s_pa: f64,
+    /// Below this |Δp| the orifice flow is laminar (linear, see `plant::valve`), bar.
+    pub transition_bar: f64,
+}
+
+/// `[axis.cylinder]`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct CylinderCfg {
+    /// Bore, mm (PLANT.md: 80).
+    pub bore_mm: f64,
+    /// Rod diameter, mm (PLANT.md: 45).
+    pub rod_mm: f64,
+    /// Stroke, mm (PLANT.md: 500; the side press 100).
+    pub stroke_mm: f64,
+    /// Dead volume on the piston side, L (PLANT.md: 0.3).
+    pub dead_volume_a_l: f64,
+    /// Dead volume on the rod side, L (PLANT.md: 0.3).
+    pub dead_volume_b_l: f64,
+    /// Effective bulk modulus, Pa (PLANT.md: 1.4e9).
+    pub bulk_modulus_pa: f64,
+    /// Moving mass, kg (PLANT.md: 300).
+    pub mass_kg: f64,
+    /// Viscous friction, N·s/m (PLANT.md: 3000).
+    pub viscous_n_s_per_m: f64,
+    /// Coulomb friction, N (PLANT.md: 400).
+    pub coulomb_n: f64,
+    /// Speed of the tanh smoothing of the Coulomb friction, mm/s (PLANT.md: 1).
+    pub coulomb_smoothing_mm_per_s: f64,
+    /// External load, N, positive opposes extension (PLANT.md: optional, 0).
+    pub load_n: f64,
+    /// Stiffness of the mechanical end stops, N/m.
+    pub stop_stiffness_n_per_m: f64,
+    /// Damping ratio of the end stops against the moving mass.
+    pub stop_damping_ratio: f64,
+}
+
+/// `[axis.contact]`: a spring beyond a position.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ContactCfg {
+    /// Contact position, mm (PLANT.md side press: 50).
+    pub position_mm: f64,
+    /// Stiffness beyond it, N/m (PLANT.md side press: 5e6).
+    pub stiffness_n_per_m: f64,
+}
+
+/// `[axis.sensors]`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensorCfg {
+    /// Linear encoder resolution, µm per count (PLANT.md: 1).
+    pub encoder_um: f64,
+    /// Pressure transducer full scale, bar (PLANT.md: 250).
+    pub pressure_full_scale_bar: f64,
+    /// Pressure ADC resolution, bits (PLANT.md: 12).
+    pub pressure_adc_bits: u32,
+}
+
+impl Default for SimCfg {
+    fn default() -> Self {
+        Self {
+            step_us: 10.0,
+            period_us: 1000,
+            error_skip_s: 1.5,
+            duration_s: None,
+        }
+    }
+}
+
+impl Default for SupplyCfg {
+    fn default() -> Self {
+        Self {
+            supply_bar: 160.0,
+            tank_bar: 0.0,
+            clamp_factor: 1.1,
+        }
+    }
+}
+
+impl Default for MasterCfg {
+    fn default() -> Self {
+        Self {
+            start_deg: 0.0,
+            end_deg: 90.0,
+            speed_deg_per_s: 3.0,
+            ramp_s: 1.0,
+            ripple: 0.03,
+            ripple_hz: 0.4,
+            ripple_phase_deg: 0.0,
+            start_s: 0.0,
+            hold_s: 1.0,
+            resolution_deg: 0.001,
+        }
+    }
+}
+
+impl Default for ValveCfg {
+    fn default() -> Self {
+        Self {
+            bandwidth_hz: 60.0,
+            damping: 0.8,
+            rated_flow_l_per_min: 24.0,
+            rated_dp_bar: 35.0,
+            leakage_m3_per_s_pa: 1e-13,
+            transition_bar: 0.01,
+        }
+    }
+}
+
+impl Default for CylinderCfg {
+    fn default() -> Self {
+        Self {
+            bore_mm: 80.0,
+            rod_mm: 45.0,
+            stroke_mm: 500.0,
+            dead_volume_a_l: 0.3,
+            dead_volume_b_l: 0.3,
+            bulk_modulus_pa: 1.4e9,
+            mass_kg: 300.0,
+            viscous_n_s_per_m: 3000.0,
+            coulomb_n: 400.0,
+            coulomb_smoothing_mm_per_s: 1.0,
+            load_n: 0.0,
+            stop_stiffness_n_per_m: 1e10,
+            stop_damping_ratio: 1.0,
+        }
+    }
+}
+
+impl Default for ContactCfg {
+    fn default() -> Self {
+        Self {
+            position_mm: 50.0,
+            stiffness_n_per_m: 5e6,
+        }
+    }
+}
+
+impl Default for SensorCfg {
+    fn default() -> Self {
+        Self {
+            encoder_um: 1.0,
+            pressure_full_scale_bar: 250.0,
+            pressure_adc_bits: 12,
+        }
+    }
+}
+
+impl Default for AxisCfg {
+    fn default() -> Self {
+        Self {
+            name: String::new(),
+            role: Role::Follower,
+            x0_mm: None,
+            valve: ValveCfg::default(),
+            cylinder: CylinderCfg::default(),
+            contact: None,
+            sensors: SensorCfg::default(),
+        }
+    }
+}
+
+impl AxisCfg {
+    /// PLANT.md's tangent cylinder.
+    pub fn reference_tangent() -> Self {
+        Self {
+            name: "tangent".into(),
+            ..Self::default()
+        }
+    }
+
+    /// PLANT.md's side press: same valve and bore, 100 mm stroke, a 5e6 N/m workpiece
+    /// beyond 50 mm.
+    pub fn reference_side_press() -> Self {
+        Self {
+            name: "side_press".into(),
+            role: Role::Force,
+            cylinder: CylinderCfg {
+                stroke_mm: 100.0,
+                ..CylinderCfg::default()
+            },
+            contact: Some(ContactCfg::default()),
+            ..Self::default()
+        }
+    }
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Self {
+            name: String::new(),
+            sim: SimCfg::default(),
+            supply: SupplyCfg::default(),
+            master: MasterCfg::default(),
+            table: TableCfg::default(),
+            axes: vec![
+                AxisCfg::reference_tangent(),
+                AxisCfg::reference_side_press(),
+            ],
+            base_dir: PathBuf::from("."),
+        }
+    }
+}
+
+/// Checks `lo < x` (or `lo ≤ x`) and `x ≤ hi`, finite.
+fn check(key: &str, x: f64, lo: f64, lo_inclusive: bool, hi: f64) -> Result<(), ScenarioError> {
+    if !x.is_finite() {
+        return Err(invalid(key, x, "must be a finite number"));
+    }
+    let above = if lo_inclusive { x >= lo } else { x > lo };
+    if !above || x > hi {
+        let l = if lo_inclusive { "[" } else { "(" };
+        return Err(invalid(key, x, format!("must be in {l}{lo}, {hi}]")));
+    }
+    Ok(())
+}
+
+impl Scenario {
+    /// Reads, parses and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut s = Self::parse(&text, path)?;
+        s.base_dir = path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from("."));
+        if s.name.is_empty() {
+            s.name = path
+                .file_stem()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "scenario".into());
+        }
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Parses TOML text (not yet validated); `path` is only used in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ScenarioError> {
+        toml::from_str(text).map_err(|e| ScenarioError::Parse {
+            path: path.to_path_buf(),
+            source: Box::new(e),
+        })
+    }
+
+    /// The name shown in reports: `name`, else `reference` (PLANT.md's machine).
+    pub fn name(&self) -> &str {
+        if self.name.is_empty() {
+            "reference"
+        } else {
+            &self.name
+        }
+    }
+
+    /// RK4 step, s.
+    pub fn step_s(&self) -> f64 {
+        self.sim.step_us * 1e-6
+    }
+
+    /// Control period, s.
+    pub fn period_s(&self) -> f64 {
+        f64::from(self.sim.period_us) * 1e-6
+    }
+
+    /// RK4 steps per control period (validated to be a whole number).
+    pub fn steps_per_period(&self) -> u32 {
+        (f64::from(self.sim.period_us) / self.sim.step_us).round() as u32
+    }
+
+    /// The master motion.
+    pub fn master_motion(&self) -> MasterMotion {
+        let m = &self.master;
+        MasterMotion {
+            start_deg: m.start_deg,
+            end_deg: m.end_deg,
+            speed_deg_per_s: m.speed_deg_per_s,
+            ramp_s: m.ramp_s,
+            ripple: m.ripple,
+            ripple_hz: m.ripple_hz,
+            ripple_phase_rad: m.ripple_phase_deg.to_radians(),
+            start_s: m.start_s,
+            hold_s: m.hold_s,
+        }
+    }
+
+    /// The master profile (validated).
+    pub fn master_profile(&self) -> Result<MasterProfile, ScenarioError> {
+        MasterProfile::new(self.master_motion())
+            .map_err(|e| invalid("master.end_deg", self.master.end_deg, e.to_string()))
+    }
+
+    /// The master encoder.
+    pub fn master_encoder(&self) -> Encoder {
+        Encoder {
+            resolution: self.master.resolution_deg,
+        }
+    }
+
+    /// Simulated time, s.
+    pub fn duration_s(&self) -> Result<f64, ScenarioError> {
+        match self.sim.duration_s {
+            Some(d) => Ok(d),
+            None => Ok(self.master_profile()?.duration_s()),
+        }
+    }
+
+    /// The supply in SI units.
+    pub fn supply(&self) -> Supply {
+        let s = &self.supply;
+        Supply {
+            supply_pa: s.supply_bar * 1e5,
+            tank_pa: s.tank_bar * 1e5,
+            max_pa: s.clamp_factor * s.supply_bar * 1e5,
+        }
+    }
+
+    /// The cam table: the CSV file of `[table]` (or `override_file`), or the generated
+    /// elliptical-die table. Checks that every follower axis has its column.
+    pub fn load_table(&self, override_file: Option<&Path>) -> Result<CamCsv, ScenarioError> {
+        let table = match (override_file, &self.table.file) {
+            (Some(f), _) => CamCsv::load(f)?,
+            (None, Some(f)) => CamCsv::load(&self.base_dir.join(f))?,
+            (None, None) => DieTable::default().table(),
+        };
+        for a in self.axes.iter().filter(|a| a.role == Role::Follower) {
+            if table.column(&a.name).is_none() {
+                return Err(invalid(
+                    format!("axis.{}.name", a.name),
+                    &a.name,
+                    format!(
+                        "a follower needs a column of that name in the table {} (columns: {})",
+                        table.path.display(),
+                        table.axes.join(", ")
+                    ),
+                ));
+            }
+        }
+        Ok(table)
+    }
+
+    /// Checks every value; the error names the first impossible key.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        let sim = &self.sim;
+        check("sim.step_us", sim.step_us, 0.0, false, 1000.0)?;
+        if sim.period_us == 0 {
+            return Err(invalid("sim.period_us", 0, "must be at least 1 µs"));
+        }
+        let ratio = f64::from(sim.period_us) / sim.step_us;
+        if (ratio - ratio.round()).abs() > 1e-9 * ratio || ratio.round() < 1.0 {
+            return Err(invalid(
+                "sim.period_us",
+                sim.period_us,
+                format!(
+                    "must be a whole number of RK4 steps (sim.step_us = {})",
+                    sim.step_us
+                ),
+            ));
+        }
+        check("sim.error_skip_s", sim.error_skip_s, 0.0, true, 1e6)?;
+        if let Some(d) = sim.duration_s {
+            check("sim.duration_s", d, 0.0, false, 1e6)?;
+        }
+        let s = &self.supply;
+        check("supply.supply_bar", s.supply_bar, 0.0, false, 1000.0)?;
+        check("supply.tank_bar", s.tank_bar, 0.0, true, s.supply_bar)?;
+        if s.tank_bar >= s.supply_bar {
+            return Err(invalid(
+                "supply.tank_bar",
+                s.tank_bar,
+                "must be below supply.supply_bar",
+            ));
+        }
+        check("supply.clamp_factor", s.clamp_factor, 1.0, true, 10.0)?;
+        let m = &self.master;
+        check("master.start_deg", m.start_deg, -1e6, true, 1e6)?;
+        check("master.end_deg", m.end_deg, -1e6, true, 1e6)?;
+        if m.end_deg == m.start_deg {
+            return Err(invalid(
+                "master.end_deg",
+                m.end_deg,
+                "must differ from master.start_deg",
+            ));
+        }
+        check("master.speed_deg_per_s", m.speed_deg_per_s, 0.0, false, 1e5)?;
+        check("master.ramp_s", m.ramp_s, 0.0, false, 1e4)?;
+        check("master.ripple", m.ripple, 0.0, true, 0.99)?;
+        check("master.ripple_hz", m.ripple_hz, 0.0, true, 1e4)?;
+        check(
+            "master.ripple_phase_deg",
+            m.ripple_phase_deg,
+            -1e6,
+            true,
+            1e6,
+        )?;
+        check("master.start_s", m.start_s, 0.0, true, 1e5)?;
+        check("master.hold_s", m.hold_s, 0.0, true, 1e5)?;
+        check("master.resolution_deg", m.resolution_deg, 0.0, false, 10.0)?;
+        self.master_profile()?;
+        if self.axes.is_empty() {
+            return Err(invalid("axis", "[]", "at least one [[axis]] is needed"));
+        }
+        for (i, a) in self.axes.iter().enumerate() {
+            if a.name.is_empty()
+                || !a
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+            {
+                return Err(invalid(
+                    format!("axis[{i}].name"),
+                    format!("{:?}", a.name),
+                    "must be a non-empty name of letters, digits, `_` or `-`",
+                ));
+            }
+            if self.axes[..i].iter().any(|b| b.name == a.name) {
+                return Err(invalid(
+                    format!("axis[{i}].name"),
+                    &a.name,
+                    "two axes have this name",
+                ));
+            }
+            a.validate(self.step_s())?;
+        }
+        Ok(())
+    }
+}
+
+impl AxisCfg {
+    fn validate(&self, step_s: f64) -> Result<(), ScenarioError> {
+        let k = |s: &str| format!("axis.{}.{s}", self.name);
+        let v = &self.valve;
+        check(&k("valve.bandwidth_hz"), v.bandwidth_hz, 0.0, false, 1e4)?;
+        check(&k("valve.damping"), v.damping, 0.0, false, 10.0)?;
+        check(
+            &k("valve.rated_flow_l_per_min"),
+            v.rated_flow_l_per_min,
+            0.0,
+            false,
+            1e5,
+        )?;
+        check(&k("valve.rated_dp_bar"), v.rated_dp_bar, 0.0, false, 1000.0)?;
+        check(
+            &k("valve.leakage_m3_per_s_pa"),
+            v.leakage_m3_per_s_pa,
+            0.0,
+            true,
+            1e-9,
+        )?;
+        check(
+            &k("valve.transition_bar"),
+            v.transition_bar,
+            0.0,
+            false,
+            10.0,
+        )?;
+        let c = &self.cylinder;
+        check(&k("cylinder.bore_mm"), c.bore_mm, 0.0, false, 2000.0)?;
+        check(&k("cylinder.rod_mm"), c.rod_mm, 0.0, true, 2000.0)?;
+        if c.rod_mm >= c.bore_mm {
+            return Err(invalid(
+                k("cylinder.rod_mm"),
+                c.rod_mm,
+                format!("must be smaller than cylinder.bore_mm ({})", c.bore_mm),
+            ));
+        }
+        check(&k("cylinder.stroke_mm"), c.stroke_mm, 0.0, false, 8000.0)?;
+        check(
+            &k("cylinder.dead_volume_a_l"),
+            c.dead_volume_a_l,
+            0.0,
+            false,
+            1e4,
+        )?;
+        check(
+            &k("cylinder.dead_volume_b_l"),
+            c.dead_volume_b_l,
+            0.0,
+            false,
+            1e4,
+        )?;
+        check(
+            &k("cylinder.bulk_modulus_pa"),
+            c.bulk_modulus_pa,
+            0.0,
+            false,
+            1e11,
+        )?;
+        check(&k("cylinder.mass_kg"), c.mass_kg, 0.0, false, 1e7)?;
+        check(
+            &k("cylinder.viscous_n_s_per_m"),
+            c.viscous_n_s_per_m,
+            0.0,
+            true,
+            1e9,
+        )?;
+        check(&k("cylinder.coulomb_n"), c.coulomb_n, 0.0, true, 1e8)?;
+        check(
+            &k("cylinder.coulomb_smoothing_mm_per_s"),
+            c.coulomb_smoothing_mm_per_s,
+            0.0,
+            false,
+            1e4,
+        )?;
+        check(&k("cylinder.load_n"), c.load_n, -1e9, true, 1e9)?;
+        check(
+            &k("cylinder.stop_stiffness_n_per_m"),
+            c.stop_stiffness_n_per_m,
+            0.0,
+            false,
+            1e14,
+        )?;
+        check(
+            &k("cylinder.stop_damping_ratio"),
+            c.stop_damping_ratio,
+            0.0,
+            true,
+            100.0,
+        )?;
+        if let Some(ct) = &self.contact {
+            check(
+                &k("contact.position_mm"),
+                ct.position_mm,
+                0.0,
+                true,
+                c.stroke_mm,
+            )?;
+            check(
+                &k("contact.stiffness_n_per_m"),
+                ct.stiffness_n_per_m,
+                0.0,
+                false,
+                1e12,
+            )?;
+        }
+        let s = &self.sensors;
+        check(&k("sensors.encoder_um"), s.encoder_um, 0.0, false, 1e4)?;
+        check(
+            &k("sensors.pressure_full_scale_bar"),
+            s.pressure_full_scale_bar,
+            0.0,
+            false,
+            5000.0,
+        )?;
+        if !(8..=24).contains(&s.pressure_adc_bits) {
+            return Err(invalid(
+                k("sensors.pressure_adc_bits"),
+                s.pressure_adc_bits,
+                "must be in [8, 24]",
+            ));
+        }
+        if let Some(x0) = self.x0_mm {
+            check(&k("x0_mm"), x0, 0.0, true, c.stroke_mm)?;
+        }
+        // Fixed-step RK4 is stable for h·|λ| below about 2.8; ask for a margin of 2 on the
+        // fastest modes (spool, oil column at the stiffer end of the stroke, end stops).
+        let cyl = self.cylinder_si();
+        let w_valve = 2.0 * PI * v.bandwidth_hz;
+        let w_oil = 2.0
+            * PI
+            * cyl
+                .natural_frequency_hz(0.0)
+                .max(cyl.natural_frequency_hz(cyl.stroke_m));
+        let w_stop = (cyl.stop_stiffness_n_per_m / cyl.mass_kg).sqrt();
+        let w_contact = self
+            .contact
+            .as_ref()
+            .map_or(0.0, |ct| (ct.stiffness_n_per_m / cyl.mass_kg).sqrt());
+        // A chamber behind an open land below the transition pressure: ṗ = −E/V·K_v/√p_tr·Δp.
+        let valve = self.valve_si();
+        let w_land = cyl.bulk_modulus_pa / cyl.dead_volume_a_m3.min(cyl.dead_volume_b_m3)
+            * valve.kv
+            / valve.dp_transition_pa.sqrt();
+        for (what, w) in [
+            ("valve.bandwidth_hz", w_valve),
+            ("valve.transition_bar", w_land),
+            ("the oil-column frequency", w_oil),
+            ("cylinder.stop_stiffness_n_per_m", w_stop),
+            ("contact.stiffness_n_per_m", w_contact),
+        ] {
+            if w * step_s > 1.4 {
+                return Err(invalid(
+                    "sim.step_us",
+                    step_s * 1e6,
+                    format!(
+                        "too long for axis `{}`: {what} gives a mode of {:.0} rad/s, RK4 needs step < {:.2} µs",
+                        self.name,
+                        w,
+                        1.4 / w * 1e6
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The valve in SI units.
+    pub fn valve_si(&self) -> Valve {
+        let v = &self.valve;
+        Valve {
+            omega_rad_s: 2.0 * PI * v.bandwidth_hz,
+            zeta: v.damping,
+            kv: Valve::kv_from_rating(v.rated_flow_l_per_min * 1e-3 / 60.0, v.rated_dp_bar * 1e5),
+            leak_m3_per_s_pa: v.leakage_m3_per_s_pa,
+            dp_transition_pa: v.transition_bar * 1e5,
+        }
+    }
+
+    /// The cylinder in SI units.
+    pub fn cylinder_si(&self) -> Cylinder {
+        let c = &self.cylinder;
+        let area_a = PI / 4.0 * (c.bore_mm * 1e-3).powi(2);
+        let area_rod = PI / 4.0 * (c.rod_mm * 1e-3).powi(2);
+        Cylinder {
+            area_a_m2: area_a,
+            area_b_m2: area_a - area_rod,
+            stroke_m: c.stroke_mm * 1e-3,
+            dead_volume_a_m3: c.dead_volume_a_l * 1e-3,
+            dead_volume_b_m3: c.dead_volume_b_l * 1e-3,
+            bulk_modulus_pa: c.bulk_modulus_pa,
+            mass_kg: c.mass_kg,
+            viscous_n_s_per_m: c.viscous_n_s_per_m,
+            coulomb_n: c.coulomb_n,
+            coulomb_smoothing_m_per_s: c.coulomb_smoothing_mm_per_s * 1e-3,
+            load_n: c.load_n,
+            stop_stiffness_n_per_m: c.stop_stiffness_n_per_m,
+            stop_damping_n_s_per_m: 2.0
+                * c.stop_damping_ratio
+                * (c.stop_stiffness_n_per_m * c.mass_kg).sqrt(),
+            contact: self.contact.as_ref().map(|ct| Contact {
+                position_m: ct.position_mm * 1e-3,
+                stiffness_n_per_m: ct.stiffness_n_per_m,
+            }),
+        }
+    }
+
+    /// The position encoder (resolution in m).
+    pub fn encoder(&self) -> Encoder {
+        Encoder {
+            resolution: self.sensors.encoder_um * 1e-6,
+        }
+    }
+
+    /// The pressure transducers.
+    pub fn pressure_adc(&self) -> PressureAdc {
+        PressureAdc {
+            full_scale_pa: self.sensors.pressure_full_scale_bar * 1e5,
+            bits: self.sensors.pressure_adc_bits,
+        }
+    }
+
+    /// The plant of this axis at rest at `x0_m`.
+    pub fn plant(&self, supply: Supply, x0_m: f64) -> HydraulicAxis {
+        HydraulicAxis::at_rest(self.valve_si(), self.cylinder_si(), supply, x0_m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(s: &str) -> Result<Scenario, ScenarioError> {
+        let sc = Scenario::parse(s, Path::new("s.toml"))?;
+        sc.validate()?;
+        Ok(sc)
+    }
+
+    #[test]
+    fn empty_file_is_the_reference_machine() {
+        let s = parse("").unwrap();
+        assert_eq!(s, Scenario::default());
+        assert_eq!(s.axes.len(), 2);
+        let c = s.axes[0].cylinder_si();
+        let f = c.natural_frequency_hz(0.25);
+        assert!((f - 56.0).abs() < 0.5, "{f}");
+        assert_eq!(s.steps_per_period(), 100);
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_values_name_the_key() {
+        let e = |s: &str| parse(s).unwrap_err().to_string();
+        assert!(e("[sim]\nstep_uss = 5\n").contains("unknown field `step_uss`"));
+        assert!(e("[[axis]]\nname = \"a\"\n[axis.cylinder]\nbore = 3\n")
+            .contains("unknown field `bore`"));
+        assert!(e("[[axis]]\nname = \"a\"\n[axis.cylinder]\nrod_mm = 90\n")
+            .contains("`axis.a.cylinder.rod_mm` = 90: must be smaller than cylinder.bore_mm"));
+        assert!(
+            e("[sim]\nperiod_us = 15\n").contains("`sim.period_us` = 15: must be a whole number")
+        );
+        assert!(e("[sim]\nstep_us = 500\nperiod_us = 1000\n").contains("`sim.step_us` = 500"));
+        assert!(e("[master]\nripple = 1.5\n").contains("`master.ripple`"));
+        assert!(e("[master]\nend_deg = 1\n").contains("`master.end_deg` = 1: master travel"));
+        assert!(e("[supply]\nsupply_bar = nan\n")
+            .contains("`supply.supply_bar` = NaN: must be a finite"));
+        assert!(e("[[axis]]\nname = \"a b\"\n").contains("axis[0].name"));
+        assert!(e("[[axis]]\nname = \"a\"\n[[axis]]\nname = \"a\"\n").contains("two axes"));
+        assert!(e("[[axis]]\nname = \"a\"\nx0_mm = 600\n").contains("`axis.a.x0_mm` = 600"));
+        assert!(e("[sim]\nperiod_us = \"x\"\n").contains("period_us"));
+    }
+
+    #[test]
+    fn follower_needs_a_column() {
+        let s = parse("[[axis]]\nname = \"lift\"\n").unwrap();
+        let e = s.load_table(None).unwrap_err().to_string();
+        assert!(e.contains("`axis.lift.name`"), "{e}");
+    }
+}
