@@ -1,0 +1,152 @@
+//! Follower figures (SPEC §A): one [`Follower::tick`] with 1, 4 and 8 slave axes in
+//! `Feedforward` mode and 1 axis in `Paper` mode, on the reference machine's cam table.
+//!
+//! Set-up (PLANT.md): the tangent-cylinder table of the rotary-table stretch-bending
+//! machine, 181 nodes every 0.5° (500 master counts of 0.001°), 20…480 mm. Slave `i`
+//! of a multi-axis table follows the same die curve with its stroke scaled by
+//! 1 − i/16 (every column different, all inside the table's validation limits). Period 1 ms; the master
+//! advances 3.07 counts per tick on average (3.07 °/s, integer encoder counts: steps of 3
+//! and 4), so the segment search crosses a node every ~163 ticks and the tracking
+//! filter, both table lookups, the feed-forward and every PID term run on every call.
+//! The measured positions lag the target by 3 µm, quantised to the 1 µm encoder, so the
+//! integrator stays inside its zone and no following-error fault is ever latched.
+
+use crate::harness::Figure;
+use core::hint::black_box;
+use hydra_core::axis::{AxisConfig, ControlMode};
+use hydra_core::follower::{Follower, FollowerConfig, FollowerInputs, FollowerOutputs};
+use hydra_core::table::{AxisLimits, CamTable, Node, TableLimits};
+use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
+
+/// Table capacity of the benchmark (nodes).
+pub const NODES: usize = 256;
+/// Master counts between nodes (0.5° at 0.001° per count).
+const NODE_SPACING: i64 = 500;
+/// Master start, counts (5°: inside the table, on the rising flank).
+const MASTER_START: i64 = 5_000;
+/// Master advance, counts per tick, ×100.
+const MASTER_STEP_X100: u32 = 307;
+/// Measured position = target − this lag (raw `I24F8`, 3 µm).
+const LAG_BITS: i32 = 3 << 8;
+
+include!(concat!(env!("OUT_DIR"), "/die_table.rs"));
+
+/// The table with `S` columns: column 0 is the die curve scaled to 20…480 mm over
+/// 0…90° (PLANT.md, [`DIE_UM`]), column `i` the same curve with its stroke above 20 mm
+/// scaled by 1 − i/16 (integer arithmetic: no floating point on the target).
+fn table<const S: usize>() -> Option<CamTable<S, NODES>> {
+    let mut nodes = [Node {
+        master: Master::ZERO,
+        slave_um: [PosUm::ZERO; S],
+    }; DIE_UM.len()];
+    for ((j, n), x0) in nodes.iter_mut().enumerate().zip(DIE_UM.iter()) {
+        n.master = Master::from_num(j as i64 * NODE_SPACING);
+        for (i, x) in n.slave_um.iter_mut().enumerate() {
+            let above = i64::from(x0.saturating_sub(20_000));
+            let scaled = above * (16 - i as i64) / 16;
+            *x = PosUm::from_num(20_000 + scaled);
+        }
+    }
+    let limits = TableLimits {
+        master_speed_per_s: MasterRate::from_num(3300),
+        axes: [AxisLimits {
+            min_um: PosUm::from_num(0),
+            max_um: PosUm::from_num(500_000),
+            max_speed_um_per_s: VelUmPerS::from_num(200_000),
+        }; S],
+    };
+    CamTable::try_from_nodes(&nodes, &limits).ok()
+}
+
+/// Gains of the reference tangent cylinder (every term of the law non-zero).
+fn axis(mode: ControlMode) -> AxisConfig {
+    AxisConfig {
+        mode,
+        kp_lsb_per_um: 0.4,
+        ki_lsb_per_um_s: 5.0,
+        kd_lsb_s_per_um: 0.0005,
+        i_zone_um: 200.0,
+        i_limit_lsb: 100.0,
+        kv_pos_lsb_per_um_s: 0.017,
+        kv_neg_lsb_per_um_s: 0.025,
+        ka_lsb_per_um_s2: 0.0001,
+        valve_lag_us: 4200.0,
+        following_error_um: 5000.0,
+        ..AxisConfig::default()
+    }
+}
+
+/// The measured call: one follower tick.
+#[inline(never)]
+fn tick<const S: usize>(f: &mut Follower<S, NODES>, inp: &FollowerInputs<S>) -> FollowerOutputs<S> {
+    f.tick(inp)
+}
+
+/// A follower with its inputs and last outputs.
+pub struct FollowerFig<const S: usize> {
+    f: Follower<S, NODES>,
+    inp: FollowerInputs<S>,
+    out: FollowerOutputs<S>,
+}
+
+impl<const S: usize> FollowerFig<S> {
+    /// The follower on the reference table, every axis in `mode`; `None` if the core
+    /// rejects the set-up (reported as a failed figure).
+    pub fn new(mode: ControlMode) -> Option<Self> {
+        let cfg = FollowerConfig {
+            axes: [axis(mode); S],
+            ..FollowerConfig::default()
+        };
+        let t = table::<S>()?;
+        let mut f = Follower::new(&cfg, t).ok()?;
+        let inp = FollowerInputs {
+            master: Master::from_num(MASTER_START),
+            pos_um: [PosUm::ZERO; S],
+        };
+        // Positions start on the table at the master start.
+        let mut fig_inp = inp;
+        let mut cursor = 0;
+        let lk = f.table().locate(&mut cursor, inp.master);
+        for (i, x) in fig_inp.pos_um.iter_mut().enumerate() {
+            *x = f.table().value(&lk, i);
+        }
+        let out = f.tick(&fig_inp);
+        Some(Self {
+            f,
+            inp: fig_inp,
+            out,
+        })
+    }
+
+    /// Inputs of call `k`: the master at 3.07 counts/tick, positions 3 µm behind the
+    /// last target, whole µm.
+    #[inline(always)]
+    fn next_inputs(&mut self, k: u32) {
+        // u32 arithmetic (one UDIV): the harness must cost little next to the call.
+        let advance = k.wrapping_mul(MASTER_STEP_X100) / 100;
+        self.inp.master = Master::from_bits((MASTER_START + i64::from(advance)) << 16);
+        for (x, t) in self.inp.pos_um.iter_mut().zip(self.out.target_um.iter()) {
+            *x = PosUm::from_bits((t.to_bits() & !0xFF).saturating_sub(LAG_BITS));
+        }
+    }
+}
+
+impl<const S: usize> Figure for FollowerFig<S> {
+    #[inline(always)]
+    fn call(&mut self, k: u32) {
+        self.next_inputs(k);
+        self.out = tick(&mut self.f, &self.inp);
+    }
+
+    #[inline(always)]
+    fn baseline(&mut self, k: u32) {
+        self.next_inputs(k);
+        black_box(&mut self.out);
+    }
+
+    /// No axis latched a fault and the table has not ended (the figure would then not
+    /// measure the running loop).
+    fn healthy(&self) -> bool {
+        !self.out.end_of_table && self.out.fault.iter().all(Option::is_none)
+    }
+}
