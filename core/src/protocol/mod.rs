@@ -1,1 +1,39 @@
-//! (placeholder: filled by its issue)
+//! The UART protocol: table upload, commands, status and telemetry (issue 8).
+//!
+//! Layers, bottom up (byte-by-byte description in `PROTOCOL.md`):
+//!
+//! - [`cobs`]: frame delimiting (0x00 never appears inside a frame);
+//! - [`crc`]: CRC-32 (IEEE) per frame, per table, per flash slot;
+//! - [`frame`]: `seq · type · payload · crc32`, the streaming [`frame::FrameDecoder`];
+//! - [`wire`]: little-endian field reader/writer;
+//! - [`msg`]: requests, responses, typed [`msg::NakCode`]s;
+//! - [`store`]: two flash slots through the `embedded-storage` NorFlash traits;
+//! - [`handler`]: the board's state machine ([`handler::Handler`]) behind the
+//!   [`handler::Device`] seam;
+//! - `ramflash` (host only): a NOR flash in RAM that can lose power at any byte.
+//!
+//! Firmware glue: construct `Handler::new(Store::new(&flash, base, slot)?)`, call
+//! `boot` once, then from the low-priority UART task `on_bytes(dev, flash, rx, tx)` with
+//! each DMA chunk, `poll(dev)` every loop, and `on_tick(tx, sample)` for telemetry.
+
+pub mod cobs;
+pub mod crc;
+pub mod frame;
+pub mod handler;
+pub mod msg;
+#[cfg(any(test, feature = "std"))]
+#[allow(
+    clippy::indexing_slicing,
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation
+)]
+pub mod ramflash;
+pub mod store;
+pub mod wire;
+
+pub use handler::{Device, Handler, Motion};
+pub use msg::{Nak, NakCode, ParamId, Request, Response};
+pub use store::{SlotHeader, Store, StoreError};
+
+#[cfg(test)]
+mod handler_tests;

@@ -1,0 +1,466 @@
+//! The board side: bytes in, frames out, one request at a time.
+//!
+//! ```text
+//! UART RX bytes ──► FrameDecoder ──► seq check ──► Request::decode ──► dispatch ──► Ack/Nak/Info/Status ──► tx
+//!                                                       │
+//!                       staging bank (upload) ─Commit─► committed bank ─Activate (safe point)─► Device
+//!                                                                                  Save ──► Store (2 flash slots)
+//! ```
+//!
+//! Rules (every one is a test in `handler_tests.rs`):
+//! - A frame that is not valid (COBS, length, CRC) gets `Nak` with `seq` 0xFFFF and
+//!   `req` 0: the sender's seq cannot be trusted.
+//! - `Hello` is accepted with any `seq` and opens a session; after it the next request
+//!   must carry `seq + 1` (wrapping). Repeating the last accepted `seq` is `Duplicate`
+//!   (the request was done; it is not done twice), any other `seq` is `OutOfOrder`.
+//! - Only a positive answer (Ack, Info, Status) advances the expected `seq`; after a Nak
+//!   the host may retry with the same `seq`. A Nak means nothing changed.
+//! - An upload fills the staging bank only; the active table keeps running.
+//!   `TableCommit` checks the whole-table CRC and the [`CamTable`] rules and moves the
+//!   table to the committed bank; `Activate(id)` installs it at once if the device is at
+//!   a safe point (idle, or the running table has ended), otherwise it is armed
+//!   (Ack flag bit 0) and [`Handler::poll`] installs it at the next safe point.
+//! - `Save` needs every axis idle (erasing a sector stalls the CPU for up to 2 s on the
+//!   single-bank STM32F4, so never while a table runs) and writes the older slot.
+
+use super::crc::Crc32;
+use super::frame::{self, FrameDecoder, FrameError, MAX_PAYLOAD, MAX_WIRE};
+use super::msg::{
+    read_row, row_len, ty, Info, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
+    NO_TABLE, PROTOCOL_VERSION,
+};
+use super::store::{SlotHeader, Store};
+use crate::table::{CamTable, Node, TableLimits};
+use embedded_storage::nor_flash::NorFlash;
+use heapless::Vec;
+
+/// A motion command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Motion {
+    /// Idle → Following.
+    Start,
+    /// → Idle.
+    Stop,
+    /// Following → Holding.
+    Hold,
+    /// Clear a latched fault.
+    ClearFault,
+}
+
+/// What the handler needs from the machine it controls: the runtime on the board, the
+/// virtual board on the host. The seam between protocol and control.
+pub trait Device<const S: usize, const N: usize> {
+    /// Firmware version (major, minor, patch).
+    fn firmware(&self) -> [u8; 3];
+    /// Control period, µs.
+    fn period_us(&self) -> u32;
+    /// Limits a table is validated against.
+    fn table_limits(&self) -> TableLimits<S>;
+    /// The running table, if any.
+    fn active_table(&self) -> Option<&CamTable<S, N>>;
+    /// Idle, or the running table has ended: a table may be swapped now.
+    fn at_safe_point(&self) -> bool;
+    /// Every axis idle (valves at null, not following).
+    fn all_idle(&self) -> bool;
+    /// Installs a table (only called at a safe point).
+    fn install_table(&mut self, table: CamTable<S, N>);
+    /// Start / Stop / Hold / ClearFault.
+    fn command(&mut self, m: Motion) -> Result<(), Nak>;
+    /// Sets one parameter (validated; typed error).
+    fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak>;
+    /// Fills state, faults, timing, master and per-axis fields of a status.
+    fn status(&self, out: &mut StatusMsg);
+}
+
+/// An upload in progress.
+#[derive(Clone, Copy, Debug)]
+struct Upload {
+    id: u32,
+    rows: u16,
+    crc: Crc32,
+}
+
+/// The protocol handler: one per serial port.
+#[derive(Clone, Debug)]
+pub struct Handler<const S: usize, const N: usize> {
+    dec: FrameDecoder,
+    store: Store,
+    session: bool,
+    last_seq: u16,
+    upload: Option<Upload>,
+    staging: Vec<Node<S>, N>,
+    committed: Option<(u32, CamTable<S, N>)>,
+    pending: bool,
+    active_id: u32,
+    saved: Option<SlotHeader>,
+    decimation: u16,
+    tick_count: u16,
+    tel_seq: u16,
+}
+
+/// Ack flag: Activate armed for the next safe point.
+pub const ACK_DEFERRED: u8 = 1;
+
+impl<const S: usize, const N: usize> Handler<S, N> {
+    /// Most rows one chunk can carry: (payload − 3-byte chunk header) / row length, ≤ 255.
+    pub const MAX_CHUNK_ROWS: usize = {
+        let r = (MAX_PAYLOAD - 3) / row_len(S);
+        if r > 255 {
+            255
+        } else {
+            r
+        }
+    };
+
+    /// A handler using `store`; call [`Handler::boot`] once at power-up.
+    pub fn new(store: Store) -> Self {
+        Self {
+            dec: FrameDecoder::new(),
+            store,
+            session: false,
+            last_seq: 0,
+            upload: None,
+            staging: Vec::new(),
+            committed: None,
+            pending: false,
+            active_id: NO_TABLE,
+            saved: None,
+            decimation: 0,
+            tick_count: 0,
+            tel_seq: 0,
+        }
+    }
+
+    /// Loads the newest valid flash slot and installs its table. Returns its header.
+    pub fn boot<D: Device<S, N>, F: NorFlash>(
+        &mut self,
+        dev: &mut D,
+        flash: &mut F,
+    ) -> Option<SlotHeader> {
+        let limits = dev.table_limits();
+        let r = self.store.load(flash, &limits, &mut self.staging);
+        self.staging.clear();
+        let (h, t) = r?;
+        dev.install_table(t);
+        self.active_id = h.id;
+        self.saved = Some(h);
+        Some(h)
+    }
+
+    /// Id of the active table ([`NO_TABLE`] if none).
+    pub fn active_id(&self) -> u32 {
+        self.active_id
+    }
+
+    /// Installs an armed activation once the device is at a safe point. Call every loop.
+    pub fn poll<D: Device<S, N>>(&mut self, dev: &mut D) {
+        if self.pending && dev.at_safe_point() {
+            self.pending = false;
+            if let Some((id, t)) = self.committed.take() {
+                dev.install_table(t);
+                self.active_id = id;
+            }
+        }
+    }
+
+    /// Counts one control tick; every `decimation` ticks sends `sample()` as Telemetry.
+    pub fn on_tick(&mut self, tx: &mut impl FnMut(&[u8]), sample: impl FnOnce() -> Telemetry) {
+        if self.decimation == 0 {
+            return;
+        }
+        self.tick_count = self.tick_count.saturating_add(1);
+        if self.tick_count >= self.decimation {
+            self.tick_count = 0;
+            let seq = self.tel_seq;
+            self.tel_seq = seq.wrapping_add(1);
+            send(tx, seq, &Response::Telemetry(sample()));
+        }
+    }
+
+    /// Feeds received bytes; every response frame goes to `tx` (whole frames).
+    pub fn on_bytes<D: Device<S, N>, F: NorFlash>(
+        &mut self,
+        dev: &mut D,
+        flash: &mut F,
+        bytes: &[u8],
+        tx: &mut impl FnMut(&[u8]),
+    ) {
+        for &b in bytes {
+            let (seq, resp) = match self.dec.push(b) {
+                None => continue,
+                Some(Err(e)) => {
+                    let code = match e {
+                        FrameError::Cobs => NakCode::Framing,
+                        FrameError::Truncated => NakCode::Truncated,
+                        FrameError::Oversized => NakCode::Oversized,
+                        FrameError::Crc => NakCode::Crc,
+                    };
+                    (
+                        0xFFFF,
+                        Response::Nak {
+                            req: 0,
+                            nak: Nak::new(code),
+                        },
+                    )
+                }
+                Some(Ok(f)) => {
+                    // Copy out of the decoder's buffer so `self` is free for dispatch.
+                    let mut p = [0u8; MAX_PAYLOAD];
+                    let len = f.payload.len();
+                    let (seq, t) = (f.seq, f.ty);
+                    if let Some(d) = p.get_mut(..len) {
+                        d.copy_from_slice(f.payload);
+                    }
+                    let payload = p.get(..len).unwrap_or(&[]);
+                    (seq, self.request(dev, flash, seq, t, payload))
+                }
+            };
+            send(tx, seq, &resp);
+            self.poll(dev);
+        }
+    }
+
+    /// One checked frame → its response; advances the session seq on success.
+    fn request<D: Device<S, N>, F: NorFlash>(
+        &mut self,
+        dev: &mut D,
+        flash: &mut F,
+        seq: u16,
+        t: u8,
+        payload: &[u8],
+    ) -> Response {
+        let nak = |nak: Nak| Response::Nak { req: t, nak };
+        let req = match Request::decode(t, payload) {
+            Ok(r) => r,
+            Err(code) => return nak(Nak::new(code)),
+        };
+        if !matches!(req, Request::Hello) {
+            if !self.session {
+                return nak(Nak::new(NakCode::NoSession));
+            }
+            if seq == self.last_seq {
+                return nak(Nak::new(NakCode::Duplicate));
+            }
+            if seq != self.last_seq.wrapping_add(1) {
+                return nak(Nak::with(
+                    NakCode::OutOfOrder,
+                    self.last_seq.wrapping_add(1),
+                    0,
+                ));
+            }
+        }
+        let r = self.dispatch(dev, flash, &req);
+        if !matches!(r, Response::Nak { .. }) {
+            self.session = true;
+            self.last_seq = seq;
+        }
+        r
+    }
+
+    fn dispatch<D: Device<S, N>, F: NorFlash>(
+        &mut self,
+        dev: &mut D,
+        flash: &mut F,
+        req: &Request<'_>,
+    ) -> Response {
+        let t = req.ty();
+        let ack = Response::Ack { req: t, flags: 0 };
+        let r = match *req {
+            Request::Hello => return Response::Info(self.info(dev)),
+            Request::GetStatus => return Response::Status(self.status(dev)),
+            Request::TableBegin { id, columns, rows } => self.begin(id, columns, rows),
+            Request::TableChunk {
+                offset,
+                count,
+                data,
+            } => self.chunk(offset, count, data),
+            Request::TableCommit { crc } => self.commit(dev, crc),
+            Request::TableAbort => {
+                self.upload = None;
+                self.staging.clear();
+                Ok(())
+            }
+            Request::Activate { id } => match &self.committed {
+                Some((cid, _)) if *cid == id => {
+                    self.pending = true;
+                    self.poll(dev);
+                    let flags = if self.pending { ACK_DEFERRED } else { 0 };
+                    return Response::Ack { req: t, flags };
+                }
+                _ => Err(Nak::new(NakCode::UnknownTable)),
+            },
+            Request::Start => dev.command(Motion::Start),
+            Request::Stop => dev.command(Motion::Stop),
+            Request::Hold => dev.command(Motion::Hold),
+            Request::ClearFault => dev.command(Motion::ClearFault),
+            Request::SetParam { axis, param, value } => match ParamId::from_u8(param) {
+                Some(p) => dev.set_param(axis, p, value),
+                None => Err(Nak::with(NakCode::UnknownParam, u16::from(axis), param)),
+            },
+            Request::Save => self.save(dev, flash),
+            Request::SetTelemetry { decimation } => {
+                self.decimation = decimation;
+                self.tick_count = 0;
+                Ok(())
+            }
+        };
+        match r {
+            Ok(()) => ack,
+            Err(nak) => Response::Nak { req: t, nak },
+        }
+    }
+
+    fn info<D: Device<S, N>>(&self, dev: &D) -> Info {
+        Info {
+            protocol: PROTOCOL_VERSION,
+            firmware: dev.firmware(),
+            axes: u8::try_from(S).unwrap_or(u8::MAX),
+            capacity_rows: u16::try_from(N).unwrap_or(u16::MAX),
+            max_chunk_rows: u8::try_from(Self::MAX_CHUNK_ROWS).unwrap_or(u8::MAX),
+            period_us: dev.period_us(),
+            active_id: self.active_id,
+        }
+    }
+
+    fn status<D: Device<S, N>>(&self, dev: &D) -> StatusMsg {
+        let mut s = StatusMsg::default();
+        dev.status(&mut s);
+        let mut flags = s.flags & 1;
+        if self.pending {
+            flags |= 2;
+        }
+        if self.upload.is_some() {
+            flags |= 4;
+        }
+        if self.committed.is_some() {
+            flags |= 8;
+        }
+        if self.session {
+            flags |= 16;
+        }
+        s.flags = flags;
+        s.active_id = self.active_id;
+        s.committed_id = self.committed.as_ref().map_or(NO_TABLE, |(id, _)| *id);
+        s.saved_id = self.saved.map_or(NO_TABLE, |h| h.id);
+        s.upload_rows = u16::try_from(self.staging.len()).unwrap_or(u16::MAX);
+        s
+    }
+
+    fn begin(&mut self, id: u32, columns: u8, rows: u16) -> Result<(), Nak> {
+        if usize::from(columns) != S {
+            return Err(Nak::with(
+                NakCode::Columns,
+                u16::try_from(S).unwrap_or(u16::MAX),
+                0,
+            ));
+        }
+        if usize::from(rows) > N {
+            return Err(Nak::with(
+                NakCode::TooManyRows,
+                u16::try_from(N).unwrap_or(u16::MAX),
+                0,
+            ));
+        }
+        if rows < 2 {
+            return Err(Nak::new(NakCode::TableTooFewNodes));
+        }
+        if id == NO_TABLE {
+            return Err(Nak::new(NakCode::UnknownTable));
+        }
+        self.staging.clear();
+        self.upload = Some(Upload {
+            id,
+            rows,
+            crc: Crc32::new(),
+        });
+        Ok(())
+    }
+
+    fn chunk(&mut self, offset: u16, count: u8, data: &[u8]) -> Result<(), Nak> {
+        let up = self.upload.as_mut().ok_or(Nak::new(NakCode::NoUpload))?;
+        let have = self.staging.len();
+        if usize::from(offset) != have {
+            return Err(Nak::with(
+                NakCode::ChunkOffset,
+                u16::try_from(have).unwrap_or(u16::MAX),
+                0,
+            ));
+        }
+        let rl = row_len(S);
+        if count == 0 || Some(data.len()) != usize::from(count).checked_mul(rl) {
+            return Err(Nak::new(NakCode::Length));
+        }
+        if have.saturating_add(usize::from(count)) > usize::from(up.rows) {
+            return Err(Nak::with(NakCode::TooManyRows, up.rows, 0));
+        }
+        let mut r = super::wire::Reader::new(data);
+        for _ in 0..count {
+            let n = read_row::<S>(&mut r).ok_or(Nak::new(NakCode::Length))?;
+            // Capacity was checked at Begin (rows ≤ N) and above (have + count ≤ rows).
+            self.staging
+                .push(n)
+                .map_err(|_| Nak::with(NakCode::TooManyRows, up.rows, 0))?;
+        }
+        up.crc.update(data);
+        Ok(())
+    }
+
+    fn commit<D: Device<S, N>>(&mut self, dev: &D, crc: u32) -> Result<(), Nak> {
+        let up = self.upload.ok_or(Nak::new(NakCode::NoUpload))?;
+        let have = self.staging.len();
+        if have != usize::from(up.rows) {
+            return Err(Nak::with(
+                NakCode::Incomplete,
+                u16::try_from(have).unwrap_or(u16::MAX),
+                0,
+            ));
+        }
+        if up.crc.finish() != crc {
+            return Err(Nak::new(NakCode::TableCrc));
+        }
+        let table = CamTable::try_from_nodes(&self.staging, &dev.table_limits())?;
+        self.committed = Some((up.id, table));
+        self.pending = false;
+        self.upload = None;
+        self.staging.clear();
+        Ok(())
+    }
+
+    fn save<D: Device<S, N>, F: NorFlash>(&mut self, dev: &D, flash: &mut F) -> Result<(), Nak> {
+        if !dev.all_idle() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        let t = dev.active_table().ok_or(Nak::new(NakCode::NothingToSave))?;
+        let h = self
+            .store
+            .save(flash, self.active_id, t)
+            .map_err(|_| Nak::new(NakCode::Flash))?;
+        self.saved = Some(h);
+        Ok(())
+    }
+}
+
+/// Encodes and sends one response frame.
+fn send(tx: &mut impl FnMut(&[u8]), seq: u16, r: &Response) {
+    let mut p = [0u8; MAX_PAYLOAD];
+    let mut out = [0u8; MAX_WIRE + 1];
+    let Some(n) = r.encode(&mut p) else { return };
+    let Some(m) = frame::encode(seq, r.ty(), p.get(..n).unwrap_or(&[]), &mut out) else {
+        return;
+    };
+    tx(out.get(..m).unwrap_or(&[]));
+}
+
+/// Builds one request frame (host side and tests): returns its length in `out`
+/// (`out` needs [`MAX_WIRE`] + 1 bytes).
+pub fn encode_request(seq: u16, req: &Request<'_>, out: &mut [u8]) -> Option<usize> {
+    let mut p = [0u8; MAX_PAYLOAD];
+    let n = req.encode(&mut p)?;
+    frame::encode(seq, req.ty(), p.get(..n)?, out)
+}
+
+/// Frame type of a response.
+pub const fn is_response(t: u8) -> bool {
+    t >= ty::ACK
+}

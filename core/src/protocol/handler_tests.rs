@@ -1,0 +1,741 @@
+//! Handler tests: the upload path, every bad-frame kind, power cuts during Save, and a
+//! proptest state machine over random requests and random bytes.
+
+use super::frame::{FrameDecoder, MAX_WIRE};
+use super::handler::{encode_request, Device, Handler, Motion, ACK_DEFERRED};
+use super::msg::{
+    row_len, write_row, AxisStatus, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
+    NO_TABLE,
+};
+use super::ramflash::RamFlash;
+use super::store::Store;
+use super::wire::Writer;
+use crate::table::{AxisLimits, CamTable, Node, TableLimits};
+use crate::units::{Master, MasterRate, PosUm, VelUmPerS};
+use proptest::prelude::*;
+use std::vec;
+use std::vec::Vec;
+
+const S: usize = 1;
+const N: usize = 64;
+const SLOT: u32 = 2048;
+
+/// A machine with one axis: a table, a running flag and an end-of-table flag.
+#[derive(Clone, Debug, Default)]
+struct Mock {
+    table: Option<CamTable<S, N>>,
+    running: bool,
+    ended: bool,
+    kp: f32,
+}
+
+impl Device<S, N> for Mock {
+    fn firmware(&self) -> [u8; 3] {
+        [0, 1, 0]
+    }
+    fn period_us(&self) -> u32 {
+        1000
+    }
+    fn table_limits(&self) -> TableLimits<S> {
+        TableLimits {
+            master_speed_per_s: MasterRate::from_num(1000),
+            axes: [AxisLimits {
+                min_um: PosUm::from_num(0),
+                max_um: PosUm::from_num(500_000),
+                max_speed_um_per_s: VelUmPerS::from_num(1_000_000),
+            }],
+        }
+    }
+    fn active_table(&self) -> Option<&CamTable<S, N>> {
+        self.table.as_ref()
+    }
+    fn at_safe_point(&self) -> bool {
+        !self.running || self.ended
+    }
+    fn all_idle(&self) -> bool {
+        !self.running
+    }
+    fn install_table(&mut self, t: CamTable<S, N>) {
+        self.table = Some(t);
+        self.ended = false;
+    }
+    fn command(&mut self, m: Motion) -> Result<(), Nak> {
+        match m {
+            Motion::Start if self.table.is_none() => Err(Nak::with(NakCode::BadState, 0, 0)),
+            Motion::Start => {
+                self.running = true;
+                Ok(())
+            }
+            Motion::Stop => {
+                self.running = false;
+                Ok(())
+            }
+            Motion::Hold | Motion::ClearFault => Ok(()),
+        }
+    }
+    fn set_param(&mut self, axis: u8, p: ParamId, v: f32) -> Result<(), Nak> {
+        if usize::from(axis) >= S {
+            return Err(Nak::with(NakCode::UnknownParam, u16::from(axis), p as u8));
+        }
+        match p {
+            ParamId::KpLsbPerUm if (0.0..=1000.0).contains(&v) => {
+                self.kp = v;
+                Ok(())
+            }
+            _ => Err(Nak::with(NakCode::ParamRange, u16::from(axis), p as u8)),
+        }
+    }
+    fn status(&self, out: &mut StatusMsg) {
+        out.state = u8::from(self.running);
+        out.flags = u8::from(self.ended);
+        out.axes.push(AxisStatus::default()).unwrap();
+    }
+}
+
+/// The rig: handler, device, flash and a host-side seq counter.
+struct Rig {
+    h: Handler<S, N>,
+    dev: Mock,
+    flash: RamFlash,
+    seq: u16,
+}
+
+fn nodes(n: usize, scale: i32) -> Vec<Node<S>> {
+    (0..n)
+        .map(|i| Node {
+            master: Master::from_num(i as i32 * 10),
+            slave_um: [PosUm::from_num(1000 + scale * i as i32)],
+        })
+        .collect()
+}
+
+fn rows_bytes(ns: &[Node<S>]) -> Vec<u8> {
+    let mut b = std::vec![0u8; ns.len() * row_len(S)];
+    let mut w = Writer::new(&mut b);
+    for n in ns {
+        write_row(&mut w, n).unwrap();
+    }
+    b
+}
+
+fn decode_all(bytes: &[u8]) -> Vec<(u16, Response)> {
+    let mut d = FrameDecoder::new();
+    let mut v = Vec::new();
+    for &b in bytes {
+        if let Some(f) = d.push(b) {
+            let f = f.unwrap();
+            v.push((f.seq, Response::decode(f.ty, f.payload).unwrap()));
+        }
+    }
+    v
+}
+
+impl Rig {
+    fn new() -> Self {
+        let flash = RamFlash::new(4 * SLOT as usize);
+        let store = Store::new::<_, S, N>(&flash, 0, SLOT).unwrap();
+        Self {
+            h: Handler::new(store),
+            dev: Mock::default(),
+            flash,
+            seq: 0,
+        }
+    }
+
+    fn raw(&mut self, bytes: &[u8]) -> Vec<(u16, Response)> {
+        let mut out = Vec::new();
+        self.h
+            .on_bytes(&mut self.dev, &mut self.flash, bytes, &mut |f| {
+                out.extend_from_slice(f)
+            });
+        decode_all(&out)
+    }
+
+    fn frame(seq: u16, q: &Request<'_>) -> Vec<u8> {
+        let mut b = [0u8; MAX_WIRE + 1];
+        let n = encode_request(seq, q, &mut b).unwrap();
+        b[..n].to_vec()
+    }
+
+    /// Sends with the next seq; advances it only on a positive answer (as a host does).
+    fn req(&mut self, q: &Request<'_>) -> Response {
+        let s = if matches!(q, Request::Hello) {
+            self.seq
+        } else {
+            self.seq.wrapping_add(1)
+        };
+        let r = self.raw(&Self::frame(s, q));
+        assert_eq!(r.len(), 1, "one answer per request");
+        assert_eq!(r[0].0, s, "answer carries the request seq");
+        if !matches!(r[0].1, Response::Nak { .. }) {
+            self.seq = s;
+        }
+        r[0].1.clone()
+    }
+
+    fn ack(&mut self, q: &Request<'_>) -> u8 {
+        match self.req(q) {
+            Response::Ack { req, flags } => {
+                assert_eq!(req, q.ty());
+                flags
+            }
+            r => panic!("{q:?} answered {r:?}"),
+        }
+    }
+
+    fn upload(&mut self, id: u32, ns: &[Node<S>]) -> Result<(), Nak> {
+        self.ack(&Request::TableBegin {
+            id,
+            columns: S as u8,
+            rows: ns.len() as u16,
+        });
+        let data = rows_bytes(ns);
+        let per = Handler::<S, N>::MAX_CHUNK_ROWS;
+        for (k, c) in ns.chunks(per).enumerate() {
+            let bytes = rows_bytes(c);
+            self.ack(&Request::TableChunk {
+                offset: (k * per) as u16,
+                count: c.len() as u8,
+                data: &bytes,
+            });
+        }
+        match self.req(&Request::TableCommit {
+            crc: super::crc::crc32(&data),
+        }) {
+            Response::Ack { .. } => Ok(()),
+            Response::Nak { nak, .. } => Err(nak),
+            r => panic!("{r:?}"),
+        }
+    }
+
+    /// What must not change on a Nak: active table, both flash slots, handler status.
+    fn snapshot(&mut self) -> (Option<CamTable<S, N>>, Vec<u8>, u32, StatusMsg) {
+        let mut st = StatusMsg::default();
+        self.dev.status(&mut st);
+        (
+            self.dev.table.clone(),
+            self.flash.mem.clone(),
+            self.h.active_id(),
+            st,
+        )
+    }
+}
+
+fn nak_code(r: &Response) -> NakCode {
+    match r {
+        Response::Nak { nak, .. } => nak.code,
+        r => panic!("expected a Nak, got {r:?}"),
+    }
+}
+
+/// A rig with table 1 active and saved, table 2 active and saved (both slots full),
+/// and a session open.
+fn loaded_rig() -> Rig {
+    let mut r = Rig::new();
+    assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
+    for (id, scale) in [(1, 100), (2, 150)] {
+        r.upload(id, &nodes(10, scale)).unwrap();
+        assert_eq!(r.ack(&Request::Activate { id }), 0);
+        r.ack(&Request::Save);
+    }
+    assert_eq!(r.h.active_id(), 2);
+    r
+}
+
+#[test]
+fn upload_activate_save_boot() {
+    let mut r = Rig::new();
+    match r.req(&Request::Hello) {
+        Response::Info(i) => {
+            assert_eq!(i.axes, 1);
+            assert_eq!(i.capacity_rows, N as u16);
+            assert_eq!(i.active_id, NO_TABLE);
+        }
+        x => panic!("{x:?}"),
+    }
+    assert_eq!(nak_code(&r.req(&Request::Start)), NakCode::BadState);
+    // 40 rows: several chunks.
+    r.upload(7, &nodes(40, 100)).unwrap();
+    assert_eq!(r.ack(&Request::Activate { id: 7 }), 0);
+    assert_eq!(r.h.active_id(), 7);
+    r.ack(&Request::Start);
+    // Saving while running is refused.
+    assert_eq!(nak_code(&r.req(&Request::Save)), NakCode::NotIdle);
+    // An upload while running goes to the inactive bank; activation waits for a safe point.
+    let before = r.dev.table.clone();
+    r.upload(8, &nodes(12, 50)).unwrap();
+    assert_eq!(r.dev.table, before, "the active table kept running");
+    assert_eq!(r.ack(&Request::Activate { id: 8 }), ACK_DEFERRED);
+    assert_eq!(r.h.active_id(), 7);
+    r.dev.ended = true;
+    r.h.poll(&mut r.dev);
+    assert_eq!(r.h.active_id(), 8);
+    assert_eq!(r.dev.table.as_ref().unwrap().len(), 12);
+    r.ack(&Request::Stop);
+    r.ack(&Request::Save);
+    match r.req(&Request::GetStatus) {
+        Response::Status(s) => {
+            assert_eq!(s.active_id, 8);
+            assert_eq!(s.saved_id, 8);
+            assert_eq!(s.committed_id, NO_TABLE);
+        }
+        x => panic!("{x:?}"),
+    }
+    // Reboot from flash.
+    let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
+    let mut h2 = Handler::<S, N>::new(store);
+    let mut dev2 = Mock::default();
+    let hd = h2.boot(&mut dev2, &mut r.flash).unwrap();
+    assert_eq!(hd.id, 8);
+    assert_eq!(dev2.table, r.dev.table);
+}
+
+#[test]
+fn set_param_and_telemetry() {
+    let mut r = Rig::new();
+    r.req(&Request::Hello);
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: 0.5,
+    });
+    assert_eq!(r.dev.kp, 0.5);
+    let n = r.req(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: -1.0,
+    });
+    assert_eq!(nak_code(&n), NakCode::ParamRange);
+    let n = r.req(&Request::SetParam {
+        axis: 0,
+        param: 200,
+        value: 1.0,
+    });
+    assert_eq!(nak_code(&n), NakCode::UnknownParam);
+    r.ack(&Request::SetTelemetry { decimation: 10 });
+    let mut out = Vec::new();
+    for k in 0..100u32 {
+        r.h.on_tick(&mut |f| out.extend_from_slice(f), || Telemetry {
+            tick: k,
+            ..Default::default()
+        });
+    }
+    let tel = decode_all(&out);
+    assert_eq!(tel.len(), 10);
+    assert!(matches!(&tel[9].1, Response::Telemetry(t) if t.tick == 99));
+}
+
+/// Every bad-frame kind gets its Nak code and changes nothing.
+#[test]
+fn bad_frames_change_nothing() {
+    let mut r = loaded_rig();
+    // Leave an upload half done, to check chunks cannot be mixed up either.
+    r.ack(&Request::TableBegin {
+        id: 9,
+        columns: 1,
+        rows: 4,
+    });
+    let two = rows_bytes(&nodes(2, 10));
+    r.ack(&Request::TableChunk {
+        offset: 0,
+        count: 2,
+        data: &two,
+    });
+    let good_next = r.seq.wrapping_add(1);
+    let cases: Vec<(&str, Vec<u8>, NakCode)> = {
+        // A Stop frame whose CRC is off by one bit (valid COBS).
+        let mut body = std::vec![0u8; 3];
+        body[..2].copy_from_slice(&good_next.to_le_bytes());
+        body[2] = 0x21;
+        let c = super::crc::crc32(&body) ^ 0x0100;
+        body.extend_from_slice(&c.to_le_bytes());
+        let mut enc = [0u8; 16];
+        let n = super::cobs::encode(&body, &mut enc).unwrap();
+        let mut crc = enc[..n].to_vec();
+        crc.push(0);
+        // A frame with a valid CRC but only 5 bytes: below the 7-byte minimum.
+        let mut short = [0u8; 16];
+        let n = super::cobs::encode(&[1, 2, 3, 4, 5], &mut short).unwrap();
+        let mut short = short[..n].to_vec();
+        short.push(0);
+        let mut big = std::vec![0x42u8; MAX_WIRE + 40];
+        big.push(0);
+        // Right CRC, payload one byte short of a TableBegin.
+        let mut p = [0u8; 16];
+        let n = Request::TableBegin {
+            id: 3,
+            columns: 1,
+            rows: 3,
+        }
+        .encode(&mut p)
+        .unwrap();
+        let mut f = [0u8; 64];
+        let m = super::frame::encode(good_next, 0x10, &p[..n - 1], &mut f).unwrap();
+        let trunc_payload = f[..m].to_vec();
+        let m = super::frame::encode(good_next, 0x10, &[0; 12], &mut f).unwrap();
+        let long_payload = f[..m].to_vec();
+        let m = super::frame::encode(good_next, 0x5A, &[], &mut f).unwrap();
+        let unknown = f[..m].to_vec();
+        let bad_cobs = std::vec![0x05, 0x01, 0x00];
+        let three = rows_bytes(&nodes(3, 10));
+        std::vec![
+            ("corrupted", crc, NakCode::Crc),
+            ("truncated frame", short, NakCode::Truncated),
+            ("truncated payload", trunc_payload, NakCode::Truncated),
+            ("oversized", big, NakCode::Oversized),
+            ("too long payload", long_payload, NakCode::Length),
+            ("unknown type", unknown, NakCode::UnknownType),
+            ("framing", bad_cobs, NakCode::Framing),
+            (
+                "duplicated",
+                Rig::frame(r.seq, &Request::Start),
+                NakCode::Duplicate
+            ),
+            (
+                "out of order",
+                Rig::frame(good_next.wrapping_add(3), &Request::Stop),
+                NakCode::OutOfOrder
+            ),
+            (
+                "chunk replayed",
+                Rig::frame(
+                    good_next,
+                    &Request::TableChunk {
+                        offset: 0,
+                        count: 2,
+                        data: &two
+                    }
+                ),
+                NakCode::ChunkOffset
+            ),
+            (
+                "chunk past end",
+                Rig::frame(
+                    good_next,
+                    &Request::TableChunk {
+                        offset: 2,
+                        count: 3,
+                        data: &three
+                    }
+                ),
+                NakCode::TooManyRows
+            ),
+            (
+                "incomplete",
+                Rig::frame(good_next, &Request::TableCommit { crc: 0 }),
+                NakCode::Incomplete
+            ),
+            (
+                "wrong columns",
+                Rig::frame(
+                    good_next,
+                    &Request::TableBegin {
+                        id: 5,
+                        columns: 3,
+                        rows: 4
+                    }
+                ),
+                NakCode::Columns
+            ),
+            (
+                "too many rows",
+                Rig::frame(
+                    good_next,
+                    &Request::TableBegin {
+                        id: 5,
+                        columns: 1,
+                        rows: N as u16 + 1
+                    }
+                ),
+                NakCode::TooManyRows
+            ),
+            (
+                "unknown table",
+                Rig::frame(good_next, &Request::Activate { id: 77 }),
+                NakCode::UnknownTable
+            ),
+        ]
+    };
+    for (what, bytes, code) in cases {
+        let before = r.snapshot();
+        let resp = r.raw(&bytes);
+        assert_eq!(resp.len(), 1, "{what}: one answer");
+        assert_eq!(nak_code(&resp[0].1), code, "{what}");
+        assert_eq!(r.snapshot(), before, "{what} changed something");
+    }
+    // The session still works with the expected seq, and the upload resumes.
+    r.ack(&Request::TableChunk {
+        offset: 2,
+        count: 2,
+        data: &rows_bytes(&nodes(4, 10)[2..]),
+    });
+    let all = rows_bytes(&nodes(4, 10));
+    let before = r.snapshot();
+    let n = r.req(&Request::TableCommit {
+        crc: super::crc::crc32(&all) ^ 1,
+    });
+    assert_eq!(nak_code(&n), NakCode::TableCrc);
+    assert_eq!(r.snapshot(), before);
+    r.ack(&Request::TableCommit {
+        crc: super::crc::crc32(&all),
+    });
+}
+
+/// Invalid tables get the CamTable rule that failed, and change nothing.
+#[test]
+fn invalid_tables_are_refused() {
+    let mut r = loaded_rig();
+    let mut not_mono = nodes(6, 10);
+    not_mono[3].master = not_mono[2].master;
+    let mut out_of_range = nodes(6, 10);
+    out_of_range[4].slave_um[0] = PosUm::from_num(600_000);
+    let mut steep = nodes(6, 10);
+    // 10 counts at 1000 counts/s = 10 ms; 20 mm in 10 ms = 2 m/s > 1 m/s.
+    steep[5].slave_um[0] = steep[4].slave_um[0] + PosUm::from_num(20_000);
+    for (ns, code, row) in [
+        (not_mono, NakCode::TableNotMonotonic, 3),
+        (out_of_range, NakCode::TableOutOfRange, 4),
+        (steep, NakCode::TableTooSteep, 5),
+    ] {
+        let before = r.snapshot();
+        let nak = r.upload(11, &ns).unwrap_err();
+        assert_eq!((nak.code, nak.detail), (code, row));
+        assert_eq!(r.dev.table, before.0);
+        assert_eq!(r.flash.mem, before.1);
+        assert_eq!(
+            nak_code(&r.req(&Request::Activate { id: 11 })),
+            NakCode::UnknownTable
+        );
+        r.ack(&Request::TableAbort);
+    }
+    let n = r.req(&Request::TableBegin {
+        id: 12,
+        columns: 1,
+        rows: 1,
+    });
+    assert_eq!(nak_code(&n), NakCode::TableTooFewNodes);
+}
+
+/// A power cut at every byte of a Save leaves a bootable valid table: the old or the new.
+#[test]
+fn power_cut_at_every_byte_of_save() {
+    let mut r = loaded_rig();
+    r.upload(3, &nodes(30, 120)).unwrap();
+    r.ack(&Request::Activate { id: 3 });
+    let old = loaded_rig().dev.table.unwrap();
+    let new = r.dev.table.clone().unwrap();
+    let base = r.flash.clone();
+    // Count the byte operations of a complete Save.
+    let mut f = base.clone();
+    let ops0 = f.ops;
+    let store = Store::new::<_, S, N>(&f, 0, SLOT).unwrap();
+    store.save(&mut f, 3, &new).unwrap();
+    let total = f.ops - ops0;
+    assert!(
+        total > SLOT as usize,
+        "a save erases a slot and writes it: {total}"
+    );
+    let (mut saw_old, mut saw_new) = (0, 0);
+    for cut in 0..=total {
+        let mut f = base.clone();
+        f.cut_after(cut);
+        let res = store.save(&mut f, 3, &new);
+        assert_eq!(res.is_ok(), cut == total, "cut {cut}");
+        f.power_on();
+        let mut h = Handler::<S, N>::new(store);
+        let mut dev = Mock::default();
+        let hd = h.boot(&mut dev, &mut f).expect("bootable after a cut");
+        let t = dev.table.unwrap();
+        if hd.id == 3 {
+            assert_eq!(t, new);
+            saw_new += 1;
+        } else {
+            assert_eq!(hd.id, 2);
+            assert_eq!(t, old);
+            saw_old += 1;
+        }
+    }
+    assert_eq!(saw_new, 1, "only the complete save shows the new table");
+    assert_eq!(saw_old, total);
+}
+
+/// One step of the random walk.
+#[derive(Clone, Debug)]
+enum Op {
+    Hello,
+    Begin(u8, u16),
+    Chunk(u16, u8, i32),
+    Commit(bool),
+    Activate(u32),
+    Start,
+    Stop,
+    End,
+    Save,
+    Status,
+    /// A valid request with a wrong seq offset.
+    Reseq(i8),
+    /// Flip a byte of the next valid request.
+    Corrupt(usize, u8),
+    /// Random bytes.
+    Noise(Vec<u8>),
+}
+
+fn op() -> impl Strategy<Value = Op> {
+    prop_oneof![
+        Just(Op::Hello),
+        (0u8..3, 0u16..70).prop_map(|(c, r)| Op::Begin(c, r)),
+        (0u16..70, 0u8..12, -50i32..300).prop_map(|(o, c, s)| Op::Chunk(o, c, s)),
+        any::<bool>().prop_map(Op::Commit),
+        (0u32..4).prop_map(Op::Activate),
+        Just(Op::Start),
+        Just(Op::Stop),
+        Just(Op::End),
+        Just(Op::Save),
+        Just(Op::Status),
+        any::<i8>().prop_map(Op::Reseq),
+        (any::<usize>(), 1u8..=255).prop_map(|(i, x)| Op::Corrupt(i, x)),
+        proptest::collection::vec(any::<u8>(), 0..40).prop_map(Op::Noise),
+    ]
+}
+
+fn fuzz_cases() -> u32 {
+    std::env::var("HYDRA_FUZZ_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(200)
+}
+
+/// Replays a sequence, tracking the table the host last committed successfully.
+fn run_ops(ops: &[Op]) {
+    let mut r = Rig::new();
+    let mut next_id = 1u32;
+    let mut rows_sent: Vec<Node<S>> = Vec::new();
+    assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
+    for o in ops {
+        let before = r.snapshot();
+        let seq = r.seq.wrapping_add(1);
+        let (resp, raw) = match o {
+            Op::Hello => (r.raw(&Rig::frame(r.seq, &Request::Hello)), false),
+            Op::Begin(c, n) => {
+                next_id += 1;
+                rows_sent.clear();
+                (
+                    r.raw(&Rig::frame(
+                        seq,
+                        &Request::TableBegin {
+                            id: next_id,
+                            columns: *c,
+                            rows: *n,
+                        },
+                    )),
+                    false,
+                )
+            }
+            Op::Chunk(off, c, scale) => {
+                let ns: Vec<Node<S>> = (0..*c as usize)
+                    .map(|i| Node {
+                        master: Master::from_num((rows_sent.len() + i) as i32 * 10),
+                        slave_um: [PosUm::from_num(1000 + scale * (rows_sent.len() + i) as i32)],
+                    })
+                    .collect();
+                let resp = r.raw(&Rig::frame(
+                    seq,
+                    &Request::TableChunk {
+                        offset: *off,
+                        count: *c,
+                        data: &rows_bytes(&ns),
+                    },
+                ));
+                if matches!(resp.first(), Some((_, Response::Ack { .. }))) {
+                    rows_sent.extend_from_slice(&ns);
+                }
+                (resp, false)
+            }
+            Op::Commit(right) => {
+                let crc = super::crc::crc32(&rows_bytes(&rows_sent)) ^ u32::from(!right);
+                (
+                    r.raw(&Rig::frame(seq, &Request::TableCommit { crc })),
+                    false,
+                )
+            }
+            Op::Activate(k) => (
+                r.raw(&Rig::frame(seq, &Request::Activate { id: next_id - k })),
+                false,
+            ),
+            Op::Start => (r.raw(&Rig::frame(seq, &Request::Start)), false),
+            Op::Stop => (r.raw(&Rig::frame(seq, &Request::Stop)), false),
+            Op::End => {
+                r.dev.ended = true;
+                r.h.poll(&mut r.dev);
+                continue;
+            }
+            Op::Save => (r.raw(&Rig::frame(seq, &Request::Save)), false),
+            Op::Status => (r.raw(&Rig::frame(seq, &Request::GetStatus)), false),
+            Op::Reseq(d) => {
+                let s = seq.wrapping_add(*d as u16);
+                (r.raw(&Rig::frame(s, &Request::Stop)), false)
+            }
+            Op::Corrupt(i, x) => {
+                let mut f = Rig::frame(seq, &Request::Save);
+                let k = i % f.len();
+                f[k] ^= x;
+                // Resynchronise like a host does after noise.
+                let mut b = std::vec![0u8];
+                b.extend_from_slice(&f);
+                b.push(0);
+                (r.raw(&b), true)
+            }
+            Op::Noise(v) => {
+                let mut b = v.clone();
+                b.push(0);
+                (r.raw(&b), true)
+            }
+        };
+        if !raw {
+            assert_eq!(resp.len(), 1, "{o:?}: exactly one answer");
+        }
+        for (s, x) in &resp {
+            match x {
+                Response::Nak { .. } => {
+                    if resp.len() == 1 {
+                        assert_eq!(
+                            r.snapshot(),
+                            before,
+                            "{o:?} was refused but changed something"
+                        );
+                    }
+                }
+                Response::Telemetry(_) => panic!("no telemetry was asked for"),
+                _ => r.seq = *s,
+            }
+        }
+        // Invariants: a table is active iff an id is; both slots are never invalid at once
+        // after a successful save; a running machine always has a table.
+        assert_eq!(r.dev.table.is_some(), r.h.active_id() != NO_TABLE);
+        if r.dev.running {
+            assert!(r.dev.table.is_some());
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: fuzz_cases(), failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// The decoder and the handler take any sequence of requests and bytes without
+    /// panicking, answer each request once, and change nothing when they say Nak.
+    #[test]
+    fn state_machine_fuzz(ops in proptest::collection::vec(op(), 1..40)) {
+        run_ops(&ops);
+    }
+
+    /// Any bytes at all: never a panic, never more answers than delimiters.
+    #[test]
+    fn decoder_fuzz(bytes in proptest::collection::vec(any::<u8>(), 0..2000)) {
+        let mut r = Rig::new();
+        let resp = r.raw(&bytes);
+        let zeros = bytes.iter().filter(|b| **b == 0).count();
+        prop_assert!(resp.len() <= zeros);
+        prop_assert!(r.dev.table.is_none());
+        prop_assert!(r.flash.mem.iter().all(|b| *b == 0xFF));
+    }
+}

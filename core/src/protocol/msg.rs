@@ -1,0 +1,840 @@
+//! Messages: type codes, payload layouts (all little-endian) and Nak codes.
+//!
+//! Requests (host → board) and responses (board → host) share the frame format of
+//! [`super::frame`]. Every request is answered by exactly one response carrying the
+//! request's `seq`: `Ack`, `Nak`, or for `Hello`/`GetStatus` an `Info`/`Status`.
+//! `Telemetry` frames are unsolicited; their `seq` is the board's own telemetry counter.
+//! Byte-by-byte layouts are in `PROTOCOL.md` at the repository root.
+
+use super::wire::{Reader, Writer};
+use crate::table::{Node, TableError};
+use crate::units::{Master, PosUm};
+use heapless::Vec;
+
+/// Protocol version reported in `Info`.
+pub const PROTOCOL_VERSION: u8 = 1;
+/// Most axes a `Status`/`Telemetry` message can describe.
+pub const MAX_AXES: usize = 8;
+/// "No table" in id fields.
+pub const NO_TABLE: u32 = u32::MAX;
+
+/// Message type codes.
+pub mod ty {
+    /// Request: open a session, get [`super::Info`].
+    pub const HELLO: u8 = 0x01;
+    /// Request: get [`super::StatusMsg`].
+    pub const GET_STATUS: u8 = 0x02;
+    /// Request: start an upload into the inactive bank.
+    pub const TABLE_BEGIN: u8 = 0x10;
+    /// Request: rows of the upload.
+    pub const TABLE_CHUNK: u8 = 0x11;
+    /// Request: end the upload, check its CRC, validate the table.
+    pub const TABLE_COMMIT: u8 = 0x12;
+    /// Request: drop the upload.
+    pub const TABLE_ABORT: u8 = 0x13;
+    /// Request: make a committed table active (at a safe point).
+    pub const ACTIVATE: u8 = 0x14;
+    /// Request: Idle → Following.
+    pub const START: u8 = 0x20;
+    /// Request: → Idle (valves to null).
+    pub const STOP: u8 = 0x21;
+    /// Request: Following → Holding.
+    pub const HOLD: u8 = 0x22;
+    /// Request: clear a latched fault.
+    pub const CLEAR_FAULT: u8 = 0x23;
+    /// Request: set one parameter.
+    pub const SET_PARAM: u8 = 0x30;
+    /// Request: persist the active table to flash.
+    pub const SAVE: u8 = 0x31;
+    /// Request: telemetry every N ticks (0 = off).
+    pub const SET_TELEMETRY: u8 = 0x32;
+    /// Response: done.
+    pub const ACK: u8 = 0x80;
+    /// Response: refused, nothing changed.
+    pub const NAK: u8 = 0x81;
+    /// Response to Hello.
+    pub const INFO: u8 = 0x82;
+    /// Response to GetStatus.
+    pub const STATUS: u8 = 0x83;
+    /// Unsolicited telemetry sample.
+    pub const TELEMETRY: u8 = 0x84;
+}
+
+/// Why a request was refused (`Nak` code byte). Nothing changed on the board.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum NakCode {
+    /// Unknown message type.
+    UnknownType = 1,
+    /// Frame shorter than header + CRC, or payload shorter than its type needs.
+    Truncated = 2,
+    /// Frame longer than the receive buffer.
+    Oversized = 3,
+    /// CRC mismatch.
+    Crc = 4,
+    /// Not valid COBS.
+    Framing = 5,
+    /// `seq` is neither the expected one nor a repeat of the last accepted one.
+    OutOfOrder = 6,
+    /// `seq` repeats the last accepted request (already done; not done twice).
+    Duplicate = 7,
+    /// Payload longer than its type allows.
+    Length = 8,
+    /// No session: send Hello first.
+    NoSession = 9,
+    /// Chunk/Commit without a TableBegin.
+    NoUpload = 10,
+    /// Chunk offset differs from the rows received so far (`detail` = expected offset).
+    ChunkOffset = 11,
+    /// More rows than announced, or announced rows beyond the capacity (`detail` = capacity).
+    TooManyRows = 12,
+    /// Column count differs from the board's axes (`detail` = the board's count).
+    Columns = 13,
+    /// Commit before all announced rows arrived (`detail` = rows received).
+    Incomplete = 14,
+    /// The whole-table CRC in Commit does not match the rows received.
+    TableCrc = 15,
+    /// Table rejected: fewer than 2 rows.
+    TableTooFewNodes = 16,
+    /// Table rejected: more rows than the capacity.
+    TableTooManyNodes = 17,
+    /// Table rejected: master not strictly monotonic at row `detail`.
+    TableNotMonotonic = 18,
+    /// Table rejected: segment length at row `detail`.
+    TableSegmentLength = 19,
+    /// Table rejected: row `detail`, axis `detail2` outside its range.
+    TableOutOfRange = 20,
+    /// Table rejected: row `detail`, axis `detail2` faster than the axis can move.
+    TableTooSteep = 21,
+    /// Table rejected: the configured master speed is not positive.
+    TableMasterSpeed = 22,
+    /// Activate: no committed table with this id.
+    UnknownTable = 23,
+    /// The command needs every axis idle (Save, SetParam, Activate while a table runs).
+    NotIdle = 24,
+    /// The runtime refused the command in its present state (`detail` = state code).
+    BadState = 25,
+    /// SetParam: unknown parameter id or axis.
+    UnknownParam = 26,
+    /// SetParam: value outside its valid range (`detail` = axis, `detail2` = param id).
+    ParamRange = 27,
+    /// Save: no active table to save.
+    NothingToSave = 28,
+    /// Save: flash erase/write/verify failed.
+    Flash = 29,
+}
+
+impl NakCode {
+    /// From the wire byte.
+    pub fn from_u8(b: u8) -> Option<Self> {
+        use NakCode::*;
+        const ALL: [NakCode; 29] = [
+            UnknownType,
+            Truncated,
+            Oversized,
+            Crc,
+            Framing,
+            OutOfOrder,
+            Duplicate,
+            Length,
+            NoSession,
+            NoUpload,
+            ChunkOffset,
+            TooManyRows,
+            Columns,
+            Incomplete,
+            TableCrc,
+            TableTooFewNodes,
+            TableTooManyNodes,
+            TableNotMonotonic,
+            TableSegmentLength,
+            TableOutOfRange,
+            TableTooSteep,
+            TableMasterSpeed,
+            UnknownTable,
+            NotIdle,
+            BadState,
+            UnknownParam,
+            ParamRange,
+            NothingToSave,
+            Flash,
+        ];
+        ALL.iter().copied().find(|c| *c as u8 == b)
+    }
+}
+
+/// A Nak: code plus two detail fields whose meaning depends on the code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Nak {
+    /// What is wrong.
+    pub code: NakCode,
+    /// Row, offset, count or axis (see [`NakCode`]).
+    pub detail: u16,
+    /// Axis or parameter id (see [`NakCode`]).
+    pub detail2: u8,
+}
+
+impl Nak {
+    /// A Nak without details.
+    pub const fn new(code: NakCode) -> Self {
+        Self {
+            code,
+            detail: 0,
+            detail2: 0,
+        }
+    }
+    /// A Nak with details.
+    pub const fn with(code: NakCode, detail: u16, detail2: u8) -> Self {
+        Self {
+            code,
+            detail,
+            detail2,
+        }
+    }
+}
+
+impl From<TableError> for Nak {
+    fn from(e: TableError) -> Self {
+        let r = |row: usize| u16::try_from(row).unwrap_or(u16::MAX);
+        let a = |axis: usize| u8::try_from(axis).unwrap_or(u8::MAX);
+        match e {
+            TableError::TooFewNodes => Nak::new(NakCode::TableTooFewNodes),
+            TableError::TooManyNodes { capacity } => {
+                Nak::with(NakCode::TableTooManyNodes, r(capacity), 0)
+            }
+            TableError::NotMonotonic { row } => Nak::with(NakCode::TableNotMonotonic, r(row), 0),
+            TableError::SegmentLength { row } => Nak::with(NakCode::TableSegmentLength, r(row), 0),
+            TableError::OutOfRange { row, axis } => {
+                Nak::with(NakCode::TableOutOfRange, r(row), a(axis))
+            }
+            TableError::TooSteep { row, axis } => {
+                Nak::with(NakCode::TableTooSteep, r(row), a(axis))
+            }
+            TableError::MasterSpeed => Nak::new(NakCode::TableMasterSpeed),
+        }
+    }
+}
+
+/// Settable parameters (`SetParam.param`). Values are `f32` in the unit named.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum ParamId {
+    /// Proportional gain, DAC LSB per µm.
+    KpLsbPerUm = 1,
+    /// Integral gain, DAC LSB per (µm·s).
+    KiLsbPerUmS = 2,
+    /// Derivative gain, DAC LSB per (µm/s).
+    KdLsbSPerUm = 3,
+    /// Velocity feed-forward (both directions), LSB per (µm/s).
+    KvLsbPerUmS = 4,
+    /// Acceleration feed-forward, LSB per (µm/s²).
+    KaLsbPerUmS2 = 5,
+    /// Following-error fault limit, µm.
+    FollowingErrorUm = 6,
+    /// Table validation: lowest position, µm.
+    MinUm = 7,
+    /// Table validation: highest position, µm.
+    MaxUm = 8,
+    /// Table validation: axis top speed, µm/s.
+    MaxSpeedUmPerS = 9,
+    /// Table validation: fastest master speed, master counts/s (axis byte ignored).
+    MasterSpeedPerS = 10,
+    /// Valve calibration: null offset, DAC LSB.
+    ValveNullLsb = 11,
+}
+
+impl ParamId {
+    /// From the wire byte.
+    pub fn from_u8(b: u8) -> Option<Self> {
+        use ParamId::*;
+        const ALL: [ParamId; 11] = [
+            KpLsbPerUm,
+            KiLsbPerUmS,
+            KdLsbSPerUm,
+            KvLsbPerUmS,
+            KaLsbPerUmS2,
+            FollowingErrorUm,
+            MinUm,
+            MaxUm,
+            MaxSpeedUmPerS,
+            MasterSpeedPerS,
+            ValveNullLsb,
+        ];
+        ALL.iter().copied().find(|c| *c as u8 == b)
+    }
+}
+
+/// Bytes of one table row on the wire: master `i64` (I48F16 raw) + `columns` × `i32`
+/// (I24F8 µm raw).
+pub const fn row_len(columns: usize) -> usize {
+    columns.saturating_mul(4).saturating_add(8)
+}
+
+/// Writes one row.
+pub fn write_row<const S: usize>(w: &mut Writer<'_>, n: &Node<S>) -> Option<()> {
+    w.i64(n.master.to_bits())?;
+    for x in &n.slave_um {
+        w.i32(x.to_bits())?;
+    }
+    Some(())
+}
+
+/// Reads one row.
+pub fn read_row<const S: usize>(r: &mut Reader<'_>) -> Option<Node<S>> {
+    let master = Master::from_bits(r.i64()?);
+    let mut slave_um = [PosUm::ZERO; S];
+    for x in &mut slave_um {
+        *x = PosUm::from_bits(r.i32()?);
+    }
+    Some(Node { master, slave_um })
+}
+
+/// A decoded request.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Request<'a> {
+    /// Open a session.
+    Hello,
+    /// Ask for status.
+    GetStatus,
+    /// Start an upload.
+    TableBegin {
+        /// Table id chosen by the host (not [`NO_TABLE`]).
+        id: u32,
+        /// Slave columns.
+        columns: u8,
+        /// Rows that will follow.
+        rows: u16,
+    },
+    /// Rows `offset .. offset + count`.
+    TableChunk {
+        /// Index of the first row.
+        offset: u16,
+        /// Rows in this chunk.
+        count: u8,
+        /// `count` rows of [`row_len`] bytes.
+        data: &'a [u8],
+    },
+    /// End the upload: CRC-32 of every row's bytes in order.
+    TableCommit {
+        /// CRC-32 of the whole table.
+        crc: u32,
+    },
+    /// Drop the upload.
+    TableAbort,
+    /// Activate a committed table.
+    Activate {
+        /// Its id.
+        id: u32,
+    },
+    /// Start following.
+    Start,
+    /// Stop.
+    Stop,
+    /// Hold.
+    Hold,
+    /// Clear a latched fault.
+    ClearFault,
+    /// Set one parameter.
+    SetParam {
+        /// Axis (ignored by board-wide parameters).
+        axis: u8,
+        /// Raw parameter id (see [`ParamId`]).
+        param: u8,
+        /// Value in the parameter's unit.
+        value: f32,
+    },
+    /// Persist the active table.
+    Save,
+    /// Telemetry every `decimation` ticks (0 = off).
+    SetTelemetry {
+        /// Ticks between samples.
+        decimation: u16,
+    },
+}
+
+impl<'a> Request<'a> {
+    /// Decodes a request payload of type `ty`.
+    pub fn decode(ty: u8, payload: &'a [u8]) -> Result<Self, NakCode> {
+        let mut r = Reader::new(payload);
+        let t = NakCode::Truncated;
+        let req = match ty {
+            ty::HELLO => Request::Hello,
+            ty::GET_STATUS => Request::GetStatus,
+            ty::TABLE_BEGIN => Request::TableBegin {
+                id: r.u32().ok_or(t)?,
+                columns: r.u8().ok_or(t)?,
+                rows: r.u16().ok_or(t)?,
+            },
+            ty::TABLE_CHUNK => {
+                let offset = r.u16().ok_or(t)?;
+                let count = r.u8().ok_or(t)?;
+                // The row length depends on the upload's columns: the handler checks it.
+                let data = r.bytes(r.remaining()).ok_or(t)?;
+                Request::TableChunk {
+                    offset,
+                    count,
+                    data,
+                }
+            }
+            ty::TABLE_COMMIT => Request::TableCommit {
+                crc: r.u32().ok_or(t)?,
+            },
+            ty::TABLE_ABORT => Request::TableAbort,
+            ty::ACTIVATE => Request::Activate {
+                id: r.u32().ok_or(t)?,
+            },
+            ty::START => Request::Start,
+            ty::STOP => Request::Stop,
+            ty::HOLD => Request::Hold,
+            ty::CLEAR_FAULT => Request::ClearFault,
+            ty::SET_PARAM => Request::SetParam {
+                axis: r.u8().ok_or(t)?,
+                param: r.u8().ok_or(t)?,
+                value: r.f32().ok_or(t)?,
+            },
+            ty::SAVE => Request::Save,
+            ty::SET_TELEMETRY => Request::SetTelemetry {
+                decimation: r.u16().ok_or(t)?,
+            },
+            _ => return Err(NakCode::UnknownType),
+        };
+        if r.remaining() != 0 {
+            return Err(NakCode::Length);
+        }
+        Ok(req)
+    }
+
+    /// The type code.
+    pub fn ty(&self) -> u8 {
+        match self {
+            Request::Hello => ty::HELLO,
+            Request::GetStatus => ty::GET_STATUS,
+            Request::TableBegin { .. } => ty::TABLE_BEGIN,
+            Request::TableChunk { .. } => ty::TABLE_CHUNK,
+            Request::TableCommit { .. } => ty::TABLE_COMMIT,
+            Request::TableAbort => ty::TABLE_ABORT,
+            Request::Activate { .. } => ty::ACTIVATE,
+            Request::Start => ty::START,
+            Request::Stop => ty::STOP,
+            Request::Hold => ty::HOLD,
+            Request::ClearFault => ty::CLEAR_FAULT,
+            Request::SetParam { .. } => ty::SET_PARAM,
+            Request::Save => ty::SAVE,
+            Request::SetTelemetry { .. } => ty::SET_TELEMETRY,
+        }
+    }
+
+    /// Encodes the payload into `buf`; returns its length.
+    pub fn encode(&self, buf: &mut [u8]) -> Option<usize> {
+        let mut w = Writer::new(buf);
+        match *self {
+            Request::Hello
+            | Request::GetStatus
+            | Request::TableAbort
+            | Request::Start
+            | Request::Stop
+            | Request::Hold
+            | Request::ClearFault
+            | Request::Save => {}
+            Request::TableBegin { id, columns, rows } => {
+                w.u32(id)?;
+                w.u8(columns)?;
+                w.u16(rows)?;
+            }
+            Request::TableChunk {
+                offset,
+                count,
+                data,
+            } => {
+                w.u16(offset)?;
+                w.u8(count)?;
+                w.bytes(data)?;
+            }
+            Request::TableCommit { crc } => w.u32(crc)?,
+            Request::Activate { id } => w.u32(id)?,
+            Request::SetParam { axis, param, value } => {
+                w.u8(axis)?;
+                w.u8(param)?;
+                w.f32(value)?;
+            }
+            Request::SetTelemetry { decimation } => w.u16(decimation)?,
+        }
+        Some(w.len())
+    }
+}
+
+/// `Info`: what the board is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Info {
+    /// [`PROTOCOL_VERSION`].
+    pub protocol: u8,
+    /// Firmware version major, minor, patch.
+    pub firmware: [u8; 3],
+    /// Slave axes (table columns).
+    pub axes: u8,
+    /// Table capacity, rows.
+    pub capacity_rows: u16,
+    /// Most rows one TableChunk may carry.
+    pub max_chunk_rows: u8,
+    /// Control period, µs.
+    pub period_us: u32,
+    /// Id of the active table ([`NO_TABLE`] if none).
+    pub active_id: u32,
+}
+
+/// Per-axis part of `Status`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AxisStatus {
+    /// Measured position, I24F8 µm raw.
+    pub pos_um: i32,
+    /// Table target X(θ_f), I24F8 µm raw.
+    pub target_um: i32,
+    /// target − position, I24F8 µm raw.
+    pub error_um: i32,
+    /// Valve DAC code, LSB.
+    pub dac: i16,
+}
+
+/// `Status`.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct StatusMsg {
+    /// Runtime state: 0 Idle, 1 Following, 2 Holding, 3 Fault.
+    pub state: u8,
+    /// Flags: bit 0 end of table, bit 1 activation pending, bit 2 upload in progress,
+    /// bit 3 a committed table waits, bit 4 session open.
+    pub flags: u8,
+    /// Latched fault code (0 = none; the runtime's 16-bit codes).
+    pub fault_code: u16,
+    /// Axis of the fault (0xFF = board-wide or none).
+    pub fault_axis: u8,
+    /// Active table id.
+    pub active_id: u32,
+    /// Committed (inactive) table id.
+    pub committed_id: u32,
+    /// Id of the table in the newest valid flash slot.
+    pub saved_id: u32,
+    /// Rows received of the upload in progress.
+    pub upload_rows: u16,
+    /// Ticks since boot.
+    pub ticks: u32,
+    /// Longest tick execution, ns.
+    pub tick_max_ns: u32,
+    /// Mean tick execution, ns.
+    pub tick_mean_ns: u32,
+    /// Ticks that overran their period.
+    pub overruns: u32,
+    /// Filtered master, I48F16 counts raw.
+    pub master: i64,
+    /// Per axis.
+    pub axes: Vec<AxisStatus, MAX_AXES>,
+}
+
+/// Per-axis part of `Telemetry`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AxisSample {
+    /// Target, I24F8 µm raw.
+    pub target_um: i32,
+    /// Actual, I24F8 µm raw.
+    pub actual_um: i32,
+    /// Valve command, DAC LSB.
+    pub dac: i16,
+}
+
+/// `Telemetry`: one subsampled tick.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Telemetry {
+    /// Tick number.
+    pub tick: u32,
+    /// Filtered master, I48F16 counts raw.
+    pub master: i64,
+    /// Per axis.
+    pub axes: Vec<AxisSample, MAX_AXES>,
+}
+
+/// A decoded response.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Response {
+    /// Done. `flags` bit 0: Activate deferred to the next safe point.
+    Ack {
+        /// Request type acknowledged.
+        req: u8,
+        /// Flags.
+        flags: u8,
+    },
+    /// Refused; nothing changed.
+    Nak {
+        /// Request type refused (0 when the frame could not be read).
+        req: u8,
+        /// Why.
+        nak: Nak,
+    },
+    /// Answer to Hello.
+    Info(Info),
+    /// Answer to GetStatus.
+    Status(StatusMsg),
+    /// Unsolicited sample.
+    Telemetry(Telemetry),
+}
+
+impl Response {
+    /// The type code.
+    pub fn ty(&self) -> u8 {
+        match self {
+            Response::Ack { .. } => ty::ACK,
+            Response::Nak { .. } => ty::NAK,
+            Response::Info(_) => ty::INFO,
+            Response::Status(_) => ty::STATUS,
+            Response::Telemetry(_) => ty::TELEMETRY,
+        }
+    }
+
+    /// Encodes the payload; returns its length.
+    pub fn encode(&self, buf: &mut [u8]) -> Option<usize> {
+        let mut w = Writer::new(buf);
+        match self {
+            Response::Ack { req, flags } => {
+                w.u8(*req)?;
+                w.u8(*flags)?;
+            }
+            Response::Nak { req, nak } => {
+                w.u8(*req)?;
+                w.u8(nak.code as u8)?;
+                w.u16(nak.detail)?;
+                w.u8(nak.detail2)?;
+            }
+            Response::Info(i) => {
+                w.u8(i.protocol)?;
+                w.bytes(&i.firmware)?;
+                w.u8(i.axes)?;
+                w.u16(i.capacity_rows)?;
+                w.u8(i.max_chunk_rows)?;
+                w.u32(i.period_us)?;
+                w.u32(i.active_id)?;
+            }
+            Response::Status(s) => {
+                w.u8(s.state)?;
+                w.u8(s.flags)?;
+                w.u16(s.fault_code)?;
+                w.u8(s.fault_axis)?;
+                w.u32(s.active_id)?;
+                w.u32(s.committed_id)?;
+                w.u32(s.saved_id)?;
+                w.u16(s.upload_rows)?;
+                w.u32(s.ticks)?;
+                w.u32(s.tick_max_ns)?;
+                w.u32(s.tick_mean_ns)?;
+                w.u32(s.overruns)?;
+                w.i64(s.master)?;
+                w.u8(u8::try_from(s.axes.len()).ok()?)?;
+                for a in &s.axes {
+                    w.i32(a.pos_um)?;
+                    w.i32(a.target_um)?;
+                    w.i32(a.error_um)?;
+                    w.i16(a.dac)?;
+                }
+            }
+            Response::Telemetry(t) => {
+                w.u32(t.tick)?;
+                w.i64(t.master)?;
+                w.u8(u8::try_from(t.axes.len()).ok()?)?;
+                for a in &t.axes {
+                    w.i32(a.target_um)?;
+                    w.i32(a.actual_um)?;
+                    w.i16(a.dac)?;
+                }
+            }
+        }
+        Some(w.len())
+    }
+
+    /// Decodes a response payload of type `t` (`None`: malformed).
+    pub fn decode(t: u8, payload: &[u8]) -> Option<Self> {
+        let mut r = Reader::new(payload);
+        let resp = match t {
+            ty::ACK => Response::Ack {
+                req: r.u8()?,
+                flags: r.u8()?,
+            },
+            ty::NAK => Response::Nak {
+                req: r.u8()?,
+                nak: Nak {
+                    code: NakCode::from_u8(r.u8()?)?,
+                    detail: r.u16()?,
+                    detail2: r.u8()?,
+                },
+            },
+            ty::INFO => Response::Info(Info {
+                protocol: r.u8()?,
+                firmware: r.bytes(3)?.try_into().ok()?,
+                axes: r.u8()?,
+                capacity_rows: r.u16()?,
+                max_chunk_rows: r.u8()?,
+                period_us: r.u32()?,
+                active_id: r.u32()?,
+            }),
+            ty::STATUS => {
+                let mut s = StatusMsg {
+                    state: r.u8()?,
+                    flags: r.u8()?,
+                    fault_code: r.u16()?,
+                    fault_axis: r.u8()?,
+                    active_id: r.u32()?,
+                    committed_id: r.u32()?,
+                    saved_id: r.u32()?,
+                    upload_rows: r.u16()?,
+                    ticks: r.u32()?,
+                    tick_max_ns: r.u32()?,
+                    tick_mean_ns: r.u32()?,
+                    overruns: r.u32()?,
+                    master: r.i64()?,
+                    axes: Vec::new(),
+                };
+                for _ in 0..r.u8()? {
+                    s.axes
+                        .push(AxisStatus {
+                            pos_um: r.i32()?,
+                            target_um: r.i32()?,
+                            error_um: r.i32()?,
+                            dac: r.i16()?,
+                        })
+                        .ok()?;
+                }
+                Response::Status(s)
+            }
+            ty::TELEMETRY => {
+                let mut s = Telemetry {
+                    tick: r.u32()?,
+                    master: r.i64()?,
+                    axes: Vec::new(),
+                };
+                for _ in 0..r.u8()? {
+                    s.axes
+                        .push(AxisSample {
+                            target_um: r.i32()?,
+                            actual_um: r.i32()?,
+                            dac: r.i16()?,
+                        })
+                        .ok()?;
+                }
+                Response::Telemetry(s)
+            }
+            _ => return None,
+        };
+        (r.remaining() == 0).then_some(resp)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nak_codes_roundtrip() {
+        for b in 0..=255u8 {
+            if let Some(c) = NakCode::from_u8(b) {
+                assert_eq!(c as u8, b);
+            }
+        }
+        assert_eq!(NakCode::from_u8(29), Some(NakCode::Flash));
+        assert_eq!(NakCode::from_u8(0), None);
+        assert_eq!(NakCode::from_u8(30), None);
+    }
+
+    #[test]
+    fn requests_roundtrip() {
+        let data = [1u8; 32];
+        let reqs = [
+            Request::Hello,
+            Request::TableBegin {
+                id: 7,
+                columns: 2,
+                rows: 300,
+            },
+            Request::TableChunk {
+                offset: 5,
+                count: 2,
+                data: &data,
+            },
+            Request::TableCommit { crc: 0xDEAD_BEEF },
+            Request::Activate { id: 7 },
+            Request::SetParam {
+                axis: 1,
+                param: 6,
+                value: 2.5,
+            },
+            Request::SetTelemetry { decimation: 10 },
+            Request::Save,
+        ];
+        for q in reqs {
+            let mut b = [0u8; 64];
+            let n = q.encode(&mut b).unwrap();
+            assert_eq!(Request::decode(q.ty(), &b[..n]), Ok(q));
+            if n > 0 && !matches!(q, Request::TableChunk { .. }) {
+                assert_eq!(
+                    Request::decode(q.ty(), &b[..n - 1]),
+                    Err(NakCode::Truncated)
+                );
+            }
+            if !matches!(q, Request::TableChunk { .. }) {
+                assert_eq!(Request::decode(q.ty(), &b[..n + 1]), Err(NakCode::Length));
+            }
+        }
+        assert_eq!(Request::decode(0x7F, &[]), Err(NakCode::UnknownType));
+    }
+
+    #[test]
+    fn responses_roundtrip() {
+        let mut st = StatusMsg {
+            state: 1,
+            master: -5,
+            ..Default::default()
+        };
+        st.axes
+            .push(AxisStatus {
+                pos_um: 1,
+                target_um: 2,
+                error_um: 3,
+                dac: -4,
+            })
+            .unwrap();
+        let mut tm = Telemetry {
+            tick: 9,
+            master: 1 << 40,
+            axes: Vec::new(),
+        };
+        tm.axes
+            .push(AxisSample {
+                target_um: 1,
+                actual_um: -2,
+                dac: 3,
+            })
+            .unwrap();
+        let rs = [
+            Response::Ack { req: 1, flags: 1 },
+            Response::Nak {
+                req: 2,
+                nak: Nak::with(NakCode::TableTooSteep, 4, 1),
+            },
+            Response::Info(Info {
+                protocol: 1,
+                firmware: [0, 1, 0],
+                axes: 1,
+                capacity_rows: 1024,
+                max_chunk_rows: 20,
+                period_us: 1000,
+                active_id: NO_TABLE,
+            }),
+            Response::Status(st),
+            Response::Telemetry(tm),
+        ];
+        for r in rs {
+            let mut b = [0u8; 256];
+            let n = r.encode(&mut b).unwrap();
+            assert_eq!(Response::decode(r.ty(), &b[..n]), Some(r.clone()));
+            assert_eq!(Response::decode(r.ty(), &b[..n - 1]), None);
+        }
+    }
+}

@@ -1,0 +1,334 @@
+//! Two flash slots holding the active table, so a table is never lost.
+//!
+//! Each slot is `slot_size` bytes (a multiple of the flash's erase size) at
+//! `base + slot · slot_size`, slot ∈ {0, 1}. Layout (little-endian):
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 12 | 0xFF (pads the magic to a 16-byte program unit) |
+//! | 12 | 4 | magic `0x31545948` ("HYT1"), **written last**, its last byte last |
+//! | 16 | 4 | generation: 1 + the newest valid slot's generation at save time |
+//! | 20 | 4 | table id |
+//! | 24 | 2 | columns |
+//! | 26 | 2 | rows |
+//! | 28 | rows · (8 + 4·columns) | rows, as on the wire ([`super::msg::row_len`]) |
+//! | 28 + L | 4 | CRC-32 of bytes 16 … 28 + L − 1 |
+//!
+//! **Save** erases the slot that does not hold the newest valid table, writes bytes 16 …
+//! end, then the magic, then reads the slot back and checks it. **Boot** takes the valid
+//! slot with the highest generation (valid: magic, CRC, columns = S, rows ≤ N, and the
+//! table passes the [`CamTable`] rules with the present limits); if it fails to build, the
+//! other slot. A power cut at any byte of a Save therefore leaves the previous slot
+//! untouched and the one being written without its magic (or with a bad CRC): boot finds
+//! the old table, or the new one once the magic is down.
+//!
+//! Generations are compared as plain `u32`: at one save per second that is 136 years,
+//! far beyond the flash's 10 000 erase cycles.
+
+use super::crc::Crc32;
+use super::msg::row_len;
+use super::wire::{Reader, Writer};
+use crate::table::{CamTable, Node, TableLimits};
+use embedded_storage::nor_flash::NorFlash;
+use heapless::Vec;
+
+/// Magic of a complete slot.
+pub const MAGIC: u32 = 0x3154_5948;
+/// Bytes before the rows.
+pub const HEADER: usize = 28;
+/// Size of the magic's program unit (a flash's WRITE_SIZE must divide it).
+const MAGIC_UNIT: usize = 16;
+/// Write buffer, bytes (a multiple of every supported WRITE_SIZE).
+const BUF: usize = 64;
+
+/// Why the store could not be used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StoreError {
+    /// Slot size not a multiple of ERASE_SIZE, WRITE_SIZE not dividing 16, the slots beyond
+    /// the flash, or a full table of N rows not fitting a slot.
+    Geometry,
+    /// The flash driver returned an error (or the power went).
+    Flash,
+    /// The written slot did not read back as written.
+    Verify,
+}
+
+/// A valid slot's header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SlotHeader {
+    /// Slot index, 0 or 1.
+    pub slot: u8,
+    /// Generation.
+    pub generation: u32,
+    /// Table id.
+    pub id: u32,
+    /// Rows.
+    pub rows: u16,
+}
+
+/// The two-slot store: where the slots are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Store {
+    base: u32,
+    slot_size: u32,
+}
+
+impl Store {
+    /// Checks the geometry for a flash `F` holding tables of up to `N` rows of `S` columns.
+    pub fn new<F: NorFlash, const S: usize, const N: usize>(
+        flash: &F,
+        base: u32,
+        slot_size: u32,
+    ) -> Result<Self, StoreError> {
+        let g = StoreError::Geometry;
+        let size = usize::try_from(slot_size).map_err(|_| g)?;
+        let need = row_len(S)
+            .checked_mul(N)
+            .and_then(|b| b.checked_add(HEADER + 4))
+            .ok_or(g)?;
+        let end = u64::from(base).saturating_add(u64::from(slot_size).saturating_mul(2));
+        let ok = F::ERASE_SIZE > 0
+            && F::WRITE_SIZE > 0
+            && size.is_multiple_of(F::ERASE_SIZE)
+            && MAGIC_UNIT.is_multiple_of(F::WRITE_SIZE)
+            && BUF.is_multiple_of(F::WRITE_SIZE)
+            && usize::try_from(base).is_ok_and(|b| b.is_multiple_of(F::ERASE_SIZE))
+            && need <= size
+            && end <= flash.capacity() as u64;
+        if ok {
+            Ok(Self { base, slot_size })
+        } else {
+            Err(g)
+        }
+    }
+
+    fn slot_base(&self, slot: u8) -> u32 {
+        if slot == 0 {
+            self.base
+        } else {
+            self.base.saturating_add(self.slot_size)
+        }
+    }
+
+    /// Reads a slot's header and checks its magic and CRC (the rows are streamed, not kept).
+    pub fn scan<F: NorFlash, const S: usize, const N: usize>(
+        &self,
+        flash: &mut F,
+        slot: u8,
+    ) -> Option<SlotHeader> {
+        self.walk::<F, S, N>(flash, slot, |_| Some(()))
+    }
+
+    /// Reads a valid slot's rows into `nodes`.
+    pub fn read_nodes<F: NorFlash, const S: usize, const N: usize>(
+        &self,
+        flash: &mut F,
+        slot: u8,
+        nodes: &mut Vec<Node<S>, N>,
+    ) -> Option<SlotHeader> {
+        nodes.clear();
+        let h = self.walk::<F, S, N>(flash, slot, |n| nodes.push(n).ok());
+        if h.is_none() {
+            nodes.clear();
+        }
+        h
+    }
+
+    fn walk<F: NorFlash, const S: usize, const N: usize>(
+        &self,
+        flash: &mut F,
+        slot: u8,
+        mut each: impl FnMut(Node<S>) -> Option<()>,
+    ) -> Option<SlotHeader> {
+        let at = self.slot_base(slot);
+        let mut hdr = [0u8; HEADER];
+        flash.read(at, &mut hdr).ok()?;
+        let mut r = Reader::new(&hdr);
+        r.bytes(MAGIC_UNIT - 4)?;
+        if r.u32()? != MAGIC {
+            return None;
+        }
+        let mut crc = Crc32::new();
+        crc.update(hdr.get(MAGIC_UNIT..)?);
+        let generation = r.u32()?;
+        let id = r.u32()?;
+        let columns = r.u16()?;
+        let rows = r.u16()?;
+        if usize::from(columns) != S || usize::from(rows) > N || rows < 2 {
+            return None;
+        }
+        let rl = row_len(S);
+        let mut off = at.checked_add(u32::try_from(HEADER).ok()?)?;
+        let step = u32::try_from(rl).ok()?;
+        let mut row = [0u8; super::msg::row_len(super::msg::MAX_AXES)];
+        for _ in 0..rows {
+            let buf = row.get_mut(..rl)?;
+            flash.read(off, buf).ok()?;
+            crc.update(buf);
+            each(super::msg::read_row::<S>(&mut Reader::new(buf))?)?;
+            off = off.checked_add(step)?;
+        }
+        let mut c = [0u8; 4];
+        flash.read(off, &mut c).ok()?;
+        (u32::from_le_bytes(c) == crc.finish()).then_some(SlotHeader {
+            slot,
+            generation,
+            id,
+            rows,
+        })
+    }
+
+    /// The newest valid slot, by generation.
+    pub fn newest<F: NorFlash, const S: usize, const N: usize>(
+        &self,
+        flash: &mut F,
+    ) -> Option<SlotHeader> {
+        let a = self.scan::<F, S, N>(flash, 0);
+        let b = self.scan::<F, S, N>(flash, 1);
+        match (a, b) {
+            (Some(a), Some(b)) => Some(if b.generation > a.generation { b } else { a }),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// Boot: the newest slot whose table builds with `limits`, else the other one.
+    /// `scratch` is used for the rows (its contents are lost).
+    pub fn load<F: NorFlash, const S: usize, const N: usize>(
+        &self,
+        flash: &mut F,
+        limits: &TableLimits<S>,
+        scratch: &mut Vec<Node<S>, N>,
+    ) -> Option<(SlotHeader, CamTable<S, N>)> {
+        let a = self.scan::<F, S, N>(flash, 0);
+        let b = self.scan::<F, S, N>(flash, 1);
+        let mut order = [a, b];
+        if let (Some(x), Some(y)) = (a, b) {
+            if y.generation > x.generation {
+                order = [b, a];
+            }
+        }
+        for h in order.into_iter().flatten() {
+            if self.read_nodes::<F, S, N>(flash, h.slot, scratch).is_some() {
+                if let Ok(t) = CamTable::try_from_nodes(scratch, limits) {
+                    return Some((h, t));
+                }
+            }
+        }
+        None
+    }
+
+    /// Saves `table` under `id` into the slot not holding the newest valid table.
+    pub fn save<F: NorFlash, const S: usize, const N: usize>(
+        &self,
+        flash: &mut F,
+        id: u32,
+        table: &CamTable<S, N>,
+    ) -> Result<SlotHeader, StoreError> {
+        let newest = self.newest::<F, S, N>(flash);
+        let slot = match newest {
+            Some(h) if h.slot == 0 => 1,
+            _ => 0,
+        };
+        let generation = newest.map_or(1, |h| h.generation.saturating_add(1));
+        let rows = u16::try_from(table.len()).map_err(|_| StoreError::Geometry)?;
+        let at = self.slot_base(slot);
+        let fl = StoreError::Flash;
+        flash
+            .erase(at, at.checked_add(self.slot_size).ok_or(fl)?)
+            .map_err(|_| fl)?;
+        let mut out = Chunked::<F> {
+            buf: [0xFF; BUF],
+            fill: 0,
+            at: at.checked_add(MAGIC_UNIT as u32).ok_or(fl)?,
+            crc: Crc32::new(),
+            _f: core::marker::PhantomData,
+        };
+        let mut hdr = [0u8; HEADER - MAGIC_UNIT];
+        let mut w = Writer::new(&mut hdr);
+        w.u32(generation).ok_or(fl)?;
+        w.u32(id).ok_or(fl)?;
+        w.u16(S as u16).ok_or(fl)?;
+        w.u16(rows).ok_or(fl)?;
+        out.put(flash, &hdr, true)?;
+        for i in 0..table.len() {
+            let n = table.node(i).ok_or(StoreError::Geometry)?;
+            let mut row = [0u8; super::msg::row_len(super::msg::MAX_AXES)];
+            let mut w = Writer::new(&mut row);
+            super::msg::write_row(&mut w, &n).ok_or(StoreError::Geometry)?;
+            let len = w.len();
+            out.put(flash, row.get(..len).ok_or(fl)?, true)?;
+        }
+        let crc = out.crc.finish();
+        out.put(flash, &crc.to_le_bytes(), false)?;
+        out.flush(flash)?;
+        let mut magic = [0xFFu8; MAGIC_UNIT];
+        magic
+            .get_mut(MAGIC_UNIT - 4..)
+            .ok_or(fl)?
+            .copy_from_slice(&MAGIC.to_le_bytes());
+        flash.write(at, &magic).map_err(|_| fl)?;
+        match self.scan::<F, S, N>(flash, slot) {
+            Some(h) if h.generation == generation && h.id == id && h.rows == rows => Ok(h),
+            _ => Err(StoreError::Verify),
+        }
+    }
+}
+
+/// Buffers writes into WRITE_SIZE-aligned program operations.
+struct Chunked<F> {
+    buf: [u8; BUF],
+    fill: usize,
+    at: u32,
+    crc: Crc32,
+    _f: core::marker::PhantomData<F>,
+}
+
+impl<F: NorFlash> Chunked<F> {
+    fn put(&mut self, flash: &mut F, mut bytes: &[u8], in_crc: bool) -> Result<(), StoreError> {
+        if in_crc {
+            self.crc.update(bytes);
+        }
+        while !bytes.is_empty() {
+            let room = BUF.saturating_sub(self.fill);
+            let take = room.min(bytes.len());
+            let (now, rest) = bytes.split_at(take);
+            let end = self.fill.saturating_add(take);
+            self.buf
+                .get_mut(self.fill..end)
+                .ok_or(StoreError::Flash)?
+                .copy_from_slice(now);
+            self.fill = end;
+            bytes = rest;
+            if self.fill == BUF {
+                self.flush(flash)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the buffered bytes, padded with 0xFF to a WRITE_SIZE multiple.
+    fn flush(&mut self, flash: &mut F) -> Result<(), StoreError> {
+        if self.fill == 0 {
+            return Ok(());
+        }
+        let len = self
+            .fill
+            .div_ceil(F::WRITE_SIZE)
+            .saturating_mul(F::WRITE_SIZE)
+            .min(BUF);
+        if let Some(pad) = self.buf.get_mut(self.fill..len) {
+            pad.fill(0xFF);
+        }
+        let data = self.buf.get(..len).ok_or(StoreError::Flash)?;
+        flash.write(self.at, data).map_err(|_| StoreError::Flash)?;
+        self.at = self
+            .at
+            .checked_add(u32::try_from(len).map_err(|_| StoreError::Flash)?)
+            .ok_or(StoreError::Flash)?;
+        self.fill = 0;
+        self.buf = [0xFF; BUF];
+        Ok(())
+    }
+}
