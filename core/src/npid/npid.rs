@@ -1,0 +1,308 @@
+//! The single-axis nonlinear PID of SPEC §D.
+//!
+//! ```text
+//! TD-I:  (z11, z12) tracks the reference v(k)       (position µm, velocity µm/s)
+//! TD-II: (z21, z22) tracks the measurement y(k)
+//! e1 = z11 − z21  [µm],   e2 = z12 − z22  [µm/s],   e0(k) = e0(k−1) + e1·h  [µm·s]
+//! u  = β0·fal(e0, α0, δ0) + β1·fal(e1, α1, δ1) + β2·fal(e2, α2, δ2)   [DAC LSB]
+//! ```
+//!
+//! β0 is in LSB/(µm·s)^α0, β1 in LSB/µm^α1, β2 in LSB/(µm/s)^α2. The output is clamped
+//! to ±`output_limit_lsb`; `e0` is clamped to ±`integral_limit_um_s` and, as anti-windup,
+//! not integrated in the direction that pushes an output already at its limit further.
+//!
+//! For the contour loop ([`super::ccc`]) the same law runs on an error signal: TD-I
+//! tracks ε(k) (`e1 = z11`, `e2 = z12`) and TD-II is not used ([`Npid::regulate`]).
+//!
+//! Formats: TD states µm and µm/s in Q16 (`i64`), `e0` µm·s in Q32 (`i64`), β in Q24,
+//! the output [`CmdLsb`].
+
+use super::fal::{fal, FalCoeffs, FalConfig};
+use super::fhan::FhanConfig;
+use super::fxmath::{mul_shr, sign};
+use super::td::{Td, TdCoeffs, TdConfig};
+use super::{cmd_from_q16, q16_from_pos, ErrorLaw, NpidError};
+use crate::units::{CmdLsb, PosUm};
+
+/// Nonlinear PID parameters in engineering units (validated by [`NpidConfig::build`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct NpidConfig {
+    /// Control period h, s (10 µs … 10 ms): the TD step and the integration step.
+    pub period_s: f64,
+    /// TD-I (reference) speed and filter factors.
+    pub td_reference: FhanConfig,
+    /// TD-II (measurement) speed and filter factors.
+    pub td_measurement: FhanConfig,
+    /// β0, LSB/(µm·s)^α0 (0 … 10⁶).
+    pub beta0: f64,
+    /// β1, LSB/µm^α1 (0 … 10⁶).
+    pub beta1: f64,
+    /// β2, LSB/(µm/s)^α2 (0 … 10⁶).
+    pub beta2: f64,
+    /// `fal` of the integral term (e0 in µm·s).
+    pub fal0: FalConfig,
+    /// `fal` of the proportional term (e1 in µm).
+    pub fal1: FalConfig,
+    /// `fal` of the derivative term (e2 in µm/s).
+    pub fal2: FalConfig,
+    /// Clamp of |e0|, µm·s (0 … 10⁶).
+    pub integral_limit_um_s: f64,
+    /// Clamp of |u|, LSB (1 … 2047).
+    pub output_limit_lsb: f64,
+}
+
+/// Validated nonlinear PID coefficients.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct NpidCoeffs {
+    td_ref: TdCoeffs,
+    td_meas: TdCoeffs,
+    /// β0, β1, β2 in Q24.
+    beta_q24: [i64; 3],
+    fal: [FalCoeffs; 3],
+    /// e0 clamp, µm·s Q32.
+    e0_max_q32: i64,
+    /// Output clamp, LSB Q16.
+    u_max_q16: i64,
+}
+
+fn gain_q24(b: f64, term: u8) -> Result<i64, NpidError> {
+    if b.is_finite() && (0.0..=1e6).contains(&b) {
+        Ok((b * 16_777_216.0 + 0.5) as i64)
+    } else {
+        Err(NpidError::Gain(term))
+    }
+}
+
+impl NpidConfig {
+    /// Validates every parameter; the error names the first bad one.
+    pub fn build(&self) -> Result<NpidCoeffs, NpidError> {
+        let h = self.period_s;
+        let td = |f: &FhanConfig| TdConfig {
+            r_um_per_s2: f.r_um_per_s2,
+            h0_s: f.h0_s,
+            h_s: h,
+        };
+        let td_ref = td(&self.td_reference)
+            .build()
+            .map_err(NpidError::TdReference)?;
+        let td_meas = td(&self.td_measurement)
+            .build()
+            .map_err(NpidError::TdMeasurement)?;
+        let fal = [
+            self.fal0.build().map_err(|e| NpidError::Fal(0, e))?,
+            self.fal1.build().map_err(|e| NpidError::Fal(1, e))?,
+            self.fal2.build().map_err(|e| NpidError::Fal(2, e))?,
+        ];
+        let beta_q24 = [
+            gain_q24(self.beta0, 0)?,
+            gain_q24(self.beta1, 1)?,
+            gain_q24(self.beta2, 2)?,
+        ];
+        let il = self.integral_limit_um_s;
+        if !(il.is_finite() && (0.0..=1e6).contains(&il)) {
+            return Err(NpidError::IntegralLimit);
+        }
+        let ol = self.output_limit_lsb;
+        if !(ol.is_finite() && (1.0..=2047.0).contains(&ol)) {
+            return Err(NpidError::OutputLimit);
+        }
+        Ok(NpidCoeffs {
+            td_ref,
+            td_meas,
+            beta_q24,
+            fal,
+            e0_max_q32: (il * 4_294_967_296.0) as i64,
+            u_max_q16: (ol * 65536.0) as i64,
+        })
+    }
+}
+
+/// Nonlinear PID state (two TDs, the integral, the last saturation direction).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Npid {
+    td_ref: Td,
+    td_meas: Td,
+    /// e0, µm·s Q32.
+    e0_q32: i64,
+    /// −1/0/+1: the output was clamped at −limit / not clamped / +limit.
+    sat: i64,
+}
+
+impl Npid {
+    /// Both TDs at rest at `position_um`, integral zero.
+    pub fn at_rest(position_um: PosUm) -> Self {
+        let p = q16_from_pos(position_um);
+        Self {
+            td_ref: Td::at_rest(p),
+            td_meas: Td::at_rest(p),
+            e0_q32: 0,
+            sat: 0,
+        }
+    }
+
+    /// The tracked reference (TD-I).
+    pub fn td_reference(&self) -> &Td {
+        &self.td_ref
+    }
+
+    /// The tracked measurement (TD-II).
+    pub fn td_measurement(&self) -> &Td {
+        &self.td_meas
+    }
+
+    /// `u` from `e1` (µm Q16) and `e2` (µm/s Q16), integrating `e0` first.
+    #[inline]
+    fn law(&mut self, c: &NpidCoeffs, e1: i64, e2: i64) -> CmdLsb {
+        let [f0, f1, f2] = &c.fal;
+        let [b0, b1, b2] = c.beta_q24;
+        if self.sat == 0 || sign(e1) != self.sat {
+            let de0 = mul_shr(e1, c.td_ref.h_q24(), 8); // Q16·Q24 >> 8 = Q32
+            self.e0_q32 = self
+                .e0_q32
+                .saturating_add(de0)
+                .clamp(c.e0_max_q32.wrapping_neg(), c.e0_max_q32);
+        }
+        let u = mul_shr(fal(f0, self.e0_q32.wrapping_shr(16)), b0, 24)
+            .saturating_add(mul_shr(fal(f1, e1), b1, 24))
+            .saturating_add(mul_shr(fal(f2, e2), b2, 24));
+        self.sat = if u > c.u_max_q16 {
+            1
+        } else if u < c.u_max_q16.wrapping_neg() {
+            -1
+        } else {
+            0
+        };
+        cmd_from_q16(u.clamp(c.u_max_q16.wrapping_neg(), c.u_max_q16))
+    }
+}
+
+impl ErrorLaw for Npid {
+    type Coeffs = NpidCoeffs;
+
+    /// One period of the axis law: TD-I on the reference, TD-II on the measurement.
+    #[inline]
+    fn track(&mut self, c: &NpidCoeffs, reference_um: PosUm, measured_um: PosUm) -> CmdLsb {
+        self.td_ref.step(&c.td_ref, q16_from_pos(reference_um));
+        self.td_meas.step(&c.td_meas, q16_from_pos(measured_um));
+        let e1 = self
+            .td_ref
+            .position_um_q16()
+            .saturating_sub(self.td_meas.position_um_q16());
+        let e2 = self
+            .td_ref
+            .velocity_um_per_s_q16()
+            .saturating_sub(self.td_meas.velocity_um_per_s_q16());
+        self.law(c, e1, e2)
+    }
+
+    /// One period of the law on an error signal (TD-I only).
+    #[inline]
+    fn regulate(&mut self, c: &NpidCoeffs, error_um: PosUm) -> CmdLsb {
+        self.td_ref.step(&c.td_ref, q16_from_pos(error_um));
+        let e1 = self.td_ref.position_um_q16();
+        let e2 = self.td_ref.velocity_um_per_s_q16();
+        self.law(c, e1, e2)
+    }
+
+    fn reset(&mut self, position_um: PosUm) {
+        *self = Self::at_rest(position_um);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) fn config() -> NpidConfig {
+        let td = FhanConfig {
+            r_um_per_s2: 2e7,
+            h0_s: 2e-3,
+        };
+        NpidConfig {
+            period_s: 1e-3,
+            td_reference: td,
+            td_measurement: td,
+            beta0: 2.0,
+            beta1: 1.0,
+            beta2: 0.002,
+            fal0: FalConfig {
+                alpha: 1.0,
+                delta: 1.0,
+            },
+            fal1: FalConfig {
+                alpha: 0.7,
+                delta: 20.0,
+            },
+            fal2: FalConfig {
+                alpha: 1.0,
+                delta: 1.0,
+            },
+            integral_limit_um_s: 500.0,
+            output_limit_lsb: 2047.0,
+        }
+    }
+
+    #[test]
+    fn builds_and_names_bad_parameters() {
+        assert!(config().build().is_ok());
+        let mut c = config();
+        c.beta1 = -1.0;
+        assert_eq!(c.build(), Err(NpidError::Gain(1)));
+        let mut c = config();
+        c.fal2.alpha = 3.0;
+        assert_eq!(
+            c.build(),
+            Err(NpidError::Fal(2, super::super::FalError::Alpha))
+        );
+        let mut c = config();
+        c.td_measurement.h0_s = 1e-4;
+        assert_eq!(
+            c.build(),
+            Err(NpidError::TdMeasurement(
+                super::super::TdError::FilterBelowStep
+            ))
+        );
+        let mut c = config();
+        c.output_limit_lsb = 5000.0;
+        assert_eq!(c.build(), Err(NpidError::OutputLimit));
+    }
+
+    #[test]
+    fn zero_error_gives_zero_and_sign_follows_error() {
+        let c = config().build().unwrap();
+        let p = PosUm::from_num(1000);
+        let mut n = Npid::at_rest(p);
+        for _ in 0..10 {
+            assert_eq!(n.track(&c, p, p), CmdLsb::ZERO);
+        }
+        let mut n = Npid::at_rest(p);
+        let mut last = CmdLsb::ZERO;
+        for _ in 0..20 {
+            last = n.track(&c, PosUm::from_num(1100), p);
+        }
+        assert!(last > CmdLsb::ZERO);
+        let mut n = Npid::at_rest(p);
+        for _ in 0..20 {
+            last = n.regulate(&c, PosUm::from_num(-50));
+        }
+        assert!(last < CmdLsb::ZERO);
+    }
+
+    #[test]
+    fn output_clamped_and_integral_bounded() {
+        let mut cfg = config();
+        cfg.output_limit_lsb = 300.0;
+        let c = cfg.build().unwrap();
+        let mut n = Npid::at_rest(PosUm::ZERO);
+        for _ in 0..5000 {
+            let u = n.track(&c, PosUm::from_num(1e6), PosUm::ZERO);
+            assert!(u.abs() <= CmdLsb::from_num(300));
+        }
+        // The integral stopped growing while the output was at its limit.
+        assert!(n.e0_q32.abs() <= c.e0_max_q32);
+        assert!(n.e0_q32 < c.e0_max_q32);
+    }
+}
