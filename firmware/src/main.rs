@@ -1,23 +1,117 @@
-//! Minimal valve-controller firmware: init, one periodic task that reads an encoder,
-//! runs the core, writes one DAC channel. The board issue makes it real.
+//! Valve-controller firmware (STM32F407VG, 168 MHz): the hydra runtime on a board.
+//!
+//! The firmware is drivers and scheduling; states, fault rules and the control law are
+//! `hydra-core`. Modules:
+//! - [`board`]: the whole pin/peripheral/priority map and bring-up;
+//! - [`valves`], [`encoders`], [`pressure`], [`safety`]: drivers behind the core's
+//!   board traits;
+//! - [`tick`]: the hard-period tick (TIM7 interrupt, priority 0);
+//! - [`link`] + [`console`]: the host link (thread mode, below every interrupt);
+//! - [`panic`]: panic/hard-fault handlers that null the valves first;
+//! - [`program`]: the configuration and law the board boots with.
 #![no_std]
 #![no_main]
 
+mod board;
+mod console;
+mod encoders;
+mod link;
+mod panic;
+mod pressure;
+mod program;
+mod safety;
+mod tick;
+mod valves;
+
 use defmt_rtt as _;
 use embassy_executor::Spawner;
-use embassy_stm32::dac::{Dac, Value};
-use embassy_time::{Duration, Ticker};
-use hydra_core::units::DacCode;
-use panic_probe as _;
+use heapless::spsc::Queue;
+use hydra_core::runtime::{Command, Controller, Runtime};
+use static_cell::StaticCell;
+
+use board::Board;
+use tick::{BoardStatus, Reply, Tick, TickLinks};
+use valves::ValveBank;
+
+static CMD_Q: StaticCell<Queue<Command, 8>> = StaticCell::new();
+static REPLY_Q: StaticCell<Queue<Reply, 8>> = StaticCell::new();
+static STATUS_Q: StaticCell<Queue<BoardStatus, 4>> = StaticCell::new();
+static RX_RING: StaticCell<[u8; link::RX_RING_LEN]> = StaticCell::new();
 
 #[embassy_executor::main]
-async fn main(_spawner: Spawner) {
-    let p = embassy_stm32::init(embassy_stm32::Config::default());
-    let mut dac = Dac::new_blocking(p.DAC1, p.PA4, p.PA5);
-    let mut ticker = Ticker::every(Duration::from_millis(1));
-    loop {
-        let code = DacCode::NULL;
-        dac.ch1().set(Value::Bit12Right(code.to_unipolar()));
-        ticker.next().await;
+async fn main(spawner: Spawner) {
+    let boot = panic::boot_cause();
+    let p = embassy_stm32::init(board::hal_config());
+    let mut board = Board::new(p);
+
+    // The law and its valve nulls first: the DAC leaves mid-scale for the calibrated
+    // null before the runtime exists.
+    let law = match program::boot_law() {
+        Ok(l) => Some(l),
+        Err(e) => {
+            defmt::error!("boot program rejected: {}; running without a law", e);
+            None
+        }
+    };
+    let nulls = law.as_ref().map(|l| l.null_codes());
+    if let Some(n) = nulls {
+        ValveBank::publish_safe_codes(&n);
+        board.io.valves.write(&n);
+    }
+    let coeffs = match program::runtime_coeffs() {
+        Ok(c) => c,
+        Err(e) => defmt::panic!("runtime configuration rejected: {}", e),
+    };
+    let rt = Runtime::new(coeffs, law, boot);
+    defmt::info!(
+        "hydra firmware: boot {}, period {} us, state {}",
+        boot,
+        coeffs.period_us,
+        rt.state()
+    );
+
+    if let Some(mut cp) = cortex_m::Peripherals::take() {
+        cp.DCB.enable_trace();
+        cp.DWT.enable_cycle_counter();
+    }
+    panic::freeze_in_debug();
+
+    let (cmd_tx, cmd_rx) = CMD_Q.init(Queue::new()).split();
+    let (reply_tx, reply_rx) = REPLY_Q.init(Queue::new()).split();
+    let (status_tx, status_rx) = STATUS_Q.init(Queue::new()).split();
+
+    let Board {
+        io,
+        link,
+        tick_timer,
+        iwdg,
+        led,
+    } = board;
+    tick::start(Tick::new(
+        rt,
+        io,
+        tick_timer,
+        iwdg,
+        TickLinks {
+            cmd_rx,
+            reply_tx,
+            status_tx,
+        },
+    ));
+
+    let (tx, rx) = link.split();
+    let rx = rx.into_ring_buffered(RX_RING.init([0; link::RX_RING_LEN]));
+    let channels = link::LinkChannels {
+        cmd_tx,
+        reply_rx,
+        status_rx,
+    };
+    match link::link_task(rx, tx, channels) {
+        Ok(t) => spawner.spawn(t),
+        Err(e) => defmt::panic!("spawn link: {}", e),
+    }
+    match link::led_task(led) {
+        Ok(t) => spawner.spawn(t),
+        Err(e) => defmt::panic!("spawn led: {}", e),
     }
 }

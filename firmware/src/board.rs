@@ -1,0 +1,229 @@
+//! The valve-controller board: every pin, peripheral, DMA stream and interrupt priority
+//! of the STM32F407VG (LQFP100) in one place. Another board or MCU = another file like
+//! this one; the drivers (`valves`, `encoders`, `pressure`, `safety`, `link`) and the
+//! runtime in `hydra-core` do not change.
+//!
+//! | function | pin(s) | peripheral | notes |
+//! |---|---|---|---|
+//! | valve 1 (slave 0) | PA4 | DAC1 ch 1 | 12-bit, 0–3.3 V, mid-scale 2048 = code 0 |
+//! | valve 2 (slave 1) | PA5 | DAC1 ch 2 | |
+//! | master encoder A/B | PA0 / PA1 | TIM5 ch 1/2 (32-bit) | rotary table, 0.001°/count |
+//! | slave 0 encoder A/B | PA15 / PB3 | TIM2 ch 1/2 (32-bit) | PA15/PB3 are JTDI/SWO: debug with SWD only |
+//! | slave 1 encoder A/B | PB4 / PB5 | TIM3 ch 1/2 (16-bit, extended in software) | |
+//! | pressure 0…3 | PC1 / PC2 / PB0 / PB1 | ADC1 IN11 / IN12 / IN8 / IN9, DMA2 stream 0 | continuous scan, 144-cycle samples |
+//! | host link TX / RX | PA2 / PA3 | USART2, DMA1 stream 6 / 5 | 115 200 8N1 |
+//! | valve-power enable | PE7 | GPIO push-pull out | high = valves powered; external pull-down |
+//! | E-stop chain | PE8 | GPIO in, pull-down | high = chain closed (run permitted) |
+//! | status LED | PD12 | GPIO out | green LED of the STM32F4-Discovery |
+//! | tick timer | — | TIM7 update IRQ, priority 0 | hard period (1 kHz default) |
+//! | time driver | — | TIM12 (embassy-time) | |
+//! | watchdog | — | IWDG, 50 ms nominal | fed by the tick only |
+//!
+//! Interrupt priorities (0 = most urgent): TIM7 tick 0; DMA 2; USART2 and the time
+//! driver 3; thread-mode tasks (host link, status, LED) below every interrupt.
+
+use embassy_stm32::adc::{Adc, AdcChannel, SampleTime};
+use embassy_stm32::dac::Dac;
+use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
+use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::timer::qei::{Qei, QeiMode};
+use embassy_stm32::usart::{self, Uart};
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::{bind_interrupts, dma, interrupt, pac, peripherals, Peri, Peripherals};
+use hydra_core::runtime::{EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};
+use hydra_core::units::{DacCode, PressureBar};
+use static_cell::StaticCell;
+
+use crate::encoders::{Encoder16, Encoder32, Encoders};
+use crate::pressure::{Pressures, ADC_BUF_LEN};
+use crate::safety::EStop;
+use crate::valves::{OnChipDac, ValveBank};
+
+/// Slave axes driven by this board (the on-chip DAC's two channels).
+pub const SLAVES: usize = 2;
+/// Pressure channels.
+pub const PRESSURES: usize = 4;
+/// Host-link baud rate.
+pub const LINK_BAUD: u32 = 115_200;
+/// Independent-watchdog timeout, µs (nominal LSI 32 kHz; the F407's LSI spans
+/// 17–47 kHz, so the real timeout is 34–94 ms).
+pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
+
+bind_interrupts!(
+    /// Interrupt bindings of the drivers.
+    pub struct Irqs {
+        USART2 => usart::InterruptHandler<peripherals::USART2>;
+        DMA1_STREAM5 => dma::InterruptHandler<peripherals::DMA1_CH5>;
+        DMA1_STREAM6 => dma::InterruptHandler<peripherals::DMA1_CH6>;
+        DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
+    }
+);
+
+/// Clock tree: 8 MHz HSE → PLL (÷4 ×168 ÷2) → 168 MHz SYSCLK; APB1 42 MHz (timers
+/// 84 MHz), APB2 84 MHz (ADC clock 21 MHz); PLL Q 48 MHz.
+pub fn hal_config() -> embassy_stm32::Config {
+    use embassy_stm32::rcc::{
+        AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllMul, PllPDiv, PllPreDiv, PllQDiv,
+        PllSource, Sysclk,
+    };
+    let mut c = embassy_stm32::Config::default();
+    c.rcc.hse = Some(Hse {
+        freq: Hertz(8_000_000),
+        mode: HseMode::Oscillator,
+    });
+    c.rcc.pll_src = PllSource::HSE;
+    c.rcc.pll = Some(Pll {
+        prediv: PllPreDiv::DIV4,
+        mul: PllMul::MUL168,
+        divp: Some(PllPDiv::DIV2),
+        divq: Some(PllQDiv::DIV7),
+        divr: None,
+    });
+    c.rcc.sys = Sysclk::PLL1_P;
+    c.rcc.ahb_pre = AHBPrescaler::DIV1;
+    c.rcc.apb1_pre = APBPrescaler::DIV4;
+    c.rcc.apb2_pre = APBPrescaler::DIV2;
+    // DMA completion interrupts must never delay the tick.
+    c.dma_interrupt_priority = Priority::P2;
+    c
+}
+
+/// The valve-power enable's port and pin (PE7), for the panic handler's direct write.
+pub const ENABLE_PORT: pac::gpio::Gpio = pac::GPIOE;
+/// See [`ENABLE_PORT`].
+pub const ENABLE_PIN: usize = 7;
+
+/// Core clock, Hz (DWT cycles per second).
+pub const SYSCLK_HZ: u32 = 168_000_000;
+
+/// The I/O the runtime drives every tick.
+pub struct BoardIo {
+    /// Encoders (latched first).
+    pub encoders: Encoders<peripherals::TIM5, peripherals::TIM2, peripherals::TIM3>,
+    /// Pressure inputs.
+    pub pressures: Pressures,
+    /// E-stop input.
+    pub estop: EStop,
+    /// Valve DACs and the valve-power enable.
+    pub valves: ValveBank<SLAVES>,
+}
+
+impl EncoderInput<SLAVES> for BoardIo {
+    #[inline]
+    fn latch(&mut self) -> EncoderSample<SLAVES> {
+        self.encoders.latch()
+    }
+}
+
+impl PressureInput<PRESSURES> for BoardIo {
+    #[inline]
+    fn read(&mut self) -> [PressureBar; PRESSURES] {
+        self.pressures.read()
+    }
+}
+
+impl SafetyInput for BoardIo {
+    #[inline]
+    fn estop_active(&mut self) -> bool {
+        self.estop.estop_active()
+    }
+}
+
+impl ValveOutput<SLAVES> for BoardIo {
+    #[inline]
+    fn write(&mut self, codes: &[DacCode; SLAVES]) {
+        self.valves.write(codes);
+    }
+    #[inline]
+    fn set_enable(&mut self, on: bool) {
+        self.valves.set_enable(on);
+    }
+}
+
+/// Everything `main` hands out after [`Board::new`].
+pub struct Board {
+    /// The tick's I/O.
+    pub io: BoardIo,
+    /// The host link UART (split by the link module).
+    pub link: Uart<'static, embassy_stm32::mode::Async>,
+    /// The tick timer.
+    pub tick_timer: Peri<'static, peripherals::TIM7>,
+    /// The watchdog peripheral (configured and started by the tick module).
+    pub iwdg: IndependentWatchdog<'static, peripherals::IWDG>,
+    /// Status LED.
+    pub led: Output<'static>,
+}
+
+static ADC_BUF: StaticCell<[u16; ADC_BUF_LEN]> = StaticCell::new();
+
+impl Board {
+    /// Brings the board up in the safe state: valve power off first, then the DAC at
+    /// mid-scale (the caller writes the calibrated nulls at once), then the inputs.
+    pub fn new(p: Peripherals) -> Self {
+        // Valve power off before anything else can drive a valve.
+        let enable = Output::new(p.PE7, Level::Low, Speed::Low);
+        let dac = Dac::new_blocking(p.DAC1, p.PA4, p.PA5);
+        let (ch1, ch2) = dac.split();
+        let valves = ValveBank::new(
+            [OnChipDac::new(ch1).into(), OnChipDac::new(ch2).into()],
+            enable,
+        );
+
+        let qei_cfg = embassy_stm32::timer::qei::Config {
+            ch1_pull: Pull::Up,
+            ch2_pull: Pull::Up,
+            mode: QeiMode::Mode3,
+            auto_reload: u16::MAX,
+        };
+        let master = Encoder32::new(Qei::new(p.TIM5, p.PA0, p.PA1, qei_cfg), pac::TIM5);
+        let slave0 = Encoder32::new(Qei::new(p.TIM2, p.PA15, p.PB3, qei_cfg), pac::TIM2);
+        let slave1 = Encoder16::new(Qei::new(p.TIM3, p.PB4, p.PB5, qei_cfg));
+        let encoders = Encoders::new(master, slave0, slave1);
+
+        let adc = Adc::new(p.ADC1);
+        let buf = ADC_BUF.init([0; ADC_BUF_LEN]);
+        let sequence = [
+            (p.PC1.degrade_adc(), SampleTime::CYCLES144),
+            (p.PC2.degrade_adc(), SampleTime::CYCLES144),
+            (p.PB0.degrade_adc(), SampleTime::CYCLES144),
+            (p.PB1.degrade_adc(), SampleTime::CYCLES144),
+        ];
+        let ring = adc.into_ring_buffered(
+            p.DMA2_CH0,
+            buf,
+            Irqs,
+            sequence.into_iter(),
+            embassy_stm32::adc::CONTINUOUS,
+            embassy_stm32::adc::Exten::DISABLED,
+        );
+        let pressures = Pressures::new(ring);
+
+        let estop = EStop::new(Input::new(p.PE8, Pull::Down));
+
+        let mut cfg = usart::Config::default();
+        cfg.baudrate = LINK_BAUD;
+        let link = Uart::new(p.USART2, p.PA3, p.PA2, p.DMA1_CH6, p.DMA1_CH5, Irqs, cfg)
+            .unwrap_or_else(|_| defmt::panic!("USART2 configuration"));
+
+        let iwdg = IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US);
+        let led = Output::new(p.PD12, Level::Low, Speed::Low);
+
+        // Everything the drivers enabled at the reset priority (0) goes below the tick.
+        interrupt::USART2.set_priority(Priority::P3);
+        interrupt::TIM8_BRK_TIM12.set_priority(Priority::P3);
+
+        Self {
+            io: BoardIo {
+                encoders,
+                pressures,
+                estop,
+                valves,
+            },
+            link,
+            tick_timer: p.TIM7,
+            iwdg,
+            led,
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! The host link: USART2 with DMA, served by one thread-mode task below every
+//! interrupt, so it can never delay the tick.
+//!
+//! RX is a DMA ring buffer ([`RingBufferedUartRx`], 256 bytes: 22 ms of traffic at
+//! 115 200 Bd) that keeps receiving while the task is busy; TX is one DMA write per
+//! batch of output. The task wakes on received bytes or every 10 ms, then:
+//! 1. feeds received bytes to the protocol ([`LinkProtocol::on_rx`]), which may queue
+//!    commands for the tick (lock-free SPSC queue, applied at the next tick);
+//! 2. hands the tick's replies to the protocol ([`LinkProtocol::on_reply`]);
+//! 3. takes the tick's 10 ms status snapshots, logs state changes over defmt and tells
+//!    the protocol ([`LinkProtocol::on_state_change`]);
+//! 4. writes what the protocol queued for the host.
+//!
+//! The protocol is a trait so the bring-up [`crate::console::Console`] and the framed
+//! table-upload protocol (issue 8) plug into the same task.
+
+use core::sync::atomic::{AtomicU8, Ordering};
+use embassy_futures::select::{select, Either};
+use embassy_stm32::mode::Async;
+use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
+use embassy_time::Timer;
+use heapless::spsc::{Consumer, Producer};
+use heapless::Vec;
+use hydra_core::runtime::{Command, State};
+
+use crate::console::Console;
+use crate::tick::{BoardStatus, Reply};
+
+/// Bytes the protocol may queue for the host per wake-up.
+pub const OUT_LEN: usize = 1024;
+/// RX DMA ring size.
+pub const RX_RING_LEN: usize = 256;
+
+/// What a protocol handler can do on the link.
+pub struct LinkIo<'a> {
+    cmd_tx: &'a mut Producer<'static, Command>,
+    out: &'a mut Vec<u8, OUT_LEN>,
+    latest: Option<&'a BoardStatus>,
+}
+
+impl LinkIo<'_> {
+    /// Queues a command for the next tick; `false` if the queue is full.
+    pub fn command(&mut self, c: Command) -> bool {
+        self.cmd_tx.enqueue(c).is_ok()
+    }
+
+    /// Queues bytes for the host (truncated if the batch is full; returns whether all fit).
+    pub fn send(&mut self, bytes: &[u8]) -> bool {
+        let room = OUT_LEN.saturating_sub(self.out.len());
+        let n = bytes.len().min(room);
+        let fit = self
+            .out
+            .extend_from_slice(bytes.get(..n).unwrap_or(&[]))
+            .is_ok();
+        fit && n == bytes.len()
+    }
+
+    /// The latest status snapshot (10 ms old at most once the tick runs).
+    pub fn latest(&self) -> Option<&BoardStatus> {
+        self.latest
+    }
+}
+
+/// A host-link protocol (bring-up console now, framed protocol in issue 8).
+pub trait LinkProtocol {
+    /// Bytes received from the host.
+    fn on_rx(&mut self, bytes: &[u8], io: &mut LinkIo<'_>);
+    /// The tick's answer to a queued command.
+    fn on_reply(&mut self, reply: Reply, io: &mut LinkIo<'_>);
+    /// The runtime changed state or latched a fault.
+    fn on_state_change(&mut self, status: &BoardStatus, io: &mut LinkIo<'_>);
+}
+
+/// The runtime state as a small code for the status LED (0 Idle, 1 Following,
+/// 2 Holding, 3 Fault), published by the link task.
+pub static STATE_CODE: AtomicU8 = AtomicU8::new(0);
+
+fn state_code(s: State) -> u8 {
+    match s {
+        State::Idle => 0,
+        State::Following => 1,
+        State::Holding(_) => 2,
+        State::Fault => 3,
+    }
+}
+
+/// The link's channels to the tick.
+pub struct LinkChannels {
+    /// Commands to the tick.
+    pub cmd_tx: Producer<'static, Command>,
+    /// Replies from the tick.
+    pub reply_rx: Consumer<'static, Reply>,
+    /// Status snapshots from the tick.
+    pub status_rx: Consumer<'static, BoardStatus>,
+}
+
+/// The host-link task (see the module docs).
+#[embassy_executor::task]
+pub async fn link_task(
+    mut rx: RingBufferedUartRx<'static>,
+    mut tx: UartTx<'static, Async>,
+    mut ch: LinkChannels,
+) {
+    let mut proto = Console::default();
+    let mut buf = [0u8; 64];
+    let mut out: Vec<u8, OUT_LEN> = Vec::new();
+    let mut latest: Option<BoardStatus> = None;
+    loop {
+        let got = match select(rx.read(&mut buf), Timer::after_millis(10)).await {
+            Either::First(Ok(n)) => n,
+            Either::First(Err(e)) => {
+                // Overrun/framing/noise: the ring restarts on the next read.
+                defmt::warn!("host link rx error: {}", e);
+                0
+            }
+            Either::Second(()) => 0,
+        };
+        let mut changed: Option<BoardStatus> = None;
+        while let Some(s) = ch.status_rx.dequeue() {
+            let prev = latest.map(|p| (p.state, p.fault));
+            if prev != Some((s.state, s.fault)) {
+                log_change(&s);
+                changed = Some(s);
+            }
+            STATE_CODE.store(state_code(s.state), Ordering::Relaxed);
+            latest = Some(s);
+        }
+        let mut io = LinkIo {
+            cmd_tx: &mut ch.cmd_tx,
+            out: &mut out,
+            latest: latest.as_ref(),
+        };
+        if let Some(bytes) = buf.get(..got) {
+            if !bytes.is_empty() {
+                proto.on_rx(bytes, &mut io);
+            }
+        }
+        while let Some(r) = ch.reply_rx.dequeue() {
+            defmt::info!("command {} -> {}", r.cmd, r.result);
+            proto.on_reply(r, &mut io);
+        }
+        if let Some(s) = changed {
+            proto.on_state_change(&s, &mut io);
+        }
+        if !out.is_empty() {
+            if let Err(e) = tx.write(&out).await {
+                defmt::warn!("host link tx error: {}", e);
+            }
+            out.clear();
+        }
+    }
+}
+
+fn log_change(s: &BoardStatus) {
+    match s.fault {
+        Some(r) => defmt::error!(
+            "FAULT 0x{=u16:04x} {} at tick {}; state {}",
+            r.fault.code(),
+            r.fault,
+            r.tick,
+            s.state
+        ),
+        None => defmt::info!("state {} at tick {}", s.state, s.tick),
+    }
+}
+
+/// The status LED: Idle blinks at 1 Hz, Following is on, Holding blinks at 2.5 Hz,
+/// Fault at 5 Hz.
+#[embassy_executor::task]
+pub async fn led_task(mut led: embassy_stm32::gpio::Output<'static>) {
+    let mut phase = 0u32;
+    loop {
+        let half_period_ticks = match STATE_CODE.load(Ordering::Relaxed) {
+            0 => 10, // 50 ms ticks: 500 ms on/off
+            1 => 0,
+            2 => 2,
+            _ => 1,
+        };
+        if half_period_ticks == 0 {
+            led.set_high();
+        } else if phase.is_multiple_of(half_period_ticks) {
+            led.toggle();
+        }
+        phase = phase.wrapping_add(1);
+        Timer::after_millis(50).await;
+    }
+}

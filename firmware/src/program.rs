@@ -1,0 +1,111 @@
+//! The configuration and the control law the board boots with.
+//!
+//! Until the table-upload protocol (issue 8) installs tables over the host link and
+//! restores them from flash, the board boots with the reference machine's program
+//! (PLANT.md): slave 0 is the tangent cylinder following the die's cam table — the
+//! support point of a 900 × 600 mm ellipse centred 250 mm off the rotation axis, nodes
+//! every 0.5° from 0° to 90° (181 nodes), scaled to 20…480 mm — and slave 1 holds 20 mm
+//! over the whole table. The table is computed once at boot (f64, `libm`); the tick
+//! never touches a float.
+
+use heapless::Vec;
+use hydra_core::axis::{AxisConfig, ControlMode};
+use hydra_core::follower::{Follower, FollowerConfig};
+use hydra_core::runtime::{RuntimeCoeffs, RuntimeConfig};
+use hydra_core::table::{AxisLimits, CamTable, Node, TableLimits};
+use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
+
+use crate::board::SLAVES;
+
+/// Table capacity (nodes).
+pub const TABLE_NODES: usize = 256;
+/// The control law of this board.
+pub type Law = Follower<SLAVES, TABLE_NODES>;
+/// Control period, µs (1 kHz; 100 µs = 10 kHz is the fastest the runtime accepts).
+pub const PERIOD_US: u32 = 1000;
+
+/// Why the boot program could not be built.
+#[derive(Clone, Copy, Debug, defmt::Format)]
+pub enum ProgramError {
+    /// The runtime configuration.
+    Runtime(hydra_core::runtime::RuntimeConfigError),
+    /// The cam table.
+    Table(hydra_core::table::TableError),
+    /// The follower configuration.
+    Follower(hydra_core::follower::FollowerError),
+}
+
+/// The runtime limits (reference machine defaults at [`PERIOD_US`]).
+pub fn runtime_coeffs() -> Result<RuntimeCoeffs<SLAVES>, ProgramError> {
+    RuntimeConfig::<SLAVES> {
+        period_us: PERIOD_US,
+        ..RuntimeConfig::default()
+    }
+    .build()
+    .map_err(ProgramError::Runtime)
+}
+
+/// x_raw(θ) of PLANT.md, mm.
+fn x_raw_mm(theta_deg: f64) -> f64 {
+    let (a, b, e) = (900.0f64, 600.0f64, 250.0f64);
+    let t = theta_deg.to_radians();
+    let (s, c) = (libm::sin(t), libm::cos(t));
+    e * c + (a * a - b * b) * s * c / libm::sqrt(a * a * s * s + b * b * c * c)
+}
+
+/// The reference cam table (see the module docs).
+fn reference_table() -> Result<CamTable<SLAVES, TABLE_NODES>, ProgramError> {
+    const ROWS: usize = 181;
+    let mut raw = [0.0f64; ROWS];
+    for (j, r) in raw.iter_mut().enumerate() {
+        *r = x_raw_mm(j as f64 * 0.5);
+    }
+    let lo = raw.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = raw.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mut nodes: Vec<Node<SLAVES>, ROWS> = Vec::new();
+    for (j, r) in raw.iter().enumerate() {
+        let x_um = 1000.0 * (20.0 + (r - lo) * (480.0 - 20.0) / (hi - lo));
+        let node = Node {
+            // 0.5° = 500 master counts of 0.001°.
+            master: Master::from_num(j as i64 * 500),
+            slave_um: [PosUm::saturating_from_num(x_um), PosUm::from_num(20_000)],
+        };
+        // ROWS ≤ capacity: cannot fail.
+        let _ = nodes.push(node);
+    }
+    let axis = AxisLimits {
+        min_um: PosUm::from_num(0),
+        max_um: PosUm::from_num(500_000),
+        max_speed_um_per_s: VelUmPerS::from_num(200_000),
+    };
+    let limits = TableLimits {
+        // 10 °/s: three times the nominal table speed.
+        master_speed_per_s: MasterRate::from_num(10_000),
+        axes: [axis; SLAVES],
+    };
+    CamTable::try_from_nodes(&nodes, &limits).map_err(ProgramError::Table)
+}
+
+/// The follower with the reference table and gains for the reference valve/cylinder.
+pub fn boot_law() -> Result<Law, ProgramError> {
+    let axis = AxisConfig {
+        mode: ControlMode::Feedforward,
+        kp_lsb_per_um: 0.4,
+        ki_lsb_per_um_s: 5.0,
+        kd_lsb_s_per_um: 0.0005,
+        i_zone_um: 200.0,
+        i_limit_lsb: 100.0,
+        kv_pos_lsb_per_um_s: 0.017,
+        kv_neg_lsb_per_um_s: 0.025,
+        ka_lsb_per_um_s2: 0.0001,
+        valve_lag_us: 4200.0,
+        following_error_um: 5000.0,
+        ..AxisConfig::default()
+    };
+    let cfg = FollowerConfig::<SLAVES> {
+        period_us: PERIOD_US,
+        axes: [axis; SLAVES],
+        ..FollowerConfig::default()
+    };
+    Follower::new(&cfg, reference_table()?).map_err(ProgramError::Follower)
+}

@@ -1,0 +1,187 @@
+//! The hard-period tick: TIM7's update interrupt at the highest priority.
+//!
+//! Deadline: the whole tick (encoder latch → runtime → valve write → watchdog feed) must
+//! finish within one period (1 ms by default, down to 100 µs). Nothing else runs at
+//! priority 0, so the only delay between the timer's update event and the first encoder
+//! read is the interrupt entry (12 cycles) plus the longest critical section of the
+//! lower-priority code (the single-core `critical-section` masks interrupts; embassy's
+//! own sections are a few dozen cycles).
+//!
+//! Per tick:
+//! 1. `t0` ← DWT cycle counter; TIM7's update flag cleared; at most one command taken
+//!    from its queue; then the encoders are latched (the first thing `Runtime::tick_io`
+//!    does, about 30 cycles after the handler's entry);
+//! 2. the runtime's step with at most one queued command and the overrun flag of the
+//!    previous tick; valves and enable written;
+//! 3. the independent watchdog fed (only here: a tick that stops running resets the
+//!    board within the watchdog timeout);
+//! 4. every 10 ms a status snapshot is queued for the host link;
+//! 5. the tick's cycles are recorded (max, window mean); if TIM7's update flag is set
+//!    again the next period began before the tick finished, and if two tick starts are
+//!    more than 1.5 periods apart a period was skipped: either is an overrun, reported to
+//!    the runtime (which latches `Fault::Overrun`) at the next tick.
+
+use core::cell::RefCell;
+use critical_section::Mutex;
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::peripherals::{IWDG, TIM7};
+use embassy_stm32::timer::low_level::{RoundTo, Timer};
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::Peri;
+use heapless::spsc::{Consumer, Producer};
+use hydra_core::runtime::{Command, CommandError, Runtime, Status};
+use static_cell::StaticCell;
+
+use crate::board::{BoardIo, PRESSURES, SLAVES, SYSCLK_HZ};
+use crate::program::Law;
+
+/// The runtime as this board runs it.
+pub type BoardRuntime = Runtime<Law, SLAVES, PRESSURES>;
+/// The status snapshot of this board.
+pub type BoardStatus = Status<SLAVES, PRESSURES>;
+
+/// A command's answer, sent back to the host link.
+#[derive(Clone, Copy, Debug, defmt::Format)]
+pub struct Reply {
+    /// The command.
+    pub cmd: Command,
+    /// Accepted, or why not.
+    pub result: Result<(), CommandError>,
+}
+
+/// Status snapshots are queued every this many µs.
+pub const STATUS_PERIOD_US: u32 = 10_000;
+
+/// Everything the tick owns.
+pub struct Tick {
+    rt: BoardRuntime,
+    io: BoardIo,
+    timer: Timer<'static, TIM7>,
+    iwdg: IndependentWatchdog<'static, IWDG>,
+    cmd_rx: Consumer<'static, Command>,
+    reply_tx: Producer<'static, Reply>,
+    status_tx: Producer<'static, BoardStatus>,
+    period_cycles: u32,
+    last_start: Option<u32>,
+    overrun_pending: bool,
+    status_every: u32,
+    status_countdown: u32,
+}
+
+/// The channels between the tick and the host link.
+pub struct TickLinks {
+    /// Commands in.
+    pub cmd_rx: Consumer<'static, Command>,
+    /// Replies out.
+    pub reply_tx: Producer<'static, Reply>,
+    /// Status snapshots out.
+    pub status_tx: Producer<'static, BoardStatus>,
+}
+
+/// The tick's state (≈ 9 KiB with the cam table) lives in `.bss`.
+static TICK_CELL: StaticCell<Tick> = StaticCell::new();
+/// The interrupt's handle on it (`None` until [`start`]; a null pointer, so also `.bss`).
+static TICK: Mutex<RefCell<Option<&'static mut Tick>>> = Mutex::new(RefCell::new(None));
+
+impl Tick {
+    /// Assembles the tick; the period is the runtime's.
+    pub fn new(
+        rt: BoardRuntime,
+        io: BoardIo,
+        tim7: Peri<'static, TIM7>,
+        iwdg: IndependentWatchdog<'static, IWDG>,
+        links: TickLinks,
+    ) -> Self {
+        let period_us = rt.coeffs().period_us;
+        let timer = Timer::new(tim7);
+        timer.set_period_us(period_us, RoundTo::Slower);
+        timer.enable_update_interrupt(true);
+        let period_cycles = (SYSCLK_HZ / 1_000_000).saturating_mul(period_us);
+        let status_every = (STATUS_PERIOD_US / period_us).max(1);
+        Self {
+            rt,
+            io,
+            timer,
+            iwdg,
+            cmd_rx: links.cmd_rx,
+            reply_tx: links.reply_tx,
+            status_tx: links.status_tx,
+            period_cycles,
+            last_start: None,
+            overrun_pending: false,
+            status_every,
+            status_countdown: status_every,
+        }
+    }
+
+    #[inline(always)]
+    fn run(&mut self) {
+        let t0 = cortex_m::peripheral::DWT::cycle_count();
+        // The update flag is cleared first, so the check at the end sees only the *next*
+        // period's update event.
+        self.timer.clear_update_interrupt();
+        let cmd = self.cmd_rx.dequeue();
+        let overrun = self.overrun_pending || self.skipped(t0);
+        // 1.–2. latch, step, write (encoders are the first thing tick_io touches).
+        let reply = self.rt.tick_io(&mut self.io, cmd, overrun);
+        self.overrun_pending = false;
+        // 3. the watchdog is fed here and nowhere else.
+        self.iwdg.pet();
+        if let (Some(cmd), Some(result)) = (cmd, reply) {
+            // A full reply queue drops the reply; the command was applied regardless.
+            let _ = self.reply_tx.enqueue(Reply { cmd, result });
+        }
+        // 4. status for the host link.
+        self.status_countdown = self.status_countdown.saturating_sub(1);
+        if self.status_countdown == 0 {
+            self.status_countdown = self.status_every;
+            // A full queue means the link is behind: skip this snapshot.
+            let _ = self.status_tx.enqueue(*self.rt.status());
+        }
+        // 5. timing and overrun.
+        let t1 = cortex_m::peripheral::DWT::cycle_count();
+        self.rt.record_tick_cycles(t1.wrapping_sub(t0));
+        if self.timer.regs_core().sr().read().uif() {
+            self.overrun_pending = true;
+        }
+    }
+
+    /// Whether more than 1.5 periods passed since the previous tick started.
+    #[inline(always)]
+    fn skipped(&mut self, t0: u32) -> bool {
+        let late = self.last_start.is_some_and(|prev| {
+            t0.wrapping_sub(prev) > self.period_cycles.saturating_add(self.period_cycles / 2)
+        });
+        self.last_start = Some(t0);
+        late
+    }
+}
+
+/// Hands the tick to its interrupt and starts the period timer.
+pub fn start(tick: Tick) {
+    let t = TICK_CELL.init(tick);
+    t.iwdg.unleash();
+    t.timer.start();
+    critical_section::with(|cs| {
+        TICK.borrow_ref_mut(cs).replace(t);
+    });
+    interrupt::TIM7.set_priority(Priority::P0);
+    // Note(unsafe): the handler only touches `TICK`, initialised just above.
+    #[allow(unsafe_code)]
+    unsafe {
+        interrupt::TIM7.enable();
+    }
+}
+
+#[allow(unsafe_code)]
+#[interrupt]
+fn TIM7() {
+    // The tick runs inside a critical section: it is the highest priority anyway, so
+    // this only costs the PRIMASK save/restore and lets the state live in a safe static.
+    critical_section::with(|cs| {
+        if let Some(t) = TICK.borrow_ref_mut(cs).as_mut() {
+            t.run();
+        }
+    });
+}
