@@ -73,6 +73,8 @@ async fn main(spawner: Spawner) {
     if let Some(mut cp) = cortex_m::Peripherals::take() {
         cp.DCB.enable_trace();
         cp.DWT.enable_cycle_counter();
+    } else {
+        defmt::warn!("core peripherals already taken: tick cycle counts will read 0");
     }
     panic::freeze_in_debug();
 
