@@ -66,13 +66,17 @@ grep -q '^CAL .* instr_per_tick_x1000=40000$' "$WORK/measure.out" || {
 
 # ---- 2. Traced profile and cycle estimate ---------------------------------------------
 "$OBJDUMP" -d -C -l "$ELF" >"$WORK/disasm.txt"
+# The worst-case contour point the measure run picked, traced as such.
+pick="$(grep -o 'select=[0-9]*:-\?[0-9]*' "$WORK/measure.out" | head -1 | sed 's/select=//')"
+profile_args="arg=bench-m4,arg=profile"
+[ -n "$pick" ] && profile_args="$profile_args,arg=contour_worst=$pick"
 FIFO="$WORK/trace.fifo"
 rm -f "$FIFO"
 mkfifo "$FIFO"
 grep '^Trace' <"$FIFO" | cut -d/ -f2 >"$WORK/pcs.txt" &
 reader=$!
 if ! qemu -singlestep -d exec,nochain -D "$FIFO" \
-  -semihosting-config enable=on,target=native,arg=bench-m4,arg=profile >"$WORK/profile.out" 2>&1; then
+  -semihosting-config "enable=on,target=native,$profile_args" >"$WORK/profile.out" 2>&1; then
   wait "$reader" || true
   rm -f "$FIFO"
   echo "bench-m4: the profile run failed:"; cat "$WORK/profile.out"; exit 1

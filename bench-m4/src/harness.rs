@@ -22,6 +22,14 @@ pub trait Figure {
     fn healthy(&self) -> bool {
         true
     }
+    /// Calls before the traced ones in the profile run: [`PROFILE_WARM_UP`] for a figure
+    /// with state that settles (filters); a stateless figure or a costly one overrides it
+    /// (QEMU logs every instruction of the profile run).
+    fn profile_warm_up(&self) -> u32 {
+        PROFILE_WARM_UP
+    }
+    /// Anything worth printing about the case measured (e.g. the worst case found).
+    fn describe(&self, _w: &mut dyn core::fmt::Write) {}
 }
 
 /// Calls before the measured ones (filters settle, cursors find their segment).
@@ -30,9 +38,9 @@ pub const WARM_UP: u32 = 300;
 pub const CALLS: u32 = 2000;
 /// Calls traced instruction by instruction in the profile run.
 pub const PROFILE_CALLS: u32 = 16;
-/// Calls before the traced ones in the profile run (fewer than [`WARM_UP`]: QEMU logs
-/// every instruction of the run; the filters have settled and the instruction mix is
-/// that of the running loop after this many).
+/// Calls before the traced ones in the profile run, by default (fewer than [`WARM_UP`]:
+/// QEMU logs every instruction of the run; the filters have settled and the instruction
+/// mix is that of the running loop after this many).
 pub const PROFILE_WARM_UP: u32 = 100;
 
 /// SysTick counts of `n` calls from `k0`.
@@ -70,13 +78,20 @@ pub fn measure<F: Figure>(f: &mut F) -> Timing {
     for k in 0..WARM_UP {
         f.call(k);
     }
+    // The baseline prepares the inputs of the same calls (same `k`).
     let calls_ticks = time_calls(f, WARM_UP, CALLS);
-    let base_ticks = time_baseline(f, WARM_UP.saturating_add(CALLS), CALLS);
+    let base_ticks = time_baseline(f, WARM_UP, CALLS);
     Timing {
         calls_ticks,
         base_ticks,
         calls: CALLS,
     }
+}
+
+/// SysTick counts of `n` calls minus their baseline, from `k = 0`, without warm-up (for
+/// a figure that selects its worst case among candidates).
+pub fn measure_calls<F: Figure>(f: &mut F, n: u32) -> u32 {
+    time_calls(f, 0, n).saturating_sub(time_baseline(f, 0, n))
 }
 
 /// Marks the start of a profiled window in QEMU's instruction trace (the address of this
@@ -106,8 +121,9 @@ fn profile_calls<F: Figure>(f: &mut F, k0: u32) {
 
 /// Warms up, then runs the profiled window.
 pub fn profile<F: Figure>(f: &mut F) {
-    for k in 0..PROFILE_WARM_UP {
+    let warm_up = f.profile_warm_up();
+    for k in 0..warm_up {
         f.call(k);
     }
-    profile_calls(f, PROFILE_WARM_UP);
+    profile_calls(f, warm_up);
 }

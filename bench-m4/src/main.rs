@@ -18,9 +18,12 @@
 #![no_main]
 
 mod clock;
+mod contour;
 mod follower;
 mod harness;
+mod npid;
 mod out;
+mod scurve;
 mod semihost;
 
 use core::fmt::Write;
@@ -37,40 +40,104 @@ enum Mode {
     Profile,
 }
 
-/// Runs one figure in `mode` and prints its line; false if the set-up was rejected or
-/// the figure did not stay on its intended path.
-fn run<F: Figure>(o: &mut Out, mode: Mode, ipt_x1000: u64, name: &str, fig: Option<F>) -> bool {
-    let Some(mut fig) = fig else {
-        let _ = writeln!(o, "ERROR {name}: set-up rejected by hydra_core");
-        return false;
-    };
-    match mode {
-        Mode::Measure => {
-            let t = harness::measure(&mut fig);
-            let net = u64::from(t.calls_ticks.saturating_sub(t.base_ticks));
-            let instr_x1000 = net * ipt_x1000 / u64::from(t.calls.max(1));
-            let _ = writeln!(
-                o,
-                "FIG {name} calls={} ticks={} base_ticks={} instr_x1000={instr_x1000}",
-                t.calls, t.calls_ticks, t.base_ticks
-            );
+/// Runs the figures of one mode and prints their lines.
+struct Runner {
+    o: Out,
+    mode: Mode,
+    /// Instructions per SysTick count, ×1000 (from the calibration).
+    ipt_x1000: u64,
+    /// Every figure so far set up, ran and stayed on its intended path.
+    ok: bool,
+}
+
+impl Runner {
+    /// Runs one figure and prints its line; records a failure if the set-up was
+    /// rejected or the figure did not stay on its intended path.
+    fn run<F: Figure>(&mut self, name: &str, fig: Option<F>) {
+        let o = &mut self.o;
+        let Some(mut fig) = fig else {
+            let _ = writeln!(o, "ERROR {name}: set-up rejected by hydra_core");
+            self.ok = false;
+            return;
+        };
+        match self.mode {
+            Mode::Measure => {
+                let t = harness::measure(&mut fig);
+                let net = u64::from(t.calls_ticks.saturating_sub(t.base_ticks));
+                let instr_x1000 = net * self.ipt_x1000 / u64::from(t.calls.max(1));
+                let _ = writeln!(
+                    o,
+                    "FIG {name} calls={} ticks={} base_ticks={} instr_x1000={instr_x1000}",
+                    t.calls, t.calls_ticks, t.base_ticks
+                );
+            }
+            Mode::Profile => {
+                let _ = writeln!(o, "PROFILE {name} calls={}", harness::PROFILE_CALLS);
+                harness::profile(&mut fig);
+            }
         }
-        Mode::Profile => {
-            let _ = writeln!(o, "PROFILE {name} calls={}", harness::PROFILE_CALLS);
-            harness::profile(&mut fig);
+        let mut note = NoteLine::new(name);
+        fig.describe(&mut note);
+        if note.used {
+            let _ = writeln!(o, "{}", note.as_str());
+        }
+        if !fig.healthy() {
+            let _ = writeln!(o, "ERROR {name}: left its intended path (fault, end, …)");
+            self.ok = false;
         }
     }
-    if !fig.healthy() {
-        let _ = writeln!(o, "ERROR {name}: left its intended path (fault or end)");
-        return false;
+}
+
+/// `NOTE <figure>: <text>`, built in a fixed buffer.
+struct NoteLine {
+    buf: [u8; 160],
+    len: usize,
+    used: bool,
+}
+
+impl NoteLine {
+    fn new(name: &str) -> Self {
+        let mut n = Self {
+            buf: [0; 160],
+            len: 0,
+            used: false,
+        };
+        let _ = write!(n, "NOTE {name}:");
+        n.used = false;
+        n
     }
-    true
+
+    fn as_str(&self) -> &str {
+        core::str::from_utf8(self.buf.get(..self.len).unwrap_or(&[])).unwrap_or("")
+    }
+}
+
+impl Write for NoteLine {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        for &c in s.as_bytes() {
+            if let Some(b) = self.buf.get_mut(self.len) {
+                *b = if c == b'\n' { b' ' } else { c };
+                self.len += 1;
+            }
+        }
+        self.used = true;
+        Ok(())
+    }
+}
+
+/// `contour_worst=<lag2>:<offset>` on the command line (from the measure run's NOTE).
+fn worst_pick(line: &[u8]) -> Option<(u32, i32)> {
+    let key = b"contour_worst=";
+    let at = line.windows(key.len()).position(|w| w == key)?;
+    let rest = core::str::from_utf8(line.get(at + key.len()..)?).ok()?;
+    let rest = rest.split(' ').next()?;
+    let (a, b) = rest.split_once(':')?;
+    Some((a.parse().ok()?, b.parse().ok()?))
 }
 
 #[entry]
 fn main() -> ! {
     let mut o = Out::new();
-    let mut ok = true;
     let Some(p) = cortex_m::Peripherals::take() else {
         semihost::exit(false);
     };
@@ -98,36 +165,47 @@ fn main() -> ! {
         "CAL instructions={cal_instr} ticks={cal_ticks} instr_per_tick_x1000={ipt_x1000}"
     );
 
-    ok &= run(
-        &mut o,
+    let mut r = Runner {
+        o,
         mode,
         ipt_x1000,
+        ok: true,
+    };
+    // Follower (SPEC §A).
+    r.run(
         "follower_ff_1axis",
         FollowerFig::<1>::new(ControlMode::Feedforward),
     );
-    ok &= run(
-        &mut o,
-        mode,
-        ipt_x1000,
+    r.run(
         "follower_ff_4axes",
         FollowerFig::<4>::new(ControlMode::Feedforward),
     );
-    ok &= run(
-        &mut o,
-        mode,
-        ipt_x1000,
+    r.run(
         "follower_ff_8axes",
         FollowerFig::<8>::new(ControlMode::Feedforward),
     );
-    ok &= run(
-        &mut o,
-        mode,
-        ipt_x1000,
+    r.run(
         "follower_paper_1axis",
         FollowerFig::<1>::new(ControlMode::Paper),
     );
+    // S-curve (SPEC §B).
+    r.run("scurve_sample", scurve::ProfileSample::new());
+    r.run("scurve_line_xy", scurve::LineXy::new());
+    // Contour estimation (SPEC §C).
+    r.run("contour_interp_step", contour::InterpStep::new());
+    r.run("contour_estimate_typical", contour::EstimateTypical::new());
+    let pick = match (mode, worst_pick(line)) {
+        (Mode::Profile, Some((l2, off))) => contour::WorstPick::Given(l2, off),
+        _ => contour::WorstPick::Sweep,
+    };
+    r.run("contour_estimate_worst", contour::EstimateWorst::new(pick));
+    // Nonlinear PID (SPEC §D).
+    r.run("npid_td_fal", npid::NpidTrack::new());
+    // The X–Y cross-coupled tick with estimation (SPEC §C + §D),
+    // `xy_cross_coupled_estimated`, goes here once hydra_core::npid::EstimatedXy lands.
 
-    let _ = writeln!(o, "DONE ok={ok}");
+    let ok = r.ok;
+    let _ = writeln!(r.o, "DONE ok={ok}");
     semihost::exit(ok);
 }
 

@@ -1,0 +1,112 @@
+//! Nonlinear PID figure (SPEC §D): one axis of the cross-coupled nonlinear PID.
+//!
+//! `npid_td_fal`: [`Npid::track`] — TD-I on the reference, TD-II on the measurement
+//! (two `fhan` evaluations with their square roots), the integral, and the three `fal`
+//! terms (|e|^α by base-2 log/exp tables outside the linear zone). Gains: the tuned axis
+//! values of host-sim's X–Y scenario (`host-sim/src/xy/gains.rs`): β = (8, 0.8·20^0.2,
+//! 0.002), α = (1, 0.8, 1), δ = (1 µm·s, 20 µm, 1 µm/s), TD r = 5·10⁷ µm/s², h0 = 2 ms,
+//! period 1 ms. The reference moves at 50 mm/s (the scenario's feed: 50 µm per period);
+//! the measurement lags it by one period with a ±3 µm ripple, so the proportional error
+//! (≈ 50 µm) is outside its linear zone and every term runs its power law or its
+//! linear zone as in tracking.
+
+use crate::harness::Figure;
+use core::hint::black_box;
+use hydra_core::npid::{ErrorLaw, FalConfig, FhanConfig, Npid, NpidCoeffs, NpidConfig};
+use hydra_core::units::{CmdLsb, PosUm};
+
+/// Reference advance per period, raw `PosUm` (50 µm).
+const STEP_BITS: i32 = 50 << 8;
+
+/// The tuned axis gains (host-sim `xy/gains.rs`, `axis_nonlinear`).
+fn coeffs() -> Option<NpidCoeffs> {
+    let td = FhanConfig {
+        r_um_per_s2: 5e7,
+        h0_s: 2e-3,
+    };
+    NpidConfig {
+        period_s: 1e-3,
+        td_reference: td,
+        td_measurement: td,
+        beta0: 8.0,
+        // 0.8·20^0.2
+        beta1: 1.456_451_4,
+        beta2: 0.002,
+        fal0: FalConfig {
+            alpha: 1.0,
+            delta: 1.0,
+        },
+        fal1: FalConfig {
+            alpha: 0.8,
+            delta: 20.0,
+        },
+        fal2: FalConfig {
+            alpha: 1.0,
+            delta: 1.0,
+        },
+        // |β0·e0| ≤ 1000 LSB.
+        integral_limit_um_s: 125.0,
+        output_limit_lsb: 2047.0,
+    }
+    .build()
+    .ok()
+}
+
+/// The measured call: one period of the axis law.
+#[inline(never)]
+fn track(n: &mut Npid, c: &NpidCoeffs, reference: PosUm, measured: PosUm) -> CmdLsb {
+    n.track(c, reference, measured)
+}
+
+/// `npid_td_fal`.
+pub struct NpidTrack {
+    c: NpidCoeffs,
+    n: Npid,
+    reference: PosUm,
+    measured: PosUm,
+    out: CmdLsb,
+}
+
+impl NpidTrack {
+    /// The law at rest at 0.
+    pub fn new() -> Option<Self> {
+        Some(Self {
+            c: coeffs()?,
+            n: Npid::at_rest(PosUm::ZERO),
+            reference: PosUm::ZERO,
+            measured: PosUm::ZERO,
+            out: CmdLsb::ZERO,
+        })
+    }
+
+    /// Inputs of call `k`: the reference at 50 µm per period, the measurement one period
+    /// behind with a ±3 µm ripple (period 16 calls).
+    #[inline(always)]
+    fn next_inputs(&mut self, k: u32) {
+        let r = (k as i32).wrapping_mul(STEP_BITS);
+        let ripple = ((k & 15) as i32 - 8) * (3 << 8) / 8;
+        self.reference = PosUm::from_bits(r);
+        self.measured = PosUm::from_bits(r.wrapping_sub(STEP_BITS).wrapping_add(ripple));
+    }
+}
+
+impl Figure for NpidTrack {
+    #[inline(always)]
+    fn call(&mut self, k: u32) {
+        self.next_inputs(k);
+        self.out = track(&mut self.n, &self.c, self.reference, self.measured);
+    }
+
+    #[inline(always)]
+    fn baseline(&mut self, k: u32) {
+        self.next_inputs(k);
+        black_box(&mut self.reference);
+        black_box(&mut self.measured);
+        black_box(&mut self.out);
+    }
+
+    /// The command stays inside the DAC range without saturating.
+    fn healthy(&self) -> bool {
+        self.out.abs() < CmdLsb::from_num(2047)
+    }
+}
