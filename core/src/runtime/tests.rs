@@ -319,22 +319,22 @@ struct Ev {
 
 fn ev() -> impl Strategy<Value = Ev> {
     let cmd = prop_oneof![
-        6 => Just(None),
-        1 => Just(Some(Command::Start)),
+        12 => Just(None),
+        2 => Just(Some(Command::Start)),
         1 => Just(Some(Command::Hold)),
         1 => Just(Some(Command::Stop)),
-        1 => Just(Some(Command::ClearFault)),
+        2 => Just(Some(Command::ClearFault)),
     ];
-    let master_step = prop_oneof![8 => -3i32..=3, 1 => Just(0), 1 => -200i32..=200];
-    let dev = prop_oneof![9 => -50i32..=50, 1 => -3000i32..=3000];
+    let master_step = prop_oneof![90 => -3i32..=3, 8 => Just(0), 2 => -200i32..=200];
+    let dev = prop_oneof![97 => -50i32..=50, 3 => -3000i32..=3000];
     (
         cmd,
-        proptest::bool::weighted(0.04),
-        proptest::bool::weighted(0.02),
+        proptest::bool::weighted(0.01),
+        proptest::bool::weighted(0.005),
         master_step,
         [dev.clone(), dev],
-        proptest::bool::weighted(0.02),
-        proptest::bool::weighted(0.03),
+        proptest::bool::weighted(0.005),
+        proptest::bool::weighted(0.01),
     )
         .prop_map(
             |(cmd, estop, overrun, master_step, slave_dev, law_fault, end)| Ev {
@@ -350,7 +350,7 @@ fn ev() -> impl Strategy<Value = Ev> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 1024, ..ProptestConfig::default() })]
 
     /// Safety invariants over random command/fault sequences:
     /// - Fault or Idle ⇒ every valve at its null and the enable off, in that very tick;
