@@ -306,7 +306,7 @@ impl InterpStep {
     /// Every [`RESTART_EVERY`] calls (in both loops): back to the path's start.
     #[inline(always)]
     fn restart(&mut self, k: u32) {
-        if k % RESTART_EVERY == 0 {
+        if k.is_multiple_of(RESTART_EVERY) {
             self.it = Interpolator::start(&self.path, &mut self.window);
         }
     }
