@@ -157,8 +157,9 @@ mod tests {
         }
         assert_eq!(sum, (50_000.0 / r + 0.5).floor() as i64);
         assert_eq!(out.total(), sum);
+        // Measured: 146 counts (0.29 % of the move) for the paper-style rounding.
         assert!(
-            naive_worst > 2.0,
+            naive_worst > 100.0,
             "per-period rounding drifts: {naive_worst}"
         );
     }

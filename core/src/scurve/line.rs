@@ -24,7 +24,7 @@
 //! |Δ_i| < 2^32 LSB < [`super::MAX_DISTANCE_LSB`].
 
 use super::cursor::Cursor;
-use super::plan::{sqrt_pos, Limits, Plan};
+use super::plan::{Limits, Plan};
 use super::profile::Profile;
 use super::wide::mulhi;
 use super::ScurveError;
@@ -84,7 +84,7 @@ impl<const N: usize> LineMove<N> {
                 leader = i;
             }
         }
-        let len_lsb = sqrt_pos(delta.iter().map(|&d| (d as f64) * (d as f64)).sum::<f64>());
+        let len_lsb = libm::sqrt(delta.iter().map(|&d| (d as f64) * (d as f64)).sum::<f64>());
         // ρ = D / L ∈ [1/√N, 1]; 1 for the empty move (limits still validated).
         let rho = if dist == 0 {
             1.0

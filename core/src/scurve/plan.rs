@@ -89,34 +89,6 @@ fn limit_ok(x: f64) -> bool {
     x.is_finite() && x > 0.0 && x <= MAX_LIMIT
 }
 
-/// Square root of a non-negative finite `x` (`sqrt` is not in `core` on every target):
-/// a bit-level first guess (exponent halved) refined by Newton's `y ← (y + x/y)/2`.
-pub(crate) fn sqrt_pos(x: f64) -> f64 {
-    if x <= 0.0 || !x.is_finite() {
-        return if x == 0.0 { 0.0 } else { x };
-    }
-    // exponent/2 and the bias kept: 1023 − 1023/2 = 512 (rounded).
-    let bits = (x.to_bits() / 2).wrapping_add(511u64 << 52);
-    let mut y = f64::from_bits(bits);
-    for _ in 0..7 {
-        y = 0.5 * (y + x / y);
-    }
-    y
-}
-
-/// Cube root of a positive finite `x` (no `cbrt` in `core`): a bit-level first guess
-/// (exponent divided by three) refined by Newton's iteration `y ← (2y + x/y²)/3`,
-/// which converges quadratically from a guess within a factor of two.
-pub(crate) fn cbrt_pos(x: f64) -> f64 {
-    // exponent/3 and the bias kept: 1023 − 1023/3 = 682.
-    let bits = (x.to_bits() / 3).wrapping_add(682u64 << 52);
-    let mut y = f64::from_bits(bits);
-    for _ in 0..8 {
-        y = (2.0 * y + x / (y * y)) / 3.0;
-    }
-    y
-}
-
 impl Plan {
     /// The time-optimal plan for `distance_lsb` under `limits`.
     ///
@@ -160,7 +132,7 @@ impl Plan {
         let (tj_v, ta_v) = if a_reached {
             (a / j, (v / a - a / j).max(0.0))
         } else {
-            (sqrt_pos(v / j), 0.0)
+            (libm::sqrt(v / j), 0.0)
         };
         let d_v = v * (2.0 * tj_v + ta_v); // distance of both halves, no cruise
         let (regime, tj, ta, tv, vp, ap) = if d >= d_v {
@@ -173,11 +145,11 @@ impl Plan {
             (regime, tj_v, ta_v, (d - d_v) / v, v, ap)
         } else if d >= 2.0 * a * a * a / (j * j) {
             let tj = a / j;
-            let vp = 2.0 * d / (sqrt_pos(tj * tj + 4.0 * d / a) + tj);
+            let vp = 2.0 * d / (libm::sqrt(tj * tj + 4.0 * d / a) + tj);
             let ta = (vp / a - tj).max(0.0);
             (Regime::VelNotReached, tj, ta, 0.0, vp, a)
         } else {
-            let tj = cbrt_pos(d / (2.0 * j));
+            let tj = libm::cbrt(d / (2.0 * j));
             (Regime::NeitherReached, tj, 0.0, 0.0, j * tj * tj, j * tj)
         };
         if !(tj.is_finite() && ta.is_finite() && tv.is_finite()) {
@@ -276,23 +248,6 @@ mod tests {
 
     fn close(a: f64, b: f64) -> bool {
         (a - b).abs() <= 1e-12 * (1.0 + b.abs())
-    }
-
-    #[test]
-    fn sqrt_is_accurate() {
-        for x in [1e-300, 1e-15, 0.5, 2.0, 9.0, 1e6, 7.7e14, 1e36, 1e300] {
-            let y = sqrt_pos(x);
-            assert!((y - x.sqrt()).abs() <= 2.0 * f64::EPSILON * y, "{x}: {y}");
-        }
-        assert_eq!(sqrt_pos(0.0), 0.0);
-    }
-
-    #[test]
-    fn cbrt_is_accurate() {
-        for x in [1e-15, 3e-9, 0.5, 1.0, 8.0, 27.0, 1e6, 7.7e14, 1e18] {
-            let y = cbrt_pos(x);
-            assert!(close(y * y * y, x), "{x}: {y}");
-        }
     }
 
     /// Paper case, D = 10: A and V reached; T = D/V + V/A + A/J = 9.1667 s.
