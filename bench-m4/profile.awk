@@ -192,7 +192,7 @@ function retire(a, nxt, counted,    c) {
     si[w, src[a]]++
     sc[w, src[a]] += c
     snames[w, src[a]] = 1
-    if (wname[w] == annotate) hot[a]++
+    hot[w, a]++
 }
 
 filen == 2 {
@@ -254,7 +254,7 @@ END {
         if (name == annotate) {
             for (i = 1; i <= nord; i++) {
                 a = ord[i]
-                if (a in hot) printf "HOT %s %s instr_x1000=%d %s %s | %s\n", name, a, hot[a] * 1000 / K, src[a], fn[a], text[a]
+                if ((k, a) in hot) printf "HOT %s %s instr_x1000=%d %s %s | %s\n", name, a, hot[k, a] * 1000 / K, src[a], fn[a], text[a]
             }
         }
     }
