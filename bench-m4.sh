@@ -77,6 +77,8 @@ grep '^Trace' <"$FIFO" | cut -d/ -f2 >"$WORK/pcs.txt" &
 reader=$!
 if ! qemu -singlestep -d exec,nochain -D "$FIFO" \
   -semihosting-config "enable=on,target=native,$profile_args" >"$WORK/profile.out" 2>&1; then
+  # Release the reader if QEMU never opened the FIFO.
+  timeout 5 sh -c ': >"$1"' sh "$FIFO" 2>/dev/null || true
   wait "$reader" || true
   rm -f "$FIFO"
   echo "bench-m4: the profile run failed:"; cat "$WORK/profile.out"; exit 1
