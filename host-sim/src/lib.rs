@@ -8,3 +8,4 @@ pub mod cmd;
 pub mod die;
 pub mod plant;
 pub mod scenario;
+pub mod vboard;

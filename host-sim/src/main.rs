@@ -22,6 +22,16 @@ enum Command {
     ContourEstimate(cmd::contour_estimate::Args),
     /// Two-axis X-Y table with independent or cross-coupled control.
     Xy(cmd::xy::Args),
+    /// Run the virtual board (runtime + protocol + simulated tangent axis) on a PTY.
+    Serve(cmd::serve::Args),
+    /// Upload a cam table (CSV) to a board over its serial port.
+    Upload(cmd::upload::Args),
+    /// Show a board's status.
+    Status(cmd::status::Args),
+    /// Record a board's telemetry to CSV (and an SVG plot).
+    Trace(cmd::trace::Args),
+    /// Send Start / Stop / Hold / ClearFault to a board.
+    Motion(cmd::motion::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -33,5 +43,10 @@ fn main() -> anyhow::Result<()> {
         Some(Command::Scurve(a)) => cmd::scurve::run(&a),
         Some(Command::ContourEstimate(a)) => cmd::contour_estimate::run(&a),
         Some(Command::Xy(a)) => cmd::xy::run(&a),
+        Some(Command::Serve(a)) => cmd::serve::run(&a),
+        Some(Command::Upload(a)) => cmd::upload::run(&a),
+        Some(Command::Status(a)) => cmd::status::run(&a),
+        Some(Command::Trace(a)) => cmd::trace::run(&a),
+        Some(Command::Motion(a)) => cmd::motion::run(&a),
     }
 }

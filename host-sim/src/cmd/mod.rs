@@ -1,8 +1,13 @@
 //! One module per sub-command of the `host-sim` tool.
 
 pub mod contour_estimate;
+pub mod motion;
 pub mod open_loop;
 pub mod run;
 pub mod scurve;
 pub mod serial;
+pub mod serve;
+pub mod status;
+pub mod trace;
+pub mod upload;
 pub mod xy;

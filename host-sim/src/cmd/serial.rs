@@ -1,10 +1,134 @@
-//! `host-sim` sub-command (in progress: filled by its issue).
+//! The host end of the UART protocol (`PROTOCOL.md`): open a port, send one request,
+//! wait for its answer. Shared by `upload`, `status` and `trace`.
 
-/// Arguments of the sub-command.
-#[derive(Debug, clap::Args)]
-pub struct Args {}
+use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
+use hydra_core::protocol::handler::encode_request;
+use hydra_core::protocol::msg::{Info, Telemetry};
+use hydra_core::protocol::{Nak, Request, Response};
+use std::io::{Read, Write};
+use std::time::{Duration, Instant};
 
-/// Runs the sub-command.
-pub fn run(_args: &Args) -> anyhow::Result<()> {
-    anyhow::bail!("this sub-command is not built yet")
+/// Baud rate the board's USART runs at (a PTY ignores it).
+pub const BAUD: u32 = 921_600;
+/// How long to wait for an answer.
+pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(3);
+
+/// A request the board refused.
+#[derive(Debug, thiserror::Error)]
+#[error("board refused {req}: {:?} (detail {}, {})", nak.code, nak.detail, nak.detail2)]
+pub struct Refused {
+    /// Request name.
+    pub req: String,
+    /// The Nak.
+    pub nak: Nak,
+}
+
+/// An open session with a board.
+pub struct Link {
+    port: Box<dyn serialport::SerialPort>,
+    dec: FrameDecoder,
+    seq: u16,
+    /// Telemetry frames received while waiting for answers, oldest first.
+    pub telemetry: Vec<Telemetry>,
+    /// The board's Info from Hello.
+    pub info: Info,
+}
+
+impl Link {
+    /// Opens `path` and says Hello.
+    pub fn open(path: &str) -> anyhow::Result<Self> {
+        let port = serialport::new(path, BAUD)
+            .timeout(Duration::from_millis(20))
+            .open()
+            .map_err(|e| anyhow::anyhow!("open {path}: {e}"))?;
+        let mut l = Self {
+            port,
+            dec: FrameDecoder::new(),
+            seq: (std::process::id() & 0x7FFF) as u16,
+            telemetry: Vec::new(),
+            info: Info {
+                protocol: 0,
+                firmware: [0; 3],
+                axes: 0,
+                capacity_rows: 0,
+                max_chunk_rows: 0,
+                period_us: 0,
+                active_id: 0,
+            },
+        };
+        // Resynchronise the board's decoder, then open the session.
+        l.port.write_all(&[0])?;
+        match l.request(&Request::Hello)? {
+            Response::Info(i) => l.info = i,
+            r => anyhow::bail!("Hello answered {r:?}"),
+        }
+        Ok(l)
+    }
+
+    /// Sends one request and returns its answer (a Nak is returned, not an error).
+    pub fn request(&mut self, q: &Request<'_>) -> anyhow::Result<Response> {
+        let seq = if matches!(q, Request::Hello) {
+            self.seq
+        } else {
+            self.seq.wrapping_add(1)
+        };
+        let mut buf = [0u8; MAX_WIRE + 1];
+        let n = encode_request(seq, q, &mut buf)
+            .ok_or_else(|| anyhow::anyhow!("request too large for one frame"))?;
+        self.port.write_all(&buf[..n])?;
+        self.port.flush()?;
+        let deadline = Instant::now() + ANSWER_TIMEOUT;
+        loop {
+            for (s, r) in self.read_frames()? {
+                match r {
+                    Response::Telemetry(t) => self.telemetry.push(t),
+                    Response::Nak { .. } if s == 0xFFFF || s == seq => return Ok(r),
+                    r if s == seq => {
+                        self.seq = seq;
+                        return Ok(r);
+                    }
+                    _ => {}
+                }
+            }
+            if Instant::now() > deadline {
+                anyhow::bail!("no answer to {q:?} within {ANSWER_TIMEOUT:?}");
+            }
+        }
+    }
+
+    /// Sends a request that must be acknowledged; a Nak becomes [`Refused`].
+    pub fn expect_ack(&mut self, q: &Request<'_>) -> anyhow::Result<u8> {
+        match self.request(q)? {
+            Response::Ack { flags, .. } => Ok(flags),
+            Response::Nak { nak, .. } => Err(Refused {
+                req: format!("{q:?}")
+                    .split([' ', '{'])
+                    .next()
+                    .unwrap_or("?")
+                    .to_string(),
+                nak,
+            }
+            .into()),
+            r => anyhow::bail!("{q:?} answered {r:?}"),
+        }
+    }
+
+    /// Reads what is available (up to the port timeout) and decodes whole frames.
+    pub fn read_frames(&mut self) -> anyhow::Result<Vec<(u16, Response)>> {
+        let mut b = [0u8; 4096];
+        let n = match self.port.read(&mut b) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => 0,
+            Err(e) => return Err(e.into()),
+        };
+        let mut out = Vec::new();
+        for &x in &b[..n] {
+            if let Some(Ok(f)) = self.dec.push(x) {
+                if let Some(r) = Response::decode(f.ty, f.payload) {
+                    out.push((f.seq, r));
+                }
+            }
+        }
+        Ok(out)
+    }
 }

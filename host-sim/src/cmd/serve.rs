@@ -1,0 +1,74 @@
+//! `host-sim serve --pty`: the virtual board ([`crate::vboard`]) on a pseudo-terminal.
+//!
+//! Prints the PTY path on the first line of stdout, then runs until killed: the
+//! simulated machine advances in real time (one control period per period of wall
+//! clock; if the host falls behind it catches up by at most 100 periods at once).
+
+use crate::scenario::Scenario;
+use crate::vboard::VBoard;
+use std::io::{Read, Write};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// Arguments of `serve`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Serve on a new pseudo-terminal (the only transport of the virtual board).
+    #[arg(long)]
+    pub pty: bool,
+    /// Scenario file (default: the reference tangent machine).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+}
+
+/// Runs the virtual board.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    if !args.pty {
+        anyhow::bail!("serve needs --pty (the virtual board runs on a pseudo-terminal)");
+    }
+    let scn = match &args.scenario {
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::default(),
+    };
+    serve(&scn, |path| {
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{path}");
+        let _ = out.flush();
+    })
+}
+
+/// Runs the virtual board of `scn` on a new PTY until an I/O error; `on_path` gets the
+/// PTY's path once it exists.
+pub fn serve(scn: &Scenario, on_path: impl FnOnce(&str)) -> anyhow::Result<()> {
+    let mut board = VBoard::new(scn)?;
+    let (mut master, slave) = serialport::TTYPort::pair()
+        .map_err(|e| anyhow::anyhow!("cannot create a pseudo-terminal: {e}"))?;
+    let path = serialport::SerialPort::name(&slave)
+        .ok_or_else(|| anyhow::anyhow!("the pseudo-terminal has no name"))?;
+    on_path(&path);
+    serialport::SerialPort::set_timeout(&mut master, Duration::from_millis(1))?;
+    let period = Duration::from_secs_f64(board.machine.period_s());
+    let t0 = Instant::now();
+    let mut ticks: u64 = 0;
+    let mut buf = [0u8; 1024];
+    // Keep the slave end open so the master never sees a hang-up between clients.
+    let _slave = slave;
+    loop {
+        let mut tx: Vec<u8> = Vec::new();
+        match master.read(&mut buf) {
+            Ok(n) => board.on_bytes(&buf[..n], &mut |f| tx.extend_from_slice(f)),
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e.into()),
+        }
+        let due = (t0.elapsed().as_nanos() / period.as_nanos().max(1)) as u64;
+        let behind = due.saturating_sub(ticks).min(100);
+        for _ in 0..behind {
+            board.tick(&mut |f| tx.extend_from_slice(f));
+        }
+        ticks = ticks.max(due.saturating_sub(100)) + behind;
+        if !tx.is_empty() {
+            master.write_all(&tx)?;
+        }
+    }
+}

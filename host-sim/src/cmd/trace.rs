@@ -1,0 +1,132 @@
+//! `host-sim trace --port PORT --seconds S --csv OUT [--plot FILE]`: records the board's
+//! telemetry (every `--every` ticks) to CSV and optionally an SVG plot.
+//!
+//! CSV columns: `t_s` (board ticks × period), `master` (master units: degrees), then per
+//! axis `target<i>_mm`, `actual<i>_mm`, `error<i>_mm`, `dac<i>` (LSB).
+
+use super::serial::Link;
+use hydra_core::protocol::msg::Telemetry;
+use hydra_core::protocol::Request;
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// Arguments of `trace`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Serial port.
+    #[arg(long)]
+    pub port: String,
+    /// Recording time, s.
+    #[arg(long)]
+    pub seconds: f64,
+    /// Output CSV.
+    #[arg(long)]
+    pub csv: PathBuf,
+    /// Optional SVG plot of target and actual.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// One sample every this many ticks.
+    #[arg(long, default_value_t = 10)]
+    pub every: u16,
+}
+
+/// Records telemetry for `seconds`.
+pub fn record(link: &mut Link, seconds: f64, every: u16) -> anyhow::Result<Vec<Telemetry>> {
+    link.telemetry.clear();
+    link.expect_ack(&Request::SetTelemetry {
+        decimation: every.max(1),
+    })?;
+    let end = Instant::now() + Duration::from_secs_f64(seconds.max(0.0));
+    while Instant::now() < end {
+        for (_, r) in link.read_frames()? {
+            if let hydra_core::protocol::Response::Telemetry(t) = r {
+                link.telemetry.push(t);
+            }
+        }
+    }
+    link.expect_ack(&Request::SetTelemetry { decimation: 0 })?;
+    Ok(std::mem::take(&mut link.telemetry))
+}
+
+/// Runs `trace`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let mut link = Link::open(&args.port)?;
+    let period_s = f64::from(link.info.period_us) * 1e-6;
+    let samples = record(&mut link, args.seconds, args.every)?;
+    anyhow::ensure!(!samples.is_empty(), "no telemetry received");
+    let mm = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
+    let mut f = std::io::BufWriter::new(std::fs::File::create(&args.csv)?);
+    let n = samples[0].axes.len();
+    write!(f, "t_s,master")?;
+    for i in 0..n {
+        write!(f, ",target{i}_mm,actual{i}_mm,error{i}_mm,dac{i}")?;
+    }
+    writeln!(f)?;
+    let t0 = samples[0].tick;
+    for s in &samples {
+        let t = f64::from(s.tick.wrapping_sub(t0)) * period_s;
+        write!(f, "{t:.4},{:.4}", s.master as f64 / 65536.0 / 1000.0)?;
+        for a in &s.axes {
+            write!(
+                f,
+                ",{:.4},{:.4},{:.4},{}",
+                mm(a.target_um),
+                mm(a.actual_um),
+                mm(a.target_um) - mm(a.actual_um),
+                a.dac
+            )?;
+        }
+        writeln!(f)?;
+    }
+    f.flush()?;
+    eprintln!("{} samples → {}", samples.len(), args.csv.display());
+    if let Some(p) = &args.plot {
+        plot(p, &samples, period_s)?;
+    }
+    Ok(())
+}
+
+fn plot(path: &PathBuf, s: &[Telemetry], period_s: f64) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    let mm = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
+    let t0 = s[0].tick;
+    let t = |x: &Telemetry| f64::from(x.tick.wrapping_sub(t0)) * period_s;
+    let t_end = s.last().map(t).unwrap_or(1.0).max(1e-3);
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for x in s {
+        for a in &x.axes {
+            for v in [mm(a.target_um), mm(a.actual_um)] {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    if hi <= lo {
+        hi = lo + 1.0;
+    }
+    let root = SVGBackend::new(path, (1000, 500)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut c = ChartBuilder::on(&root)
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .caption("trace: target and actual", ("sans-serif", 18))
+        .build_cartesian_2d(0.0..t_end, lo..hi)?;
+    c.configure_mesh().x_desc("t, s").y_desc("mm").draw()?;
+    let n = s[0].axes.len();
+    for i in 0..n {
+        c.draw_series(LineSeries::new(
+            s.iter().map(|x| (t(x), mm(x.axes[i].target_um))),
+            &BLUE,
+        ))?
+        .label(format!("target {i}"));
+        c.draw_series(LineSeries::new(
+            s.iter().map(|x| (t(x), mm(x.axes[i].actual_um))),
+            &RED,
+        ))?
+        .label(format!("actual {i}"));
+    }
+    root.present()?;
+    Ok(())
+}

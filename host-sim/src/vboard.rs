@@ -1,0 +1,376 @@
+//! The virtual board: the same `hydra_core` runtime and protocol handler as the firmware,
+//! against the simulated tangent axis of the reference machine (`shared/PLANT.md`).
+//!
+//! | board | virtual board |
+//! |---|---|
+//! | encoder timers, DAC | plant ([`crate::plant`]) sampled through the scenario's encoders; the DAC code is applied one period after its sample |
+//! | `Runtime<Follower<1, N>, 1, 0>` tick | the same, once per simulated period |
+//! | USART + DMA | a pseudo-terminal (`host-sim serve --pty`) |
+//! | two flash sectors | [`RamFlash`] (in memory: lost when the process ends) |
+//!
+//! Units: table master in master counts = mdeg of the rotary table (encoder 0.001°),
+//! slave positions in µm (encoder 1 µm per count). The master rotates through the
+//! scenario's profile from the first `Start` on; before that it rests at its start angle.
+//! A motion command is answered after the tick that applies it (the firmware's UART task
+//! likewise waits for the tick's reply).
+
+use crate::plant::sensors::dac_to_unit;
+use crate::plant::{HydraulicAxis, MasterProfile};
+use crate::scenario::Scenario;
+use hydra_core::axis::AxisConfig;
+use hydra_core::follower::{Follower, FollowerConfig};
+use hydra_core::protocol::msg::{AxisSample, AxisStatus, StatusMsg, Telemetry};
+use hydra_core::protocol::ramflash::RamFlash;
+use hydra_core::protocol::{Device, Handler, Motion, Nak, NakCode, ParamId, Store};
+use hydra_core::runtime::{
+    BootCause, Command, CommandError, EncoderSample, Runtime, RuntimeConfig, Sample, State,
+};
+use hydra_core::table::{AxisLimits, CamTable, TableLimits};
+use hydra_core::units::{Counts, MasterRate, PosUm, PressureBar, VelUmPerS};
+
+/// Table capacity of the virtual board, rows (as the firmware's).
+pub const CAPACITY: usize = 512;
+/// Slave axes (the tangent cylinder).
+pub const AXES: usize = 1;
+/// Flash slot size, bytes (covers 512 rows of 12 bytes).
+pub const SLOT_BYTES: u32 = 8 * 1024;
+/// Firmware version reported by Info.
+pub const FIRMWARE: [u8; 3] = [0, 1, 0];
+
+type Law = Follower<AXES, CAPACITY>;
+
+/// The simulated machine plus the runtime: the protocol's [`Device`].
+pub struct Machine {
+    rt: Runtime<Law, AXES, 0>,
+    fcfg: FollowerConfig<AXES>,
+    limits: TableLimits<AXES>,
+    plant: HydraulicAxis,
+    master: MasterProfile,
+    master_res_deg: f64,
+    step_s: f64,
+    steps: u32,
+    period_s: f64,
+    /// Master time, s (advances once started).
+    t_master: f64,
+    started: bool,
+    dac: hydra_core::units::DacCode,
+    enc_um: f64,
+}
+
+impl Machine {
+    /// The tangent axis of `scn` (its first follower axis) with the reference gains.
+    pub fn new(scn: &Scenario) -> anyhow::Result<Self> {
+        let ax = scn
+            .axes
+            .first()
+            .ok_or_else(|| anyhow::anyhow!("the scenario has no axis"))?;
+        let x0_mm = ax.x0_mm.unwrap_or(250.0);
+        let plant = ax.plant(scn.supply(), x0_mm * 1e-3);
+        // No-load speeds at full opening, measured on the plant itself (0.3 s open loop).
+        let speed = |u: f64| {
+            let mut p = plant.clone();
+            for _ in 0..(0.3 / scn.step_s()) as usize {
+                p.step(u, scn.step_s());
+            }
+            p.v_m_per_s().abs() * 1e6
+        };
+        let (v_ext, v_ret) = (speed(1.0), speed(-1.0));
+        let period_us = scn.sim.period_us;
+        // Velocity feed-forward from the no-load speeds: full DAC range at full speed.
+        let axis = AxisConfig {
+            kp_lsb_per_um: 0.2,
+            kv_pos_lsb_per_um_s: (2047.0 / v_ext) as f32,
+            kv_neg_lsb_per_um_s: (2047.0 / v_ret) as f32,
+            following_error_um: 20_000.0,
+            ..AxisConfig::default()
+        };
+        let fcfg = FollowerConfig {
+            period_us,
+            axes: [axis],
+            ..FollowerConfig::default()
+        };
+        let rcfg = RuntimeConfig::<AXES> {
+            period_us,
+            following_error_limit_um: [20_000.0],
+            master_max_speed_counts_per_s: 100_000.0,
+            slave_max_speed_um_per_s: [2_000_000.0],
+            ..RuntimeConfig::default()
+        };
+        let rcoeffs = rcfg
+            .build()
+            .map_err(|e| anyhow::anyhow!("runtime config: {e:?}"))?;
+        let limits = TableLimits {
+            // 3 °/s nominal + 3 % ripple, with margin: 5 °/s = 5000 mdeg/s.
+            master_speed_per_s: MasterRate::from_num(5000),
+            axes: [AxisLimits {
+                min_um: PosUm::from_num(0),
+                max_um: PosUm::from_num(ax.cylinder.stroke_mm * 1000.0),
+                max_speed_um_per_s: VelUmPerS::from_num(v_ext.min(v_ret)),
+            }],
+        };
+        Ok(Self {
+            rt: Runtime::new(rcoeffs, None, BootCause::Normal),
+            fcfg,
+            limits,
+            plant,
+            master: scn.master_profile()?,
+            master_res_deg: scn.master.resolution_deg,
+            step_s: scn.step_s(),
+            steps: scn.steps_per_period(),
+            period_s: scn.period_s(),
+            t_master: 0.0,
+            started: false,
+            dac: hydra_core::units::DacCode::NULL,
+            enc_um: ax.sensors.encoder_um,
+        })
+    }
+
+    /// Control period, s.
+    pub fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    /// The runtime.
+    pub fn runtime(&self) -> &Runtime<Law, AXES, 0> {
+        &self.rt
+    }
+
+    fn sample(&self) -> Sample<AXES, 0> {
+        let deg = self.master.angle_deg(self.t_master);
+        let m = (deg / self.master_res_deg).round() as i32;
+        let x = (self.plant.x_m() * 1e6 / self.enc_um).round() as i32;
+        Sample {
+            enc: EncoderSample {
+                master: Counts(m),
+                slaves: [Counts(x)],
+            },
+            pressure_bar: [PressureBar::ZERO; 0],
+            estop: false,
+            overrun: false,
+        }
+    }
+
+    /// One control period: sample, runtime step (with `cmd`), then the plant runs the
+    /// period with the previous period's DAC code (one period of computation delay).
+    pub fn tick(&mut self, cmd: Option<Command>) -> Option<Result<(), CommandError>> {
+        let s = self.sample();
+        let t0 = std::time::Instant::now();
+        let out = self.rt.step(&s, cmd);
+        let ns = u32::try_from(t0.elapsed().as_nanos()).unwrap_or(u32::MAX);
+        self.rt.record_tick_cycles(ns);
+        let u = dac_to_unit(self.dac);
+        for _ in 0..self.steps {
+            self.plant.step(u, self.step_s);
+        }
+        self.dac = if out.enable {
+            out.dac[0]
+        } else {
+            self.rt.null_codes()[0]
+        };
+        if self.started {
+            self.t_master += self.period_s;
+        }
+        out.reply
+    }
+
+    /// The telemetry sample of the last tick.
+    pub fn telemetry(&self) -> Telemetry {
+        let st = self.rt.status();
+        let mut t = Telemetry {
+            tick: st.tick,
+            master: st.master.to_bits(),
+            axes: heapless::Vec::new(),
+        };
+        for i in 0..AXES {
+            let _ = t.axes.push(AxisSample {
+                target_um: st.target_um[i].to_bits(),
+                actual_um: st.pos_um[i].to_bits(),
+                dac: st.dac[i].get(),
+            });
+        }
+        t
+    }
+}
+
+fn state_code(s: State) -> u8 {
+    match s {
+        State::Idle => 0,
+        State::Following => 1,
+        State::Holding(_) => 2,
+        State::Fault => 3,
+    }
+}
+
+fn command_nak(e: CommandError, state: u8) -> Nak {
+    let _ = e;
+    Nak::with(NakCode::BadState, u16::from(state), 0)
+}
+
+impl Device<AXES, CAPACITY> for Machine {
+    fn firmware(&self) -> [u8; 3] {
+        FIRMWARE
+    }
+    fn period_us(&self) -> u32 {
+        self.fcfg.period_us
+    }
+    fn table_limits(&self) -> TableLimits<AXES> {
+        self.limits
+    }
+    fn active_table(&self) -> Option<&CamTable<AXES, CAPACITY>> {
+        self.rt.law().map(|l| l.table())
+    }
+    fn at_safe_point(&self) -> bool {
+        self.rt.at_safe_point()
+    }
+    fn all_idle(&self) -> bool {
+        matches!(self.rt.state(), State::Idle | State::Fault)
+    }
+    fn install_table(&mut self, table: CamTable<AXES, CAPACITY>) {
+        if let Ok(f) = Follower::new(&self.fcfg, table) {
+            // at_safe_point() was checked by the handler, so install cannot be Busy.
+            let _ = self.rt.install(f);
+        }
+    }
+    fn command(&mut self, m: Motion) -> Result<(), Nak> {
+        let cmd = match m {
+            Motion::Start => Command::Start,
+            Motion::Stop => Command::Stop,
+            Motion::Hold => Command::Hold,
+            Motion::ClearFault => Command::ClearFault,
+        };
+        let state = state_code(self.rt.state());
+        match self.tick(Some(cmd)) {
+            Some(Err(e)) => Err(command_nak(e, state)),
+            _ => {
+                if m == Motion::Start {
+                    self.started = true;
+                }
+                Ok(())
+            }
+        }
+    }
+    fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
+        let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+        if !self.all_idle() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        let i = usize::from(axis);
+        if i >= AXES {
+            return Err(Nak::with(
+                NakCode::UnknownParam,
+                u16::from(axis),
+                param as u8,
+            ));
+        }
+        let mut f = self.fcfg;
+        let mut lim = self.limits;
+        let a = &mut f.axes[i];
+        match param {
+            ParamId::KpLsbPerUm => a.kp_lsb_per_um = value,
+            ParamId::KiLsbPerUmS => a.ki_lsb_per_um_s = value,
+            ParamId::KdLsbSPerUm => a.kd_lsb_s_per_um = value,
+            ParamId::KvLsbPerUmS => {
+                a.kv_pos_lsb_per_um_s = value;
+                a.kv_neg_lsb_per_um_s = value;
+            }
+            ParamId::KaLsbPerUmS2 => a.ka_lsb_per_um_s2 = value,
+            ParamId::FollowingErrorUm => a.following_error_um = value,
+            ParamId::ValveNullLsb => a.valve.null_lsb = value,
+            ParamId::MinUm | ParamId::MaxUm | ParamId::MaxSpeedUmPerS => {
+                let v = PosUm::checked_from_num(value).ok_or(range)?;
+                let l = &mut lim.axes[i];
+                match param {
+                    ParamId::MinUm => l.min_um = v,
+                    ParamId::MaxUm => l.max_um = v,
+                    _ => l.max_speed_um_per_s = v,
+                }
+                if l.min_um >= l.max_um || l.max_speed_um_per_s <= 0 {
+                    return Err(range);
+                }
+            }
+            ParamId::MasterSpeedPerS => {
+                lim.master_speed_per_s = MasterRate::checked_from_num(value)
+                    .filter(|v| *v > 0)
+                    .ok_or(range)?;
+            }
+        }
+        // Validate with the same builder as the configuration; rebuild the law if needed.
+        a.build(f.period_us).map_err(|_| range)?;
+        if let Some(t) = self.rt.law().map(|l| l.table().clone()) {
+            let law = Follower::new(&f, t).map_err(|_| range)?;
+            self.rt
+                .install(law)
+                .map_err(|_| Nak::new(NakCode::NotIdle))?;
+        }
+        self.fcfg = f;
+        self.limits = lim;
+        Ok(())
+    }
+    fn status(&self, out: &mut StatusMsg) {
+        let st = self.rt.status();
+        out.state = state_code(st.state);
+        out.flags = u8::from(matches!(
+            st.state,
+            State::Holding(hydra_core::runtime::HoldReason::EndOfTable)
+        ));
+        if let Some(f) = st.fault {
+            out.fault_code = f.fault.code();
+        }
+        out.fault_axis = 0xFF;
+        out.ticks = st.tick;
+        out.tick_max_ns = st.timing.max_cycles;
+        out.tick_mean_ns = st.timing.mean_cycles;
+        out.overruns = st.timing.overruns;
+        out.master = st.master.to_bits();
+        for i in 0..AXES {
+            let _ = out.axes.push(AxisStatus {
+                pos_um: st.pos_um[i].to_bits(),
+                target_um: st.target_um[i].to_bits(),
+                error_um: st.error_um[i].to_bits(),
+                dac: st.dac[i].get(),
+            });
+        }
+    }
+}
+
+/// The whole virtual board: machine, protocol handler and flash.
+pub struct VBoard {
+    /// The machine.
+    pub machine: Machine,
+    /// The protocol handler.
+    pub handler: Handler<AXES, CAPACITY>,
+    /// The flash (two slots).
+    pub flash: RamFlash,
+}
+
+impl VBoard {
+    /// A board on the reference tangent scenario, booted from an empty flash.
+    pub fn new(scn: &Scenario) -> anyhow::Result<Self> {
+        let mut machine = Machine::new(scn)?;
+        let flash = RamFlash::new(2 * SLOT_BYTES as usize);
+        let store = Store::new::<_, AXES, CAPACITY>(&flash, 0, SLOT_BYTES)
+            .map_err(|e| anyhow::anyhow!("flash geometry: {e:?}"))?;
+        let mut handler = Handler::new(store);
+        let mut flash = flash;
+        handler.boot(&mut machine, &mut flash);
+        Ok(Self {
+            machine,
+            handler,
+            flash,
+        })
+    }
+
+    /// Received bytes → responses through `tx`.
+    pub fn on_bytes(&mut self, bytes: &[u8], tx: &mut impl FnMut(&[u8])) {
+        self.handler
+            .on_bytes(&mut self.machine, &mut self.flash, bytes, tx);
+    }
+
+    /// One control period, with telemetry through `tx` when due.
+    pub fn tick(&mut self, tx: &mut impl FnMut(&[u8])) {
+        self.machine.tick(None);
+        self.handler.poll(&mut self.machine);
+        let m = &self.machine;
+        self.handler.on_tick(tx, || m.telemetry());
+    }
+}

@@ -1,0 +1,105 @@
+//! End to end over a real pseudo-terminal: the virtual board (`serve --pty`) runs in a
+//! thread; the host commands upload the tangent table, activate and save it, start,
+//! trace and read the status exactly as against a board.
+
+use host_sim::cmd::serial::Link;
+use host_sim::cmd::{serve, status, trace, upload};
+use host_sim::scenario::Scenario;
+use hydra_core::protocol::{NakCode, Request, Response};
+use std::path::PathBuf;
+use std::sync::mpsc;
+use std::time::Duration;
+
+fn table_csv() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios/tangent_table.csv")
+}
+
+fn start_board() -> String {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let scn = Scenario::default();
+        let r = serve::serve(&scn, |p| tx.send(p.to_string()).unwrap());
+        panic!("the virtual board stopped: {r:?}");
+    });
+    rx.recv_timeout(Duration::from_secs(10)).expect("PTY path")
+}
+
+#[test]
+fn upload_activate_start_trace_status() {
+    let port = start_board();
+    let dir = tempfile::tempdir().unwrap();
+    // Before any table: Start is refused with a typed reason.
+    let mut link = Link::open(&port).unwrap();
+    assert_eq!(link.info.axes, 1);
+    match link.request(&Request::Start).unwrap() {
+        Response::Nak { nak, .. } => assert_eq!(nak.code, NakCode::BadState),
+        r => panic!("{r:?}"),
+    }
+    drop(link); // a port is opened exclusively
+    upload::run(&upload::Args {
+        port: port.clone(),
+        table: table_csv(),
+        activate: true,
+        save: true,
+        id: Some(42),
+        master_counts_per_unit: 1000.0,
+    })
+    .unwrap();
+    let st = status::fetch(&port).unwrap();
+    assert_eq!(st.state, "idle");
+    assert_eq!(st.active_id, Some(42));
+    assert_eq!(st.saved_id, Some(42));
+    // Start, then trace 3 s of the master's ramp into 3 °/s.
+    let mut link = Link::open(&port).unwrap();
+    link.expect_ack(&Request::Start).unwrap();
+    drop(link);
+    let csv = dir.path().join("trace.csv");
+    let svg = dir.path().join("trace.svg");
+    trace::run(&trace::Args {
+        port: port.clone(),
+        seconds: 3.0,
+        csv: csv.clone(),
+        plot: Some(svg.clone()),
+        every: 10,
+    })
+    .unwrap();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    // 3 s at one sample per 10 ms: about 300 samples (the PTY scheduling may drop a few ticks' worth).
+    assert!(rows.len() > 200, "{} samples", rows.len());
+    let master_end = rows.last().unwrap()[1];
+    assert!(master_end > 1.0, "the master moved: {master_end}°");
+    let worst = rows.iter().map(|r| r[4].abs()).fold(0.0, f64::max);
+    eprintln!(
+        "e2e: {} samples, master {master_end:.2} deg, worst following error {worst:.3} mm",
+        rows.len()
+    );
+    assert!(worst < 2.0, "worst following error {worst} mm");
+    assert!(std::fs::metadata(&svg).unwrap().len() > 1000);
+    let st = status::fetch(&port).unwrap();
+    assert_eq!(st.state, "following", "{st:?}");
+    assert_eq!(st.fault_code, 0);
+    assert!(st.axes[0].error_mm.abs() < 2.0, "{st:?}");
+    // A new upload while following goes to the inactive bank: activation is deferred.
+    upload::run(&upload::Args {
+        port: port.clone(),
+        table: table_csv(),
+        activate: true,
+        save: false,
+        id: Some(43),
+        master_counts_per_unit: 1000.0,
+    })
+    .unwrap();
+    let st = status::fetch(&port).unwrap();
+    assert_eq!(st.active_id, Some(42));
+    assert!(st.activation_pending);
+    let mut link = Link::open(&port).unwrap();
+    match link.request(&Request::Save).unwrap() {
+        Response::Nak { nak, .. } => assert_eq!(nak.code, NakCode::NotIdle),
+        r => panic!("{r:?}"),
+    }
+}
