@@ -2,7 +2,7 @@
 //!
 //! [`Profile::position_at`] is a pure function of the tick. Its rounding error can, in
 //! principle, make two neighbouring samples step back by one LSB where the exact
-//! increment per tick is below about 2^-12 LSB (phase joins of extremely slow moves).
+//! increment per tick is below about 2^-10 LSB (phase joins of extremely slow moves).
 //! The cursor removes that case with `s(k) = max(s(k − 1), position_at(k))`. This never
 //! moves a sample farther from the exact profile x: if `s(k−1) > position_at(k)` then
 //! `x(k) − e ≤ position_at(k) < s(k−1) ≤ x(k−1) + e ≤ x(k) + e` (x is non-decreasing),

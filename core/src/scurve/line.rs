@@ -14,7 +14,7 @@
 //! formed with [`super::wide::mulhi`] in Q.22 LSB and rounded once. So for every tick:
 //!
 //! * the leader is exactly `from_L ± s(k)` (g_L = ±2^62 exactly);
-//! * every other axis is within ½ LSB + 2^-20 LSB of the line through the leader's
+//! * every other axis is within ½ LSB + 2^-21 LSB of the line through the leader's
 //!   point: |x_i − from_i − γ_i·(x_L − from_L)| ≤ ½ LSB, so the point's distance from
 //!   the line is ≤ ½·√(N − 1) LSB (≤ 1 LSB for N ≤ 5);
 //! * all axes leave at k = 0 and arrive at `end_tick` together, at their targets

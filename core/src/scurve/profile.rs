@@ -8,7 +8,7 @@
 //!
 //! | quantity | format | unit |
 //! |---|---|---|
-//! | time | `u64`, `64 − f` integer and `f` fraction bits, f = `time_frac_bits` ≥ 30 chosen per move so the whole move fits (`f = 64 − bitlen(⌈T_move/T⌉ + 2) − 1`) | control period (tick) |
+//! | time | `u64`, `64 − f` integer and `f` fraction bits, f = `time_frac_bits` ≥ 31 chosen per move so the whole move fits (`f = 63 − bitlen(⌊T_move/T⌋ + 2)`) | control period (tick) |
 //! | phase-local time τ_n | `u64` Q0.64 | fraction of the phase's normaliser 2^e ticks, 2^e the smallest power of two above the phase duration |
 //! | polynomial coefficients, position inside the evaluator | `i64` Q.14 ([`POS_FRAC_BITS`]) | LSB·(2^e ticks)^−n |
 //! | output position | `i64` | LSB of the caller's format (e.g. `PosUm` raw = 1/256 µm) |
@@ -34,7 +34,7 @@
 //! most ½ LSB (the final rounding) plus: coefficient rounding and three floors per
 //! Horner evaluation (5·2^-14 LSB per phase, chained over three phases), the rounding of
 //! the phase boundaries to 2^-f ticks (≤ 4·2^-f ticks times the peak velocity in
-//! LSB/tick: below 2^-20 LSB for any move since f is chosen from its length) and the
+//! LSB/tick: below 2^-17 LSB for any move since f is chosen from its length) and the
 //! `f64` plan (relative 2^-50). Stated bound: **|error| ≤ 0.5 + 2^-8 LSB**; the
 //! property tests measure it (docs/scurve.md gives the measured maximum).
 //!
@@ -176,9 +176,9 @@ impl Poly {
 pub struct Sample {
     /// Position along the move, LSB, in [0, D].
     pub pos_lsb: i64,
-    /// Velocity, Q.14 LSB per tick (`i64`, ≥ 0 up to rounding).
+    /// Velocity, Q.14 LSB per tick (`i64`, in [0, vp]).
     pub vel_q: i64,
-    /// Acceleration, Q.14 LSB per tick².
+    /// Acceleration, Q.14 LSB per tick² (in [−ap, ap]).
     pub acc_q: i64,
 }
 
