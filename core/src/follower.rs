@@ -31,7 +31,7 @@ use crate::master::{
 };
 use crate::master::{Predictor, PredictorKind};
 use crate::q::mul_shr;
-use crate::table::CamTable;
+use crate::table::{CamTable, Lookup};
 use crate::units::{AccUmPerS2, CmdLsb, DacCode, Master, PosUm, VelUmPerS};
 
 /// Follower configuration in engineering units.
@@ -118,7 +118,6 @@ pub struct FollowerOutputs<const S: usize> {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct AxisRt {
     st: PosState,
-    cur_ff: usize,
     fault: Option<AxisFault>,
 }
 
@@ -132,6 +131,9 @@ pub struct Follower<const S: usize, const N: usize> {
     table: CamTable<S, N>,
     cur_now: usize,
     cur_pred: usize,
+    cur_ff: usize,
+    /// Whether any axis runs the Paper law (only then is the prediction looked up).
+    any_paper: bool,
     rt: [AxisRt; S],
     ended: bool,
     /// Which end `ended` latched at (true: the last node): fixed while ended, so a master
@@ -163,6 +165,8 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             table,
             cur_now: 0,
             cur_pred: 0,
+            cur_ff: 0,
+            any_paper: cfg.axes.iter().any(|a| a.mode == ControlMode::Paper),
             rt: [AxisRt::default(); S],
             ended: false,
             end_high: true,
@@ -188,9 +192,9 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         self.pred.reset();
         self.cur_now = 0;
         self.cur_pred = 0;
+        self.cur_ff = 0;
         for rt in &mut self.rt {
             rt.st.reset();
-            rt.cur_ff = 0;
         }
         self.ended = false;
     }
@@ -222,19 +226,27 @@ impl<const S: usize, const N: usize> Follower<S, N> {
     pub fn tick(&mut self, inp: &FollowerInputs<S>) -> FollowerOutputs<S> {
         let master_jump = self.filter.update(&self.mf, inp.master);
         let predicted = self.pred.update(inp.master);
-        let now = self.filter.estimate(&self.mf, 0);
-        let rate = now.rate_per_s;
+        let dir = self.filter.direction();
         let t = &self.table;
-        if (rate > 0 && inp.master >= t.master_last())
-            || (rate < 0 && inp.master < t.master_first())
+        if !self.ended
+            && ((dir > 0 && inp.master >= t.master_last())
+                || (dir < 0 && inp.master < t.master_first()))
         {
-            if !self.ended {
-                self.end_high = rate > 0;
-            }
             self.ended = true;
+            self.end_high = dir > 0;
         }
-        let lk_now = t.locate(&mut self.cur_now, now.pos);
-        let lk_pred = t.locate(&mut self.cur_pred, predicted);
+        // Where the feedback looks: the filtered master now, or the end it stopped at.
+        let m_now = match (self.ended, self.end_high) {
+            (false, _) => self.filter.pos(),
+            (true, true) => t.master_last(),
+            (true, false) => t.master_first(),
+        };
+        let lk_now = t.locate(&mut self.cur_now, m_now);
+        let lk_pred = if self.any_paper && !self.ended {
+            t.locate(&mut self.cur_pred, predicted)
+        } else {
+            lk_now
+        };
         let mut out = FollowerOutputs {
             dac: [DacCode::NULL; S],
             cmd_lsb: [CmdLsb::ZERO; S],
@@ -243,63 +255,56 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             fault: [None; S],
             end_of_table: self.ended,
             master_jump,
-            master: now,
+            master: self.filter.estimate(&self.mf, 0),
         };
-        let hold_high = rate >= 0;
+        // Feed-forward lookup, shared by the axes with the same lead:
+        // (lead, lookup, segments/s Q16, segments/s² Q16).
+        let mut ff: Option<(i32, Lookup, i32, i32)> = None;
         for (i, (c, rt)) in self.axes.iter().zip(self.rt.iter_mut()).enumerate() {
             let x = inp.pos_um.get(i).copied().unwrap_or(PosUm::ZERO);
-            let target = if self.ended {
-                let end = if self.end_high {
-                    t.master_last()
-                } else {
-                    t.master_first()
-                };
-                let mut cur = rt.cur_ff;
-                t.value(&t.locate(&mut cur, end), i)
-            } else {
-                t.value(&lk_now, i)
-            };
+            let target = t.value(&lk_now, i);
             let err = PosUm::from_bits(target.to_bits().saturating_sub(x.to_bits()));
-            let r = if self.ended {
-                PosRef {
-                    x_ref_um: target,
-                    ..PosRef::default()
-                }
-            } else {
+            let mut r = PosRef {
+                x_ref_um: target,
+                ..PosRef::default()
+            };
+            if !self.ended {
                 match c.mode {
                     ControlMode::Feedforward => {
-                        let ahead = self.filter.estimate(&self.mf, c.lead_q16);
-                        let lk = t.locate(&mut rt.cur_ff, ahead.pos);
+                        let (_, lk, seg_v, seg_a) = match ff {
+                            Some(f) if f.0 == c.lead_q16 => f,
+                            _ => {
+                                let ahead = self.filter.ahead(&self.mf, c.lead_q16);
+                                let lk = t.locate(&mut self.cur_ff, ahead.pos);
+                                let f = (
+                                    c.lead_q16,
+                                    lk,
+                                    t.seg_rate_q16(&lk, ahead.rate_q8),
+                                    t.seg_rate_q16(&lk, ahead.acc_q8),
+                                );
+                                ff = Some(f);
+                                f
+                            }
+                        };
                         let rise = t.rise(&lk, i).to_bits();
-                        let v = mul_shr(rise, t.seg_rate_q16(&lk, ahead.rate_per_s), 16);
-                        let a = mul_shr(rise, t.seg_rate_q16(&lk, ahead.acc_per_s2), 24);
-                        PosRef {
-                            x_ref_um: target,
-                            v_ff_um_per_s: VelUmPerS::from_bits(v),
-                            a_ff_um_per_s2: AccUmPerS2::from_bits(a),
-                        }
+                        // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
+                        r.v_ff_um_per_s = VelUmPerS::from_bits(mul_shr(rise, seg_v, 16));
+                        r.a_ff_um_per_s2 = AccUmPerS2::from_bits(mul_shr(rise, seg_a, 24));
                     }
-                    ControlMode::Paper => PosRef {
-                        x_ref_um: t.value(&lk_pred, i),
-                        ..PosRef::default()
-                    },
+                    ControlMode::Paper => r.x_ref_um = t.value(&lk_pred, i),
                     ControlMode::NextNode => {
-                        let node = if hold_high {
+                        let node = if dir >= 0 {
                             lk_now.seg.saturating_add(1)
                         } else {
                             lk_now.seg
                         };
-                        let x_ref = t
-                            .node(node)
-                            .and_then(|n| n.slave_um.get(i).copied())
-                            .unwrap_or(target);
-                        PosRef {
-                            x_ref_um: x_ref,
-                            ..PosRef::default()
+                        if let Some(x_node) = t.node(node).and_then(|n| n.slave_um.get(i).copied())
+                        {
+                            r.x_ref_um = x_node;
                         }
                     }
                 }
-            };
+            }
             if rt.fault.is_none() && err.to_bits().saturating_abs() > c.fe_limit {
                 rt.fault = Some(AxisFault::FollowingError);
                 rt.st.reset();

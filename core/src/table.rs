@@ -19,6 +19,7 @@
 //! `u32` of raw bits); slave values within the axis' range; each slave's slope within
 //! its axis' speed limit at the stated master speed: |Δx_j|·θ̇_max ≤ v_max·len_j.
 
+use crate::q::sat_i32;
 use crate::units::{Master, MasterRate, PosUm, VelUmPerS};
 use heapless::Vec;
 
@@ -127,6 +128,11 @@ struct Segment<const S: usize> {
     m0: i64,
     /// ⌈2^64 / len_j⌉, len_j in raw bits (≥ 2).
     recip: u64,
+    /// 2^24 / len_j ≈ recip_m · 2^-recip_s with recip_m ∈ [2^31, 2^32) (a 32-bit
+    /// floating reciprocal for rates: master speed / segment length).
+    recip_m: u32,
+    /// See `recip_m` (8 … 40).
+    recip_s: u32,
     /// x_j, raw `I24F8` µm.
     x0: [i32; S],
     /// x_{j+1} − x_j, raw `I24F8` µm (|Δx| < 2^31 since both ends are in range).
@@ -235,9 +241,12 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
                 for (o, x) in x0.iter_mut().zip(p.slave_um.iter()) {
                     *o = x.to_bits();
                 }
+                let (recip_m, recip_s) = float_recip(len_u);
                 segs.push(Segment {
                     m0: p.master.to_bits(),
                     recip,
+                    recip_m,
+                    recip_s,
                     x0,
                     dx,
                 })
@@ -374,18 +383,39 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         )
     }
 
-    /// Master rate in segments per second, Q16.16: `θ̇ / len_seg` (0 beyond the ends).
-    /// Multiplied by a slave's rise it gives that slave's target speed.
+    /// A master rate in segments per unit time, Q16.16: `rate / len_seg` for a rate in
+    /// master counts per unit time, Q24.8 (0 beyond the ends). Multiplied by a slave's
+    /// rise it gives that slave's target speed (or acceleration, for a master
+    /// acceleration). One 32×32→64-bit product and a shift; relative error < 2^-30.
     #[inline]
-    pub fn seg_rate_q16(&self, lk: &Lookup, rate: MasterRate) -> i32 {
+    pub fn seg_rate_q16(&self, lk: &Lookup, rate_q8: i32) -> i32 {
         if lk.beyond != Beyond::Inside {
             return 0;
         }
-        let recip = self.segs.get(lk.seg).map_or(0, |s| s.recip);
-        // θ̇[Q16] · 2^64/len[Q16] / 2^64 = θ̇/len (Q0) → Q16: >> 48.
-        let p = i128::from(rate.to_bits()).wrapping_mul(i128::from(recip)) >> 48;
-        i32::try_from(p).unwrap_or(if p < 0 { i32::MIN } else { i32::MAX })
+        let Some(s) = self.segs.get(lk.seg) else {
+            return 0;
+        };
+        // rate[Q8]·2^24/len[Q16] = rate/len·2^16; |rate|·recip_m < 2^63.
+        let p = i64::from(rate_q8).wrapping_mul(i64::from(s.recip_m));
+        sat_i32(p.wrapping_shr(s.recip_s))
     }
+}
+
+/// (m, s) with m = ⌈2^(24+s) / len⌉ ∈ [2^31, 2^32), for 2 ≤ len < 2^32 (table build only).
+fn float_recip(len: u64) -> (u32, u32) {
+    let len = u128::from(len.max(2));
+    let mut s = 0u32;
+    while s < 64 {
+        let num = 1u128
+            .checked_shl(24u32.saturating_add(s))
+            .unwrap_or(u128::MAX);
+        let m = num.div_ceil(len);
+        if m >= 1 << 31 {
+            return (u32::try_from(m).unwrap_or(u32::MAX), s);
+        }
+        s = s.saturating_add(1);
+    }
+    (u32::MAX, 63)
 }
 
 #[cfg(test)]
@@ -501,7 +531,7 @@ mod tests {
         let mut c = 0;
         let lk = t.locate(&mut c, Master::from_num(100));
         // 3000 counts/s over 500-count segments = 6 segments/s
-        let r = t.seg_rate_q16(&lk, MasterRate::from_num(3000));
+        let r = t.seg_rate_q16(&lk, 3000 << 8);
         assert!((f64::from(r) / 65536.0 - 6.0).abs() < 1e-4);
         assert_eq!(t.rise(&lk, 0), PosUm::from_num(6000));
     }
@@ -551,14 +581,14 @@ mod tests {
 
         #[test]
         fn never_panics(ms in proptest::collection::vec(any::<i64>(), 0..10), xs in any::<i32>(), q in any::<i64>(),
-                        c0 in any::<usize>(), rate in any::<i64>()) {
+                        c0 in any::<usize>(), rate in any::<i32>()) {
             let nodes: std::vec::Vec<Node<1>> = ms.iter().map(|m| Node { master: Master::from_bits(*m), slave_um: [PosUm::from_bits(xs)] }).collect();
             if let Ok(t) = CamTable::<1, 16>::try_from_nodes(&nodes, &lim()) {
                 let mut c = c0;
                 let lk = t.locate(&mut c, Master::from_bits(q));
                 let _ = t.value(&lk, 0);
                 let _ = t.value(&lk, 5);
-                let _ = t.seg_rate_q16(&lk, MasterRate::from_bits(rate));
+                let _ = t.seg_rate_q16(&lk, rate);
             }
         }
     }

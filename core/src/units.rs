@@ -71,10 +71,11 @@ impl DacCode {
 
     /// A code, clamped to ±[`DacCode::MAX`].
     pub const fn new_clamped(code: i32) -> Self {
-        let c = if code > Self::MAX as i32 {
-            Self::MAX as i32
-        } else if code < -(Self::MAX as i32) {
-            -(Self::MAX as i32)
+        const LIM: i32 = DacCode::MAX as i32;
+        let c = if code > LIM {
+            LIM
+        } else if code < -LIM {
+            -LIM
         } else {
             code
         };
@@ -96,7 +97,7 @@ impl DacCode {
     /// The unipolar 12-bit value written to the DAC register, 2048 + code ∈ [1, 4095].
     pub const fn to_unipolar(self) -> u16 {
         // code ∈ [−2047, 2047] ⇒ result ∈ [1, 4095].
-        (self.0 as i32 + 2048) as u16
+        (self.0 as i32).wrapping_add(2048) as u16
     }
 }
 

@@ -127,8 +127,9 @@ pub struct AxisCoeffs {
     pub kv_neg: i32,
     /// ka, LSB/(µm/s²), `I0F32` raw.
     pub ka: i32,
-    /// Feed-forward aim after the sampling instant, ticks, Q16 (1.5·T + valve lag).
-    pub lead_q16: i64,
+    /// Feed-forward aim after the sampling instant, ticks, Q16 (1.5·T + valve lag;
+    /// below 32 768 ticks).
+    pub lead_q16: i32,
     /// Following-error limit, µm, `I24F8` raw.
     pub fe_limit: i32,
     /// Valve output stage.
@@ -172,6 +173,9 @@ impl AxisConfig {
         )?);
         let valve = self.valve.build().map_err(E::Valve)?;
         let lead_ticks = 1.5 + lag / f64::from(period_us);
+        if lead_ticks >= 32_767.0 {
+            return Err(E::ValveLag);
+        }
         Ok(AxisCoeffs {
             mode: self.mode,
             kp: fit::<I16F16>(kp, E::Kp)?.to_bits(),
@@ -182,7 +186,7 @@ impl AxisConfig {
             kv_pos: fit::<I8F24>(kvp, E::Kv)?.to_bits(),
             kv_neg: fit::<I8F24>(kvn, E::Kv)?.to_bits(),
             ka: fit::<I0F32>(ka, E::Ka)?.to_bits(),
-            lead_q16: (lead_ticks * 65536.0) as i64,
+            lead_q16: (lead_ticks * 65536.0) as i32,
             fe_limit: fit::<PosUm>(fe, E::FollowingError)?.to_bits(),
             valve,
         })
@@ -207,7 +211,7 @@ mod tests {
         assert_eq!(c.kp, 1 << 15);
         assert_eq!(c.ki_tick, (0.01f64 * 16_777_216.0).round() as i32);
         assert_eq!(c.kd_tick, 1 << 16);
-        assert_eq!(c.lead_q16, (5.7 * 65536.0) as i64);
+        assert_eq!(c.lead_q16, (5.7 * 65536.0) as i32);
     }
 
     #[test]

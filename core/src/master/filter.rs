@@ -16,10 +16,12 @@
 //!
 //! Formats: position `I48F16` master counts; velocity and acceleration per tick as
 //! `I32F32` raw `i64` (counts/tick, counts/tick²: resolution 2.3e-10); gains `U0.32`
-//! (`h` ≤ 1.5 as Q32 in an `i64`). The residual is clamped to ±2^14 counts before the
+//! (`h` ≤ 1.5 as Q32 in an `i64`); speed and acceleration handed to the loop in Q24.8
+//! counts/s and counts/s² ([`MasterAhead`]). The residual is clamped to ±2^14 counts before the
 //! gain products, so every product is below 2^63; a clamped residual is reported as a
 //! master jump.
 
+use crate::q::sat_i32;
 use crate::units::{Master, MasterRate};
 
 /// Filter configuration in engineering units.
@@ -53,7 +55,7 @@ pub struct MasterFilterCoeffs {
     g_q32: i64,
     h_q32: i64,
     k2_q32: i64,
-    /// Ticks per second, Q16 (1e6 / period_us · 2^16).
+    /// Ticks per second, Q16 (1e6 / period_us · 2^16 < 2^31 for T ≥ 50 µs).
     tps_q16: i64,
 }
 
@@ -90,7 +92,7 @@ fn libm_exp(x: f64) -> f64 {
     let mut y = x;
     while y < -0.5 && halvings < 64 {
         y *= 0.5;
-        halvings += 1;
+        halvings = halvings.saturating_add(1);
     }
     let mut term = 1.0;
     let mut sum = 1.0;
@@ -126,13 +128,16 @@ pub struct MasterFilter {
     started: bool,
 }
 
-/// `(a · b) >> shift` for two `i64`, through `i128`, saturated to `i64`.
-#[inline]
-fn mul64_shr(a: i64, b: i64, shift: u32) -> i64 {
-    let p = i128::from(a)
-        .wrapping_mul(i128::from(b))
-        .wrapping_shr(shift);
-    i64::try_from(p).unwrap_or(if p < 0 { i64::MIN } else { i64::MAX })
+/// The master `n` ticks ahead in the loop's working formats.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MasterAhead {
+    /// Position, master counts (`I48F16`).
+    pub pos: Master,
+    /// Speed, master counts/s, Q24.8 (±8.4e6 counts/s, saturated).
+    pub rate_q8: i32,
+    /// Acceleration, master counts/s², Q24.8 (saturated).
+    pub acc_q8: i32,
 }
 
 impl MasterFilter {
@@ -163,24 +168,65 @@ impl MasterFilter {
         r != r_raw
     }
 
-    /// The estimate `lead_q16 / 2^16` ticks after the last measurement
-    /// (θ + θ̇·n + ½θ̈·n², θ̇ + θ̈·n, θ̈), in master counts, counts/s and counts/s².
+    /// The estimate `lead_q16 / 2^16` ticks after the last measurement, in the loop's
+    /// working formats (see [`MasterAhead`]):
+    ///
+    /// ```text
+    /// θ(n) = θ + θ̇·n + ½θ̈·n²,   θ̇(n) = θ̇ + θ̈·n   (n in ticks)
+    /// ```
+    ///
+    /// Every product is 32×32→64 bits: the velocity enters as Q16 counts/tick (|θ̇| <
+    /// 32 768 counts/tick), the acceleration as Q32 counts/tick² clamped to ±0.5, the lead
+    /// as Q16 ticks (0 … 32 767), ticks/s as Q16 (≤ 20 kHz).
     #[inline]
-    pub fn estimate(&self, c: &MasterFilterCoeffs, lead_q16: i64) -> MasterEstimate {
-        // vel·n: Q32·Q16 >> 32 → Q16.  ½acc·n²: (acc·n >> 16)·n >> 33 → Q16.
-        let acc_n = mul64_shr(self.acc, lead_q16, 16);
+    pub fn ahead(&self, c: &MasterFilterCoeffs, lead_q16: i32) -> MasterAhead {
+        let n = i64::from(lead_q16.max(0));
+        let v16 = i64::from(sat_i32(self.vel >> 16));
+        let a32 = i64::from(sat_i32(self.acc));
+        // acc·n: Q32·Q16 = Q48 → Q32 (< 2^47).
+        let acc_n = a32.wrapping_mul(n) >> 16;
+        // ½acc·n²: (acc·n as Q16)·n = Q32 → >> 17 = Q16 with the ½ (< 2^62).
+        let half_acc_n2 = (acc_n >> 16).wrapping_mul(n) >> 17;
         let pos = self
             .pos
-            .saturating_add(mul64_shr(self.vel, lead_q16, 32))
-            .saturating_add(mul64_shr(acc_n, lead_q16, 33));
-        let vel = self.vel.saturating_add(acc_n);
-        // counts/tick (Q32) × ticks/s (Q16) >> 32 → counts/s (Q16).
-        let rate = mul64_shr(vel, c.tps_q16, 32);
-        let acc = mul64_shr(mul64_shr(self.acc, c.tps_q16, 32), c.tps_q16, 16);
-        MasterEstimate {
+            .saturating_add(v16.wrapping_mul(n) >> 16)
+            .saturating_add(half_acc_n2);
+        let v_ahead = i64::from(sat_i32(self.vel.saturating_add(acc_n) >> 16));
+        // counts/tick (Q16) · ticks/s (Q16) = Q32 → >> 24 = counts/s Q8.
+        let rate_q8 = sat_i32(v_ahead.wrapping_mul(c.tps_q16) >> 24);
+        // counts/tick² (Q32) · ticks/s (Q16) >> 32 = Q16; · ticks/s (Q16) >> 24 = Q8.
+        let a1 = a32.wrapping_mul(c.tps_q16) >> 32;
+        let acc_q8 = sat_i32(a1.wrapping_mul(c.tps_q16) >> 24);
+        MasterAhead {
             pos: Master::from_bits(pos),
-            rate_per_s: MasterRate::from_bits(rate),
-            acc_per_s2: MasterRate::from_bits(acc),
+            rate_q8,
+            acc_q8,
+        }
+    }
+
+    /// The same estimate in the public formats (`I48F16` for all three quantities).
+    pub fn estimate(&self, c: &MasterFilterCoeffs, lead_q16: i32) -> MasterEstimate {
+        let a = self.ahead(c, lead_q16);
+        MasterEstimate {
+            pos: a.pos,
+            rate_per_s: MasterRate::from_bits(i64::from(a.rate_q8) << 8),
+            acc_per_s2: MasterRate::from_bits(i64::from(a.acc_q8) << 8),
+        }
+    }
+
+    /// The filtered master position now.
+    #[inline]
+    pub fn pos(&self) -> Master {
+        Master::from_bits(self.pos)
+    }
+
+    /// The sign of the filtered master speed: 1 moving up, −1 moving down, 0 at rest.
+    #[inline]
+    pub fn direction(&self) -> i8 {
+        match self.vel.signum() {
+            1 => 1,
+            -1 => -1,
+            _ => 0,
         }
     }
 
@@ -273,7 +319,7 @@ mod tests {
     proptest! {
         #[test]
         fn never_panics(xs in proptest::collection::vec(any::<i64>(), 1..50), fb in 0.1f32..100.0,
-                        lead in any::<i64>()) {
+                        lead in any::<i32>()) {
             let c = MasterFilterConfig { bandwidth_hz: fb }.build(1000).unwrap();
             let mut f = MasterFilter::default();
             for x in xs { f.update(&c, Master::from_bits(x)); let _ = f.estimate(&c, lead); }

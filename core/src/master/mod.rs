@@ -5,6 +5,6 @@ mod filter;
 mod predictor;
 
 pub use filter::{
-    MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig, MasterFilterError,
+    MasterAhead, MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig, MasterFilterError,
 };
 pub use predictor::{Predictor, PredictorKind};
