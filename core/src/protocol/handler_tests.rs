@@ -535,6 +535,7 @@ fn power_cut_at_every_byte_of_save() {
         total > SLOT as usize,
         "a save erases a slot and writes it: {total}"
     );
+    std::eprintln!("save: {total} byte operations");
     let (mut saw_old, mut saw_new) = (0, 0);
     for cut in 0..=total {
         let mut f = base.clone();
