@@ -25,6 +25,8 @@
 //! are formed in `i128` and saturated.
 
 use super::fxmath::{mul_shr, sat_i64};
+use crate::contour::{UnitQ30, Xy};
+use fixed::types::I32F32;
 
 /// Path geometry at the reference point: unit tangent and signed curvature.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -39,6 +41,21 @@ pub struct PathFrame {
 }
 
 impl PathFrame {
+    /// A frame from the seed-003 interpolator's unit tangent (Q2.30) and a curvature in
+    /// 1/m (`I32F32`, from [`crate::contour::curvature_per_m`]); fixed point only:
+    /// κ[1/µm, Q48] = κ[1/m, Q32]·2¹⁶/10⁶, the constant 2¹⁶/10⁶ in Q32 (281 474 977,
+    /// relative error 10⁻⁹). The curvature is clamped to ±0.1 1/µm.
+    #[inline]
+    pub fn from_contour(tangent: Xy<UnitQ30>, curvature_per_m: I32F32) -> Self {
+        let k = mul_shr(curvature_per_m.to_bits(), 281_474_977, 32);
+        let kmax: i64 = 28_147_497_671_066; // 0.1 1/µm in Q48
+        Self {
+            sin_q30: tangent.y.to_bits(),
+            cos_q30: tangent.x.to_bits(),
+            curvature_per_um_q48: k.clamp(kmax.wrapping_neg(), kmax),
+        }
+    }
+
     /// A frame from a tangent direction and a curvature in `f64` (host side and tests;
     /// not for a fixed-point hot path). The tangent need not be normalised; a zero
     /// tangent gives θ = 0.
@@ -186,6 +203,18 @@ mod tests {
                 prop_assert_eq!(got.signum(), want.signum());
             }
         }
+    }
+
+    #[test]
+    fn from_contour_matches_from_f64() {
+        let t = Xy::new(UnitQ30::from_num(0.6), UnitQ30::from_num(0.8));
+        let a = PathFrame::from_contour(t, I32F32::from_num(20.0)); // R = 50 mm
+        let b = PathFrame::from_f64(0.6, 0.8, 2e-5);
+        assert!((a.sin_q30 - b.sin_q30).abs() <= 1);
+        assert!((a.cos_q30 - b.cos_q30).abs() <= 1);
+        let rel = (a.curvature_per_um_q48 - b.curvature_per_um_q48).abs() as f64
+            / b.curvature_per_um_q48 as f64;
+        assert!(rel < 1e-8, "{rel}");
     }
 
     #[test]

@@ -10,6 +10,7 @@
 //! | [`pid`] | the linear PID of the classic CCC |
 //! | [`contour_model`] | C1, C2 and ε for lines and circles, the sign convention |
 //! | [`ccc`] | the X–Y cross-coupled controller: independent, model-based, estimator-based |
+//! | [`xy_loop`] | one full X–Y period: interpolator + contour estimator + cross-coupled NPID |
 //!
 //! Every law implements [`ErrorLaw`]: `track` (reference and measurement of an axis) and
 //! `regulate` (an error signal, the contour loop). Configuration structs in engineering
@@ -40,6 +41,7 @@ mod fxmath;
 pub mod npid;
 pub mod pid;
 pub mod td;
+pub mod xy_loop;
 
 pub use ccc::{Ccc, Cnp, CrossCoupled, XyCoeffs, XyOutput};
 pub use contour_model::{contour_model, ContourModel, PathFrame};
@@ -48,6 +50,7 @@ pub use fhan::{fhan, FhanCoeffs, FhanConfig, V_MAX_UM_PER_S};
 pub use npid::{Npid, NpidCoeffs, NpidConfig};
 pub use pid::{Pid, PidCoeffs, PidConfig};
 pub use td::{Td, TdCoeffs, TdConfig};
+pub use xy_loop::{EstimatedXy, XyPeriod};
 
 use crate::units::{CmdLsb, PosUm};
 

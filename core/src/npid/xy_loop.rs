@@ -1,0 +1,90 @@
+//! One complete X–Y period with contour estimation: the seed-003 interpolator, the
+//! seed-003 adaptive estimator and the cross-coupled nonlinear PID (the `nccc-est`
+//! controller of `host-sim xy`).
+//!
+//! ```text
+//! reference = interpolator.step(path, feed)      (pushes the new ordinary and extra points)
+//! (ε, θ_f)  = window.estimate(P)                 (signed contour error, chord tangent at the foot)
+//! U         = Cnp::tick_estimated(reference, P, ε, θ_f)
+//! ```
+//!
+//! The window must cover the axes' lag: with `N` ordinary points and a feed of v µm/s at
+//! period Ts it spans (N − 1)·v·Ts µm of path. If the estimator has no estimate (empty
+//! window), the tick falls back to ε = 0 (independent axes for that period).
+//!
+//! [`EstimatedXy::tick`] is the per-period entry point: no allocation, no float, no
+//! panic. Its cost is the interpolator's (1 + h path evaluations), the estimator's (N
+//! squared distances, three segment distances, ⌈log₂(H + 1)⌉ bisection steps) and three
+//! nonlinear PIDs (four TD steps, nine `fal`).
+
+use super::ccc::{Cnp, XyCoeffs, XyOutput};
+use super::contour_model::PathFrame;
+use super::npid::NpidCoeffs;
+use crate::contour::{ContourWindow, InterpCoeffs, Interpolator, ParametricPath, Reference, Xy};
+use crate::units::{PosUm, VelUmPerS};
+
+/// Interpolator, estimation window and cross-coupled nonlinear PID of one X–Y pair.
+#[derive(Clone, Debug)]
+pub struct EstimatedXy<const N: usize, const H: usize> {
+    window: ContourWindow<N, H>,
+    interp: Interpolator,
+    /// The three nonlinear PIDs.
+    pub ctl: Cnp,
+}
+
+/// One period's result: the motion command and the controller's output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct XyPeriod {
+    /// The interpolator's reference for this period.
+    pub reference: Reference,
+    /// Valve commands, ε used, u_c.
+    pub output: XyOutput,
+}
+
+impl<const N: usize, const H: usize> EstimatedXy<N, H> {
+    /// Starts at the beginning of `path` with the controller at rest there.
+    pub fn start<P: ParametricPath>(path: &P, ctl: Cnp) -> Self {
+        let mut window = ContourWindow::new();
+        let interp = Interpolator::start(path, &mut window);
+        Self {
+            window,
+            interp,
+            ctl,
+        }
+    }
+
+    /// The interpolator (its parameter, whether the path is finished).
+    pub fn interpolator(&self) -> &Interpolator {
+        &self.interp
+    }
+
+    /// One period: interpolate at `feed`, estimate the contour error of `measured_um`,
+    /// run the cross-coupled nonlinear PID.
+    #[inline]
+    pub fn tick<P: ParametricPath>(
+        &mut self,
+        interp: &InterpCoeffs,
+        coeffs: &XyCoeffs<NpidCoeffs>,
+        path: &P,
+        feed: VelUmPerS,
+        measured_um: [PosUm; 2],
+    ) -> XyPeriod {
+        let reference = self.interp.step(interp, path, feed, &mut self.window);
+        let r = reference.pos_um();
+        let [mx, my] = measured_um;
+        let (eps, frame) = match self.window.estimate(Xy::new(mx, my)) {
+            Some(e) => (
+                e.eps_pos_um(),
+                PathFrame::from_contour(e.tangent, Default::default()),
+            ),
+            None => (
+                PosUm::ZERO,
+                PathFrame::from_contour(reference.point.tangent, Default::default()),
+            ),
+        };
+        let output = self
+            .ctl
+            .tick_estimated(coeffs, [r.x, r.y], measured_um, eps, &frame);
+        XyPeriod { reference, output }
+    }
+}
