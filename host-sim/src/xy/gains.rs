@@ -1,0 +1,157 @@
+//! Gains of the four X–Y controllers (defaults = the tuned values of `docs/npid.md`).
+
+use anyhow::{anyhow, Result};
+use hydra_core::npid::{
+    FalConfig, FhanConfig, NpidCoeffs, NpidConfig, PidCoeffs, PidConfig, XyCoeffs,
+};
+use serde::{Deserialize, Serialize};
+
+/// Linear PID gains (per axis or contour).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LinGains {
+    /// kp, LSB/µm.
+    pub kp: f64,
+    /// ki, LSB/(µm·s).
+    pub ki: f64,
+    /// kd, LSB/(µm/s).
+    pub kd: f64,
+}
+
+/// Nonlinear PID gains (per axis or contour); α and δ per term.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NlGains {
+    /// β0 (integral), LSB/(µm·s)^α0.
+    pub beta0: f64,
+    /// β1 (proportional), LSB/µm^α1.
+    pub beta1: f64,
+    /// β2 (derivative), LSB/(µm/s)^α2.
+    pub beta2: f64,
+    /// α0, α1, α2.
+    pub alpha: [f64; 3],
+    /// δ0 (µm·s), δ1 (µm), δ2 (µm/s).
+    pub delta: [f64; 3],
+    /// TD speed factor r, µm/s².
+    pub td_r: f64,
+    /// TD filter factor h0, s.
+    pub td_h0: f64,
+}
+
+/// Every gain of the scenario (a TOML file for `--gains`; missing tables keep the
+/// defaults).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Gains {
+    /// Linear PID of each axis (`independent` and `ccc`).
+    pub axis_linear: LinGains,
+    /// Linear PID on ε (`ccc`).
+    pub contour_linear: LinGains,
+    /// Nonlinear PID of each axis (`nccc`, `nccc-est`).
+    pub axis_nonlinear: NlGains,
+    /// Nonlinear PID on ε (`nccc`, `nccc-est`).
+    pub contour_nonlinear: NlGains,
+}
+
+impl Default for Gains {
+    fn default() -> Self {
+        Self {
+            axis_linear: LinGains {
+                kp: 0.8,
+                ki: 30.0,
+                kd: 0.0,
+            },
+            contour_linear: LinGains {
+                kp: 0.8,
+                ki: 60.0,
+                kd: 0.0,
+            },
+            axis_nonlinear: NlGains {
+                beta0: 30.0,
+                beta1: 0.8 * 20f64.powf(0.2),
+                beta2: 0.002,
+                alpha: [1.0, 0.8, 1.0],
+                delta: [1.0, 20.0, 1.0],
+                td_r: 5e7,
+                td_h0: 2e-3,
+            },
+            contour_nonlinear: NlGains {
+                beta0: 60.0,
+                beta1: 0.8 * 5f64.powf(0.5),
+                beta2: 0.004,
+                alpha: [1.0, 0.5, 1.0],
+                delta: [1.0, 5.0, 1.0],
+                td_r: 5e7,
+                td_h0: 2e-3,
+            },
+        }
+    }
+}
+
+/// Output limit of every law, LSB.
+const OUT_LIMIT: f64 = 2047.0;
+
+fn lin(g: &LinGains) -> Result<PidCoeffs> {
+    PidConfig {
+        period_s: 1e-3,
+        kp_lsb_per_um: g.kp,
+        ki_lsb_per_um_s: g.ki,
+        kd_lsb_s_per_um: g.kd,
+        derivative_filter_s: 2e-3,
+        integral_limit_lsb: 1000.0,
+        output_limit_lsb: OUT_LIMIT,
+    }
+    .build()
+    .map_err(|e| anyhow!("linear PID gains: {e}"))
+}
+
+fn nl(g: &NlGains) -> Result<NpidCoeffs> {
+    let td = FhanConfig {
+        r_um_per_s2: g.td_r,
+        h0_s: g.td_h0,
+    };
+    let fal = |i: usize| FalConfig {
+        alpha: g.alpha[i],
+        delta: g.delta[i],
+    };
+    NpidConfig {
+        period_s: 1e-3,
+        td_reference: td,
+        td_measurement: td,
+        beta0: g.beta0,
+        beta1: g.beta1,
+        beta2: g.beta2,
+        fal0: fal(0),
+        fal1: fal(1),
+        fal2: fal(2),
+        // |β0·e0| ≤ 1000 LSB.
+        integral_limit_um_s: if g.beta0 > 0.0 {
+            (1000.0 / g.beta0).min(1e6)
+        } else {
+            0.0
+        },
+        output_limit_lsb: OUT_LIMIT,
+    }
+    .build()
+    .map_err(|e| anyhow!("nonlinear PID gains: {e}"))
+}
+
+impl Gains {
+    /// Coefficients of `independent` / `ccc`.
+    pub fn linear_coeffs(&self) -> Result<XyCoeffs<PidCoeffs>> {
+        let a = lin(&self.axis_linear)?;
+        Ok(XyCoeffs {
+            x: a,
+            y: a,
+            contour: lin(&self.contour_linear)?,
+        })
+    }
+
+    /// Coefficients of `nccc` / `nccc-est`.
+    pub fn nonlinear_coeffs(&self) -> Result<XyCoeffs<NpidCoeffs>> {
+        let a = nl(&self.axis_nonlinear)?;
+        Ok(XyCoeffs {
+            x: a,
+            y: a,
+            contour: nl(&self.contour_nonlinear)?,
+        })
+    }
+}
