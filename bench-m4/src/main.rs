@@ -25,6 +25,7 @@ mod npid;
 mod out;
 mod scurve;
 mod semihost;
+mod xy;
 
 use core::fmt::Write;
 use cortex_m_rt::entry;
@@ -201,8 +202,8 @@ fn main() -> ! {
     r.run("contour_estimate_worst", contour::EstimateWorst::new(pick));
     // Nonlinear PID (SPEC §D).
     r.run("npid_td_fal", npid::NpidTrack::new());
-    // The X–Y cross-coupled tick with estimation (SPEC §C + §D),
-    // `xy_cross_coupled_estimated`, goes here once hydra_core::npid::EstimatedXy lands.
+    // The X–Y cross-coupled tick with estimation (SPEC §C + §D).
+    r.run("xy_cross_coupled_estimated", xy::XyEstimated::new());
 
     let ok = r.ok;
     let _ = writeln!(r.o, "DONE ok={ok}");

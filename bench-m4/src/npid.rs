@@ -18,38 +18,44 @@ use hydra_core::units::{CmdLsb, PosUm};
 /// Reference advance per period, raw `PosUm` (50 µm).
 const STEP_BITS: i32 = 50 << 8;
 
-/// The tuned axis gains (host-sim `xy/gains.rs`, `axis_nonlinear`).
-fn coeffs() -> Option<NpidCoeffs> {
+/// Gains of one nonlinear PID (host-sim `xy/gains.rs`): β, α, δ per term; TD r = 5·10⁷
+/// µm/s², h0 = 2 ms; period 1 ms; |β0·e0| ≤ 1000 LSB; output ±2047 LSB.
+fn nl(beta: [f64; 3], alpha: [f64; 3], delta: [f64; 3]) -> Option<NpidCoeffs> {
     let td = FhanConfig {
         r_um_per_s2: 5e7,
         h0_s: 2e-3,
+    };
+    let fal = |i: usize| FalConfig {
+        alpha: alpha[i],
+        delta: delta[i],
     };
     NpidConfig {
         period_s: 1e-3,
         td_reference: td,
         td_measurement: td,
-        beta0: 8.0,
-        // 0.8·20^0.2
-        beta1: 1.456_451_4,
-        beta2: 0.002,
-        fal0: FalConfig {
-            alpha: 1.0,
-            delta: 1.0,
-        },
-        fal1: FalConfig {
-            alpha: 0.8,
-            delta: 20.0,
-        },
-        fal2: FalConfig {
-            alpha: 1.0,
-            delta: 1.0,
-        },
-        // |β0·e0| ≤ 1000 LSB.
-        integral_limit_um_s: 125.0,
+        beta0: beta[0],
+        beta1: beta[1],
+        beta2: beta[2],
+        fal0: fal(0),
+        fal1: fal(1),
+        fal2: fal(2),
+        integral_limit_um_s: 1000.0 / beta[0],
         output_limit_lsb: 2047.0,
     }
     .build()
     .ok()
+}
+
+/// The tuned axis law (`axis_nonlinear`): β = (8, 0.8·20^0.2, 0.002), α = (1, 0.8, 1),
+/// δ = (1 µm·s, 20 µm, 1 µm/s).
+pub fn axis_coeffs() -> Option<NpidCoeffs> {
+    nl([8.0, 1.456_451_4, 0.002], [1.0, 0.8, 1.0], [1.0, 20.0, 1.0])
+}
+
+/// The tuned contour law (`contour_nonlinear`): β = (40, 2·5^0.5, 0.004),
+/// α = (1, 0.5, 1), δ = (1 µm·s, 5 µm, 1 µm/s).
+pub fn contour_coeffs() -> Option<NpidCoeffs> {
+    nl([40.0, 4.472_136, 0.004], [1.0, 0.5, 1.0], [1.0, 5.0, 1.0])
 }
 
 /// The measured call: one period of the axis law.
@@ -71,7 +77,7 @@ impl NpidTrack {
     /// The law at rest at 0.
     pub fn new() -> Option<Self> {
         Some(Self {
-            c: coeffs()?,
+            c: axis_coeffs()?,
             n: Npid::at_rest(PosUm::ZERO),
             reference: PosUm::ZERO,
             measured: PosUm::ZERO,
