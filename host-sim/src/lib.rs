@@ -5,6 +5,7 @@
 
 pub mod camfile;
 pub mod cmd;
+pub mod contour_truth;
 pub mod die;
 pub mod plant;
 pub mod scenario;
