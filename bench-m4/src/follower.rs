@@ -76,10 +76,15 @@ fn axis(mode: ControlMode) -> AxisConfig {
     }
 }
 
-/// The measured call: one follower tick.
+/// The measured call: one follower tick, writing into the caller's outputs (as the
+/// firmware's tick does).
 #[inline(never)]
-fn tick<const S: usize>(f: &mut Follower<S, NODES>, inp: &FollowerInputs<S>) -> FollowerOutputs<S> {
-    f.tick(inp)
+fn tick<const S: usize>(
+    f: &mut Follower<S, NODES>,
+    inp: &FollowerInputs<S>,
+    out: &mut FollowerOutputs<S>,
+) {
+    f.tick_into(inp, out)
 }
 
 /// A follower with its inputs and last outputs.
@@ -135,7 +140,7 @@ impl<const S: usize> Figure for FollowerFig<S> {
     #[inline(always)]
     fn call(&mut self, k: u32) {
         self.next_inputs(k);
-        self.out = tick(&mut self.f, &self.inp);
+        tick(&mut self.f, &self.inp, &mut self.out);
     }
 
     #[inline(always)]

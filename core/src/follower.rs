@@ -114,6 +114,21 @@ pub struct FollowerOutputs<const S: usize> {
     pub master: MasterEstimate,
 }
 
+impl<const S: usize> Default for FollowerOutputs<S> {
+    fn default() -> Self {
+        Self {
+            dac: [DacCode::NULL; S],
+            cmd_lsb: [CmdLsb::ZERO; S],
+            target_um: [PosUm::ZERO; S],
+            error_um: [PosUm::ZERO; S],
+            fault: [None; S],
+            end_of_table: false,
+            master_jump: false,
+            master: MasterEstimate::default(),
+        }
+    }
+}
+
 /// Per-axis runtime data.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct AxisRt {
@@ -224,8 +239,15 @@ impl<const S: usize, const N: usize> Follower<S, N> {
 
     /// One control period (steps 3–8).
     pub fn tick(&mut self, inp: &FollowerInputs<S>) -> FollowerOutputs<S> {
+        let mut out = FollowerOutputs::default();
+        self.tick_into(inp, &mut out);
+        out
+    }
+
+    /// [`Follower::tick`] writing into the caller's outputs (no copy of the outputs:
+    /// the form the firmware's tick uses).
+    pub fn tick_into(&mut self, inp: &FollowerInputs<S>, out: &mut FollowerOutputs<S>) {
         let master_jump = self.filter.update(&self.mf, inp.master);
-        let predicted = self.pred.update(inp.master);
         let dir = self.filter.direction();
         let t = &self.table;
         if !self.ended
@@ -243,20 +265,14 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         };
         let lk_now = t.locate(&mut self.cur_now, m_now);
         let lk_pred = if self.any_paper && !self.ended {
+            let predicted = self.pred.update(inp.master);
             t.locate(&mut self.cur_pred, predicted)
         } else {
             lk_now
         };
-        let mut out = FollowerOutputs {
-            dac: [DacCode::NULL; S],
-            cmd_lsb: [CmdLsb::ZERO; S],
-            target_um: [PosUm::ZERO; S],
-            error_um: [PosUm::ZERO; S],
-            fault: [None; S],
-            end_of_table: self.ended,
-            master_jump,
-            master: self.filter.estimate(&self.mf, 0),
-        };
+        out.end_of_table = self.ended;
+        out.master_jump = master_jump;
+        out.master = self.filter.estimate(&self.mf, 0);
         // Feed-forward lookup, shared by the axes with the same lead:
         // (lead, lookup, segments/s Q16, segments/s² Q16).
         let mut ff: Option<(i32, Lookup, i32, i32)> = None;
@@ -331,7 +347,6 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 *o = rt.fault;
             }
         }
-        out
     }
 }
 

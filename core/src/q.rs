@@ -8,12 +8,14 @@
 /// Saturates an `i64` to the `i32` range.
 #[inline(always)]
 pub const fn sat_i32(x: i64) -> i32 {
-    if x > i32::MAX as i64 {
-        i32::MAX
-    } else if x < i32::MIN as i64 {
-        i32::MIN
+    // x fits an i32 exactly when its high word is the sign extension of its low word;
+    // otherwise the result is MAX or MIN by the sign of x (`hi >> 31` is 0 or −1).
+    let lo = x as i32;
+    let hi = (x >> 32) as i32;
+    if hi == lo >> 31 {
+        lo
     } else {
-        x as i32
+        (hi >> 31) ^ i32::MAX
     }
 }
 
@@ -68,6 +70,11 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn sat_matches_clamp(x: i64) {
+            prop_assert_eq!(i64::from(sat_i32(x)), x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)));
+        }
+
         #[test]
         fn matches_wide_reference(a: i32, b: i32, shift in 0u32..63) {
             let exact = (i128::from(a) * i128::from(b)) >> shift;

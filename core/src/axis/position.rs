@@ -21,7 +21,7 @@
 //! ([`crate::valve::ValveCoeffs::output`]).
 
 use super::config::{AxisCoeffs, ControlMode};
-use crate::q::{clamp_sym, mul_shr};
+use crate::q::{clamp_sym, mul_shr, sat_i32};
 use crate::units::{AccUmPerS2, CmdLsb, DacCode, PosUm, VelUmPerS};
 
 /// What the follower computed for one axis this tick.
@@ -96,11 +96,17 @@ pub fn position_law(c: &AxisCoeffs, st: &mut PosState, r: &PosRef, x: PosUm) -> 
         ControlMode::Feedforward | ControlMode::NextNode => {
             let v = r.v_ff_um_per_s.to_bits();
             let kv = if v >= 0 { c.kv_pos } else { c.kv_neg };
-            let ff =
-                mul_shr(v, kv, 16).saturating_add(mul_shr(r.a_ff_um_per_s2.to_bits(), c.ka, 16));
-            let pd =
-                mul_shr(e, c.kp, 8).saturating_add(mul_shr(e.saturating_sub(e1), c.kd_tick, 8));
-            let base = pd.saturating_add(ff);
+            // Validated gains are non-negative and below 2^31 (kp < 2^26), so each
+            // product is below 2^62 and each pair's sum below 2^63: no overflow.
+            // P + D in Q24 (e Q8 · gain Q16); velocity + acceleration in Q32.
+            let pd24 = i64::from(e)
+                .wrapping_mul(i64::from(c.kp))
+                .wrapping_add(i64::from(e.saturating_sub(e1)).wrapping_mul(i64::from(c.kd_tick)));
+            let ff32 = i64::from(v)
+                .wrapping_mul(i64::from(kv))
+                .wrapping_add(i64::from(r.a_ff_um_per_s2.to_bits()).wrapping_mul(i64::from(c.ka)));
+            // Both shifted to Q16 (< 2^55 and < 2^47): one saturation for the sum.
+            let base = sat_i32((pd24 >> 8).wrapping_add(ff32 >> 16));
             if in_zone {
                 let cand = clamp_sym(
                     st.integ.saturating_add(mul_shr(e, c.ki_tick, 16)),
