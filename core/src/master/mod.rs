@@ -5,6 +5,7 @@ mod filter;
 mod predictor;
 
 pub use filter::{
-    MasterAhead, MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig, MasterFilterError,
+    MasterAhead, MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig,
+    MasterFilterError,
 };
 pub use predictor::{Predictor, PredictorKind};
