@@ -35,5 +35,8 @@ step "firmware (release, thumbv7em)"
 RUSTFLAGS="-D warnings" cargo build -p firmware --release --target "$TARGET"
 ./scripts/fw-size.sh
 
+step "Cortex-M4 cost (QEMU mps2-an386, budgets in bench-budget.toml)"
+./bench-m4.sh
+
 echo
 echo "ci.sh: all green"
