@@ -10,7 +10,7 @@
 //!
 //! Cost: tangent 4 products; chord N − 1 segment distances (a normalisation each).
 
-use super::estimate::{finish, ContourEstimate};
+use super::estimate::{finish, u_at_foot, ContourEstimate};
 use super::fx::{clamp_to_i32, mul_shr_i32};
 use super::geom::rel;
 use super::window::{ContourWindow, OrdinaryPoint};
@@ -58,6 +58,8 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         let (a, seg) = best?;
         let base = self.point(a)?.pos.map(PosFine::to_bits);
         let (_, saturated) = rel(pf, base);
-        Some(finish(base, seg, a.wrapping_add(1), 0, 0, saturated))
+        let b = a.wrapping_add(1);
+        let u = u_at_foot(self.u_raw(a), self.u_raw(b), 0, 0, &seg);
+        Some(finish(base, seg, b, 0, u, 0, saturated))
     }
 }

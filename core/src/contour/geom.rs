@@ -57,6 +57,10 @@ pub(crate) struct SegDist {
     pub foot: Xy<i32>,
     /// Unit direction of A→B, Q2.30 (the fallback tangent for a zero-length segment).
     pub unit: Xy<i32>,
+    /// Distance of F from A along the segment, Q12 µm, in [0, len].
+    pub along: i64,
+    /// |B − A|, Q12 µm (0 for a zero-length segment).
+    pub len: i64,
 }
 
 /// Distance from P to the segment A→B, given w = P − A and d = B − A (Q12, saturated):
@@ -99,6 +103,8 @@ pub(crate) fn seg_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>) -> SegDist {
         eps: if perp > 0 { dist.wrapping_neg() } else { dist },
         foot,
         unit,
+        along: along.clamp(0, len.max(0)),
+        len,
     }
 }
 
