@@ -3,10 +3,14 @@
 //! The library half of the `host-sim` tool, so the end-to-end tests in `tests/` drive the
 //! same plant, scenarios and controllers as the command line.
 
+pub mod autotune;
 pub mod camfile;
 pub mod cmd;
 pub mod contour_truth;
 pub mod die;
 pub mod plant;
+pub mod plot;
 pub mod scenario;
+pub mod sim;
+pub mod tuning;
 pub mod vboard;

@@ -85,6 +85,11 @@ pub struct Scenario {
     /// The axes (`[[axis]]`).
     #[serde(rename = "axis")]
     pub axes: Vec<AxisCfg>,
+    /// Controller gains, one set per (controller, period) (`[[tuning]]`). A file without
+    /// any gets the reference machine's sets, restricted to the axes of the file that
+    /// share a reference axis' name and role (other axes run on the core's default gains).
+    #[serde(default)]
+    pub tuning: Vec<Tuning>,
     /// Directory that relative paths in the file are resolved against.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -102,6 +107,8 @@ pub struct SimCfg {
     pub error_skip_s: f64,
     /// Simulated time, s (default: the master's motion and hold).
     pub duration_s: Option<f64>,
+    /// Follower law used when the command line names none.
+    pub controller: Controller,
 }
 
 /// `[supply]`: the hydraulic power unit (an ideal constant-pressure source).
@@ -181,6 +188,244 @@ pub struct AxisCfg {
     pub contact: Option<ContactCfg>,
     /// The sensors.
     pub sensors: SensorCfg,
+    /// Valve output calibration in the controller (null, overlap, gains).
+    pub calibration: CalibrationCfg,
+    /// The press process of a force axis (`role = "force"`).
+    pub press: Option<PressCfg>,
+}
+
+/// `[axis.calibration]`: the controller's valve output stage (`hydra_core::valve`).
+/// The reference valve is critically lapped and symmetric: all defaults.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct CalibrationCfg {
+    /// DAC code at which the spool is centred, LSB.
+    pub null_lsb: f64,
+    /// Deadband compensation for positive commands, LSB.
+    pub overlap_pos_lsb: f64,
+    /// Deadband compensation for negative commands, LSB.
+    pub overlap_neg_lsb: f64,
+    /// Width of the linear zone replacing the overlap jump, LSB.
+    pub overlap_zone_lsb: f64,
+    /// Gain for positive commands.
+    pub gain_pos: f64,
+    /// Gain for negative commands.
+    pub gain_neg: f64,
+    /// Positive code retracts the axis.
+    pub invert: bool,
+    /// Largest |code| output, LSB.
+    pub clamp_lsb: u16,
+}
+
+impl Default for CalibrationCfg {
+    fn default() -> Self {
+        let c = hydra_core::valve::ValveCal::default();
+        Self {
+            null_lsb: f64::from(c.null_lsb),
+            overlap_pos_lsb: f64::from(c.overlap_pos_lsb),
+            overlap_neg_lsb: f64::from(c.overlap_neg_lsb),
+            overlap_zone_lsb: f64::from(c.overlap_zone_lsb),
+            gain_pos: f64::from(c.gain_pos),
+            gain_neg: f64::from(c.gain_neg),
+            invert: c.invert,
+            clamp_lsb: c.clamp_lsb,
+        }
+    }
+}
+
+impl CalibrationCfg {
+    /// The core's calibration.
+    pub fn to_core(&self) -> hydra_core::valve::ValveCal {
+        hydra_core::valve::ValveCal {
+            null_lsb: self.null_lsb as f32,
+            overlap_pos_lsb: self.overlap_pos_lsb as f32,
+            overlap_neg_lsb: self.overlap_neg_lsb as f32,
+            overlap_zone_lsb: self.overlap_zone_lsb as f32,
+            gain_pos: self.gain_pos as f32,
+            gain_neg: self.gain_neg as f32,
+            invert: self.invert,
+            clamp_lsb: self.clamp_lsb,
+        }
+    }
+}
+
+/// `[axis.press]`: the press process of a force axis (PLANT.md's side press).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PressCfg {
+    /// End of the approach ramp, beyond the expected contact, mm.
+    pub approach_end_mm: f64,
+    /// Approach speed, mm/s.
+    pub approach_speed_mm_per_s: f64,
+    /// Force at which contact is declared and force control takes over, N.
+    pub contact_force_n: f64,
+    /// Force set-point, N (PLANT.md: 20 kN).
+    pub force_set_n: f64,
+    /// Time to ramp the force from contact to the set-point, s (PLANT.md: 1).
+    pub force_ramp_s: f64,
+}
+
+impl Default for PressCfg {
+    fn default() -> Self {
+        Self {
+            approach_end_mm: 60.0,
+            approach_speed_mm_per_s: 20.0,
+            contact_force_n: 2000.0,
+            force_set_n: 20_000.0,
+            force_ramp_s: 1.0,
+        }
+    }
+}
+
+/// The follower law (`--controller`).
+#[derive(
+    Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Controller {
+    /// PID toward the table node at the far end of the current segment (core `NextNode`).
+    Traditional,
+    /// SPEC §A exactly: eq. 4 prediction, incremental integral-separation PID (core `Paper`).
+    Paper,
+    /// Feedback at the sampling instant + feed-forward aimed at the interval in which the
+    /// command acts (core `Feedforward`, the default).
+    #[default]
+    Feedforward,
+}
+
+impl Controller {
+    /// All three, in the order of the comparison table.
+    pub const ALL: [Controller; 3] = [
+        Controller::Traditional,
+        Controller::Paper,
+        Controller::Feedforward,
+    ];
+
+    /// The name used on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Controller::Traditional => "traditional",
+            Controller::Paper => "paper",
+            Controller::Feedforward => "feedforward",
+        }
+    }
+
+    /// The core's control mode.
+    pub fn mode(self) -> hydra_core::axis::ControlMode {
+        match self {
+            Controller::Traditional => hydra_core::axis::ControlMode::NextNode,
+            Controller::Paper => hydra_core::axis::ControlMode::Paper,
+            Controller::Feedforward => hydra_core::axis::ControlMode::Feedforward,
+        }
+    }
+}
+
+/// The paper mode's master extrapolation.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum PredictorCfg {
+    /// SPEC §A eq. 4 as printed.
+    #[default]
+    Eq4,
+    /// Exact quadratic extrapolation.
+    Quadratic,
+}
+
+/// `[[tuning]]`: the gains of every axis for one controller at one control period.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Tuning {
+    /// The follower law these gains are for.
+    pub controller: Controller,
+    /// The control period they were tuned at, µs. A run at another period uses the set
+    /// of the shortest tuned period at or above it (gains tuned for a longer period are
+    /// the conservative choice), else the longest.
+    pub period_us: u32,
+    /// Master tracking-filter bandwidth, Hz (≤ 0.2/T).
+    #[serde(default = "default_master_filter_hz")]
+    pub master_filter_hz: f64,
+    /// The paper mode's predictor.
+    #[serde(default)]
+    pub predictor: PredictorCfg,
+    /// Gains of each follower axis, by axis name (`[tuning.axes.<name>]`).
+    #[serde(default)]
+    pub axes: std::collections::BTreeMap<String, PositionGains>,
+    /// Gains of each force axis, by axis name (`[tuning.press.<name>]`).
+    #[serde(default)]
+    pub press: std::collections::BTreeMap<String, PressGains>,
+}
+
+fn default_master_filter_hz() -> f64 {
+    8.0
+}
+
+/// Position-loop gains of one follower axis (`hydra_core::axis::AxisConfig`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PositionGains {
+    /// Kp, DAC LSB per µm.
+    pub kp_lsb_per_um: f64,
+    /// Ki, DAC LSB per (µm·s).
+    pub ki_lsb_per_um_s: f64,
+    /// Kd, DAC LSB per (µm/s).
+    pub kd_lsb_s_per_um: f64,
+    /// Integral separation: integrate only while |e| ≤ this, µm.
+    pub i_zone_um: f64,
+    /// Integrator clamp, LSB.
+    pub i_limit_lsb: f64,
+    /// Velocity feed-forward, extending, LSB per (µm/s).
+    pub kv_pos_lsb_per_um_s: f64,
+    /// Velocity feed-forward, retracting, LSB per (µm/s).
+    pub kv_neg_lsb_per_um_s: f64,
+    /// Acceleration feed-forward, LSB per (µm/s²).
+    pub ka_lsb_per_um_s2: f64,
+    /// Valve response delay the feed-forward is aimed past, µs.
+    pub valve_lag_us: f64,
+    /// Following-error fault limit, µm.
+    pub following_error_um: f64,
+}
+
+impl Default for PositionGains {
+    fn default() -> Self {
+        let c = hydra_core::axis::AxisConfig::default();
+        Self {
+            kp_lsb_per_um: f64::from(c.kp_lsb_per_um),
+            ki_lsb_per_um_s: f64::from(c.ki_lsb_per_um_s),
+            kd_lsb_s_per_um: f64::from(c.kd_lsb_s_per_um),
+            i_zone_um: f64::from(c.i_zone_um),
+            i_limit_lsb: f64::from(c.i_limit_lsb),
+            kv_pos_lsb_per_um_s: f64::from(c.kv_pos_lsb_per_um_s),
+            kv_neg_lsb_per_um_s: f64::from(c.kv_neg_lsb_per_um_s),
+            ka_lsb_per_um_s2: f64::from(c.ka_lsb_per_um_s2),
+            valve_lag_us: f64::from(c.valve_lag_us),
+            following_error_um: f64::from(c.following_error_um),
+        }
+    }
+}
+
+/// Gains of one force axis (`hydra_core::axis::PressConfig`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PressGains {
+    /// Position gain during the approach, LSB/µm.
+    pub kp_lsb_per_um: f64,
+    /// Velocity feed-forward during the approach, LSB/(µm/s).
+    pub kv_lsb_per_um_s: f64,
+    /// Force proportional gain, LSB/N.
+    pub kp_lsb_per_n: f64,
+    /// Force integral gain, LSB/(N·s).
+    pub ki_lsb_per_n_s: f64,
+}
+
+impl Default for PressGains {
+    fn default() -> Self {
+        Self {
+            kp_lsb_per_um: 0.2,
+            kv_lsb_per_um_s: 0.0,
+            kp_lsb_per_n: 0.005,
+            ki_lsb_per_n_s: 0.1,
+        }
+    }
 }
 
 /// `[axis.valve]`.
@@ -262,6 +507,7 @@ impl Default for SimCfg {
             period_us: 1000,
             error_skip_s: 1.5,
             duration_s: None,
+            controller: Controller::Feedforward,
         }
     }
 }
@@ -355,6 +601,8 @@ impl Default for AxisCfg {
             cylinder: CylinderCfg::default(),
             contact: None,
             sensors: SensorCfg::default(),
+            calibration: CalibrationCfg::default(),
+            press: None,
         }
     }
 }
@@ -379,6 +627,8 @@ impl AxisCfg {
                 ..CylinderCfg::default()
             },
             contact: Some(ContactCfg::default()),
+            x0_mm: Some(10.0),
+            press: Some(PressCfg::default()),
             ..Self::default()
         }
     }
@@ -396,6 +646,7 @@ impl Default for Scenario {
                 AxisCfg::reference_tangent(),
                 AxisCfg::reference_side_press(),
             ],
+            tuning: crate::tuning::reference_tuning(),
             base_dir: PathBuf::from("."),
         }
     }
@@ -438,10 +689,27 @@ impl Scenario {
 
     /// Parses TOML text (not yet validated); `path` is only used in messages.
     pub fn parse(text: &str, path: &Path) -> Result<Self, ScenarioError> {
-        toml::from_str(text).map_err(|e| ScenarioError::Parse {
+        let mut s: Scenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
             path: path.to_path_buf(),
             source: Box::new(e),
-        })
+        })?;
+        if s.tuning.is_empty() {
+            s.tuning = crate::tuning::reference_tuning();
+            let has =
+                |name: &str, role: Role| s.axes.iter().any(|a| a.name == name && a.role == role);
+            let keep: Vec<Tuning> = s
+                .tuning
+                .iter()
+                .map(|t| {
+                    let mut t = t.clone();
+                    t.axes.retain(|n, _| has(n, Role::Follower));
+                    t.press.retain(|n, _| has(n, Role::Force));
+                    t
+                })
+                .collect();
+            s.tuning = keep;
+        }
+        Ok(s)
     }
 
     /// The name shown in reports: `name`, else `reference` (PLANT.md's machine).
@@ -539,8 +807,8 @@ impl Scenario {
         Ok(table)
     }
 
-    /// Checks every value; the error names the first impossible key.
-    pub fn validate(&self) -> Result<(), ScenarioError> {
+    /// Checks the RK4 step and the control period (a whole number of steps).
+    pub fn validate_timing(&self) -> Result<(), ScenarioError> {
         let sim = &self.sim;
         check("sim.step_us", sim.step_us, 0.0, false, 1000.0)?;
         if sim.period_us == 0 {
@@ -557,6 +825,13 @@ impl Scenario {
                 ),
             ));
         }
+        Ok(())
+    }
+
+    /// Checks every value; the error names the first impossible key.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        self.validate_timing()?;
+        let sim = &self.sim;
         check("sim.error_skip_s", sim.error_skip_s, 0.0, true, 1e6)?;
         if let Some(d) = sim.duration_s {
             check("sim.duration_s", d, 0.0, false, 1e6)?;
@@ -622,7 +897,7 @@ impl Scenario {
             }
             a.validate(self.step_s())?;
         }
-        Ok(())
+        crate::tuning::validate(self)
     }
 }
 
@@ -751,6 +1026,56 @@ impl AxisCfg {
         }
         if let Some(x0) = self.x0_mm {
             check(&k("x0_mm"), x0, 0.0, true, c.stroke_mm)?;
+        }
+        match (&self.press, self.role) {
+            (None, Role::Force) => {
+                return Err(invalid(
+                    k("press"),
+                    "missing",
+                    "a force axis needs an [axis.press] section",
+                ));
+            }
+            (Some(_), Role::Follower) => {
+                return Err(invalid(
+                    k("press"),
+                    "given",
+                    "only a `role = \"force\"` axis has a press process",
+                ));
+            }
+            (Some(p), Role::Force) => {
+                check(
+                    &k("press.approach_end_mm"),
+                    p.approach_end_mm,
+                    0.0,
+                    true,
+                    c.stroke_mm,
+                )?;
+                check(
+                    &k("press.approach_speed_mm_per_s"),
+                    p.approach_speed_mm_per_s,
+                    0.0,
+                    false,
+                    1000.0,
+                )?;
+                check(
+                    &k("press.contact_force_n"),
+                    p.contact_force_n,
+                    0.0,
+                    false,
+                    1e6,
+                )?;
+                check(&k("press.force_set_n"), p.force_set_n, 0.0, false, 1e6)?;
+                check(&k("press.force_ramp_s"), p.force_ramp_s, 1e-3, true, 60.0)?;
+            }
+            (None, Role::Follower) => {}
+        }
+        let cal = &self.calibration;
+        if let Err(e) = cal.to_core().build() {
+            return Err(invalid(
+                k("calibration"),
+                format!("{e:?}"),
+                "out of its range (see hydra_core::valve::ValveCal)",
+            ));
         }
         // Fixed-step RK4 is stable for h·|λ| below about 2.8; ask for a margin of 2 on the
         // fastest modes (spool, oil column at the stiffer end of the stroke, end stops).

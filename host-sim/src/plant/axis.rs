@@ -108,6 +108,36 @@ impl HydraulicAxis {
         (pa.clamp(0.0, s.max_pa), pb.clamp(0.0, s.max_pa))
     }
 
+    /// Steady full-opening speed with no external load, m/s (positive), closed form.
+    ///
+    /// At steady speed the two metering lands pass `A_A·v` and `A_B·v`, so (extending)
+    /// `p_A = p_s − (A_A·v/K_v)²`, `p_B = p_T + (A_B·v/K_v)²`, and the force balance
+    /// `A_A·p_A − A_B·p_B = F_f(v)` gives (retracting mirrored)
+    ///
+    /// ```text
+    /// extend:   v² = K_v²·(A_A·p_s − A_B·p_T − F_f(v)) / (A_A³ + A_B³)
+    /// retract:  v² = K_v²·(A_B·p_s − A_A·p_T − F_f(v)) / (A_A³ + A_B³)
+    /// ```
+    ///
+    /// with the friction `F_f(v) = c·v + F_c·tanh(v/v_s)` solved by fixed-point iteration.
+    /// The leakage (about 0.1 % of the flow) is left out.
+    pub fn no_load_speed_m_per_s(&self, extend: bool) -> f64 {
+        let c = &self.cylinder;
+        let (aa, ab) = (c.area_a_m2, c.area_b_m2);
+        let (ps, pt) = (self.supply.supply_pa, self.supply.tank_pa);
+        let drive = if extend {
+            aa * ps - ab * pt
+        } else {
+            ab * ps - aa * pt
+        };
+        let kv = self.valve.kv;
+        let mut v = 0.0;
+        for _ in 0..60 {
+            v = kv * ((drive - c.friction_n(v)).max(0.0) / (aa.powi(3) + ab.powi(3))).sqrt();
+        }
+        v
+    }
+
     /// The state derivative `ṡ = f(s, u)`.
     #[inline(always)]
     pub fn derivative(&self, s: &State, u: f64) -> State {
@@ -116,9 +146,10 @@ impl HydraulicAxis {
         let (x, v, pa, pb, xv, vv) = (s[X], s[V], s[PA], s[PB], s[XV], s[VV]);
         let (qa, qb) = self.valve.flows(xv, pa, pb, sup.supply_pa, sup.tank_pa);
         let (va, vb) = c.volumes(x);
-        let e = c.bulk_modulus_pa;
-        let dpa = clamp_rate(pa, e / va * (qa - c.area_a_m2 * v), sup.max_pa);
-        let dpb = clamp_rate(pb, e / vb * (qb + c.area_b_m2 * v), sup.max_pa);
+        // E/V_A and E/V_B with one division.
+        let e_vv = c.bulk_modulus_pa / (va * vb);
+        let dpa = clamp_rate(pa, e_vv * vb * (qa - c.area_a_m2 * v), sup.max_pa);
+        let dpb = clamp_rate(pb, e_vv * va * (qb + c.area_b_m2 * v), sup.max_pa);
         [
             v,
             c.accel(x, v, pa, pb),

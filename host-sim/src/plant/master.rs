@@ -65,6 +65,9 @@ pub struct MasterProfile {
     omega: f64,
     /// Start of the ramp down, τ_s (s after the start of the motion).
     tau_stop: f64,
+    /// `∫₀^{T_r}` and `∫₀^{τ_s}` of `env·(1 + a·sin)` (cached pieces), s.
+    j_ramp: f64,
+    j_cruise: f64,
 }
 
 /// `sin(z)/z`, 1 at 0.
@@ -94,6 +97,8 @@ impl MasterProfile {
             beta: PI / m.ramp_s,
             omega: 2.0 * PI * m.ripple_hz,
             tau_stop: m.ramp_s,
+            j_ramp: 0.0,
+            j_cruise: 0.0,
         };
         let want = travel / m.speed_deg_per_s; // ∫ env·(1 + a·sin) over the whole motion, s
         let min = p.total(m.ramp_s);
@@ -124,6 +129,8 @@ impl MasterProfile {
             }
         }
         p.tau_stop = 0.5 * (lo + hi);
+        p.j_ramp = p.piece(0.5, -0.5, 0.0, 0.0, m.ramp_s);
+        p.j_cruise = p.j_ramp + p.piece(1.0, 0.0, 0.0, m.ramp_s, p.tau_stop);
         Ok(p)
     }
 
@@ -185,8 +192,16 @@ impl MasterProfile {
         } else if tau >= self.tau_stop + self.m.ramp_s {
             self.m.end_deg
         } else {
-            self.m.start_deg
-                + self.sign * self.m.speed_deg_per_s * self.integral(tau, self.tau_stop)
+            // The completed pieces are cached: one piece per call.
+            let tr = self.m.ramp_s;
+            let j = if tau < tr {
+                self.piece(0.5, -0.5, 0.0, 0.0, tau)
+            } else if tau < self.tau_stop {
+                self.j_ramp + self.piece(1.0, 0.0, 0.0, tr, tau)
+            } else {
+                self.j_cruise + self.piece(0.5, 0.5, -self.beta * self.tau_stop, self.tau_stop, tau)
+            };
+            self.m.start_deg + self.sign * self.m.speed_deg_per_s * j
         }
     }
 

@@ -58,8 +58,13 @@ pub struct Valve {
 #[inline(always)]
 pub fn signed_sqrt(dp_pa: f64, p_tr: f64) -> f64 {
     let a = dp_pa.abs();
-    // Written without a division: √a above the transition, a/√p_tr below it.
-    let r = if a >= p_tr { a.sqrt() } else { a / p_tr.sqrt() };
+    // √a above the transition, a·(1/√p_tr) below it: the reciprocal is the same for every
+    // call of a step, so the compiler hoists it and no division is left here.
+    let r = if a >= p_tr {
+        a.sqrt()
+    } else {
+        a * p_tr.sqrt().recip()
+    };
     r.copysign(dp_pa)
 }
 

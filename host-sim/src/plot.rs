@@ -1,0 +1,181 @@
+//! SVG plots of a run's trace (plotters, SVG backend only: no system dependencies).
+//!
+//! One figure per run, panels stacked vertically: for each follower axis the table
+//! target and the actual position, then its tracking error; the valve commands of every
+//! axis; for each force axis the force and its reference.
+
+use crate::sim::{RunReport, Trace};
+use plotters::prelude::*;
+use std::path::Path;
+
+const PALETTE: [RGBColor; 4] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+];
+
+struct Panel {
+    title: String,
+    y_label: String,
+    series: Vec<(String, Vec<f64>)>,
+}
+
+fn range(series: &[(String, Vec<f64>)]) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for v in series.iter().flat_map(|s| s.1.iter()) {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    if !(lo.is_finite() && hi.is_finite()) || lo > hi {
+        return (-1.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.05).max(1e-9);
+    (lo - pad, hi + pad)
+}
+
+fn panels(r: &RunReport, tr: &Trace) -> Vec<Panel> {
+    let mut out = Vec::new();
+    let col = |n: &str| tr.column(n).unwrap_or_default();
+    let mut commands = Vec::new();
+    for a in &r.axes {
+        let n = &a.name;
+        if tr.columns.contains(&format!("{n}_target_mm")) {
+            out.push(Panel {
+                title: format!("{n}: table at the actual master vs actual position"),
+                y_label: "mm".into(),
+                series: vec![
+                    ("target".into(), col(&format!("{n}_target_mm"))),
+                    ("actual".into(), col(&format!("{n}_x_mm"))),
+                ],
+            });
+            out.push(Panel {
+                title: format!("{n}: tracking error (target − actual)"),
+                y_label: "µm".into(),
+                series: vec![("error".into(), col(&format!("{n}_error_um")))],
+            });
+        }
+        commands.push((n.clone(), col(&format!("{n}_u"))));
+    }
+    out.push(Panel {
+        title: "valve commands (1 = full opening)".into(),
+        y_label: "u".into(),
+        series: commands,
+    });
+    for a in &r.axes {
+        let n = &a.name;
+        if tr.columns.contains(&format!("{n}_force_n")) {
+            out.push(Panel {
+                title: format!("{n}: force (A_A·p_A − A_B·p_B) and its reference"),
+                y_label: "kN".into(),
+                series: vec![
+                    (
+                        "reference".into(),
+                        col(&format!("{n}_force_ref_n"))
+                            .iter()
+                            .map(|f| f * 1e-3)
+                            .collect(),
+                    ),
+                    (
+                        "force".into(),
+                        col(&format!("{n}_force_n"))
+                            .iter()
+                            .map(|f| f * 1e-3)
+                            .collect(),
+                    ),
+                ],
+            });
+        }
+    }
+    out
+}
+
+/// At most this many buckets per series: each keeps its minimum and maximum, so peaks
+/// survive the thinning (a 32 s trace at 1 ms is 32 000 points a series).
+const BUCKETS: usize = 1500;
+
+/// Min/max decimation of `(t, v)` to at most `2·BUCKETS` points.
+fn thin(t: &[f64], v: &[f64]) -> Vec<(f64, f64)> {
+    let n = t.len().min(v.len());
+    let per = n.div_ceil(BUCKETS).max(1);
+    if per <= 2 {
+        return t.iter().copied().zip(v.iter().copied()).collect();
+    }
+    let mut out = Vec::with_capacity(2 * BUCKETS + 2);
+    let mut i = 0;
+    while i < n {
+        let end = (i + per).min(n);
+        let (mut lo, mut hi) = (i, i);
+        for j in i..end {
+            if v[j] < v[lo] {
+                lo = j;
+            }
+            if v[j] > v[hi] {
+                hi = j;
+            }
+        }
+        let (a, b) = if lo <= hi { (lo, hi) } else { (hi, lo) };
+        out.push((t[a], v[a]));
+        if b != a {
+            out.push((t[b], v[b]));
+        }
+        i = end;
+    }
+    out
+}
+
+/// Writes the SVG figure of a run with a trace to `path`.
+pub fn plot_run(r: &RunReport, path: &Path) -> anyhow::Result<()> {
+    let tr = r
+        .trace
+        .as_ref()
+        .ok_or_else(|| anyhow::anyhow!("the run has no trace to plot"))?;
+    let t = tr.column("t_s").unwrap_or_default();
+    let ps = panels(r, tr);
+    let h_panel = 260u32;
+    let height = 40 + h_panel * ps.len() as u32;
+    let root = SVGBackend::new(path, (1100, height)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let title = format!(
+        "{} — {} @ {} µs",
+        r.scenario,
+        r.controller.name(),
+        r.period_us
+    );
+    let root = root.titled(&title, ("sans-serif", 20))?;
+    let areas = root.split_evenly((ps.len(), 1));
+    let (t0, t1) = (
+        t.first().copied().unwrap_or(0.0),
+        t.last().copied().unwrap_or(1.0).max(1e-9),
+    );
+    for (area, p) in areas.iter().zip(&ps) {
+        let (lo, hi) = range(&p.series);
+        let mut chart = ChartBuilder::on(area)
+            .caption(&p.title, ("sans-serif", 14))
+            .margin(8)
+            .x_label_area_size(28)
+            .y_label_area_size(60)
+            .build_cartesian_2d(t0..t1, lo..hi)?;
+        chart
+            .configure_mesh()
+            .x_desc("t (s)")
+            .y_desc(p.y_label.as_str())
+            .light_line_style(WHITE.mix(0.0))
+            .draw()?;
+        for (i, (name, v)) in p.series.iter().enumerate() {
+            let color = PALETTE[i % PALETTE.len()];
+            chart
+                .draw_series(LineSeries::new(thin(&t, v), color.stroke_width(1)))?
+                .label(name.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK.mix(0.3))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()?;
+    }
+    root.present()?;
+    Ok(())
+}

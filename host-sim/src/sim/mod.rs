@@ -1,0 +1,453 @@
+//! The closed loop: the core's controllers against the plant, period by period.
+//!
+//! Timing of one control period k (`t_k = k·T`):
+//!
+//! 1. **Sample** at `t_k`: the master angle through its encoder (`round(θ/0.001°)`
+//!    counts), every axis position through its linear encoder, the force axes' two
+//!    chamber pressures through the 12-bit ADC.
+//! 2. **Compute**: the follower (and each press law) returns valve codes.
+//! 3. **Apply** one period later: the codes computed at `t_k` drive the valves from
+//!    `t_{k+1}` to `t_{k+2}` (one period of computation delay); during period 0 the valves
+//!    are at null. The DAC holds each code: `u = n/2047`.
+//! 4. **Integrate** the plant over the period by RK4 steps of `h` (`T/h` steps).
+//!
+//! **Metrics** are taken every 100 µs of simulated time (every step if `h` > 100 µs):
+//!
+//! * follower axis: `e(t) = X(θ(t)) − x(t)`, the table (linear interpolation of its nodes)
+//!   at the *true* master angle minus the true position, after `sim.error_skip_s`; max |e|
+//!   and RMS in µm;
+//! * force axis: `e_F(t) = F_ref − F(t)` while force control is active, `F_ref` the press
+//!   law's (ramped) reference from its last tick and `F = A_A·p_A − A_B·p_B` from the true
+//!   pressures; max |e_F| and RMS in N, the time of the switch and the jump of the command
+//!   across it;
+//! * every axis: the peak |u| of the applied valve command over the whole run (1 = full
+//!   opening).
+//!
+//! Trace columns (`--csv`): `t_s`, `master_deg` (true), `master_estimate_deg` (the
+//! follower's filtered estimate at its last sample), per follower `<axis>_target_mm`
+//! (table at the true master), `_x_mm`, `_error_um`, `_u` (applied valve command),
+//! `_controller_target_mm` (the follower's X(θ_f(k))); per force axis `_x_mm`, `_force_n`,
+//! `_force_ref_n`, `_u`.
+
+pub mod control;
+
+use crate::camfile::{interpolate, CamCsv};
+use crate::plant::{dac_to_unit, HydraulicAxis, MasterProfile};
+use crate::scenario::{Controller, Role, Scenario, ScenarioError};
+use control::{build_follower, Press};
+use hydra_core::axis::PressPhase;
+use hydra_core::units::{CmdLsb, DacCode, Master, PosUm, PressureBar};
+use std::fmt::Write as _;
+use std::time::Instant;
+
+/// What to run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunSpec {
+    /// The follower law.
+    pub controller: Controller,
+    /// Control period, µs.
+    pub period_us: u32,
+    /// Record a trace every this many seconds (rounded to whole RK4 steps); `None`: no trace.
+    pub trace_every_s: Option<f64>,
+}
+
+/// Results of one axis.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AxisResult {
+    /// A table-following axis.
+    Follower {
+        /// Largest |X(θ) − x| after the skip time, µm.
+        max_error_um: f64,
+        /// RMS of X(θ) − x after the skip time, µm.
+        rms_error_um: f64,
+    },
+    /// A force axis.
+    Force {
+        /// Largest |F_ref − F| under force control, N.
+        max_force_error_n: f64,
+        /// RMS of F_ref − F under force control, N.
+        rms_force_error_n: f64,
+        /// When force control took over, s (None: never).
+        switch_s: Option<f64>,
+        /// |u(k) − u(k−1)| of the command before the output stage at the switch, DAC LSB.
+        switch_jump_lsb: f64,
+        /// Force at the end of the run, N.
+        final_force_n: f64,
+    },
+}
+
+/// One axis' report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisReport {
+    /// Axis name.
+    pub name: String,
+    /// Largest |u| applied over the run (1 = full opening).
+    pub peak_command: f64,
+    /// The axis' metrics.
+    pub result: AxisResult,
+}
+
+/// A recorded trace: column names and rows.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Trace {
+    /// Column names (`t_s`, `master_deg`, then per axis).
+    pub columns: Vec<String>,
+    /// Row-major values.
+    pub data: Vec<f64>,
+}
+
+impl Trace {
+    /// Number of rows.
+    pub fn rows(&self) -> usize {
+        self.data.len() / self.columns.len().max(1)
+    }
+
+    /// The values of a column.
+    pub fn column(&self, name: &str) -> Option<Vec<f64>> {
+        let n = self.columns.len();
+        let i = self.columns.iter().position(|c| c == name)?;
+        Some(self.data.chunks_exact(n).map(|r| r[i]).collect())
+    }
+
+    /// The CSV text.
+    pub fn to_csv(&self) -> String {
+        let mut s = self.columns.join(",");
+        s.push('\n');
+        for r in self.data.chunks_exact(self.columns.len().max(1)) {
+            for (i, v) in r.iter().enumerate() {
+                if i > 0 {
+                    s.push(',');
+                }
+                let _ = write!(s, "{v:.6}");
+            }
+            s.push('\n');
+        }
+        s
+    }
+}
+
+/// The report of one run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunReport {
+    /// Scenario name.
+    pub scenario: String,
+    /// The follower law.
+    pub controller: Controller,
+    /// Control period, µs.
+    pub period_us: u32,
+    /// The gain set's period, µs (≠ `period_us` when no set was tuned at this period).
+    pub tuned_period_us: u32,
+    /// Simulated time, s.
+    pub sim_seconds: f64,
+    /// Wall-clock time of the simulation, s.
+    pub wall_seconds: f64,
+    /// RK4 steps taken (per axis).
+    pub steps: u64,
+    /// Per-axis results, in scenario order.
+    pub axes: Vec<AxisReport>,
+    /// The trace, if asked for.
+    pub trace: Option<Trace>,
+}
+
+impl RunReport {
+    /// The report of an axis by name.
+    pub fn axis(&self, name: &str) -> Option<&AxisReport> {
+        self.axes.iter().find(|a| a.name == name)
+    }
+}
+
+/// Accumulates max |e| and Σe².
+#[derive(Clone, Copy, Debug, Default)]
+struct Stat {
+    max: f64,
+    sum2: f64,
+    n: u64,
+}
+
+impl Stat {
+    #[inline]
+    fn add(&mut self, e: f64) {
+        self.max = self.max.max(e.abs());
+        self.sum2 += e * e;
+        self.n += 1;
+    }
+
+    fn rms(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            (self.sum2 / self.n as f64).sqrt()
+        }
+    }
+}
+
+/// Per force axis bookkeeping.
+#[derive(Clone, Debug)]
+struct PressRt {
+    law: Press,
+    f_ref_n: f64,
+    phase: PressPhase,
+    switch_s: Option<f64>,
+    jump_lsb: f64,
+    last_cmd: f64,
+    stat: Stat,
+}
+
+/// Runs one scenario with one controller and period. `progress` is called with the
+/// simulated time about every 1 % of the run.
+pub fn run(
+    s: &Scenario,
+    table: &CamCsv,
+    spec: &RunSpec,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RunReport, ScenarioError> {
+    let wall = Instant::now();
+    let (tuning, _) =
+        crate::tuning::select(s, spec.controller, spec.period_us).ok_or_else(|| {
+            ScenarioError::Invalid {
+                key: "tuning".into(),
+                value: spec.controller.name().into(),
+                reason: "the scenario has no [[tuning]] set for this controller".into(),
+            }
+        })?;
+    let mut sc = s.clone();
+    sc.sim.period_us = spec.period_us;
+    sc.validate_timing()?;
+    let master: MasterProfile = sc.master_profile()?;
+    let menc = sc.master_encoder();
+    let h = sc.step_s();
+    let steps_per_period = u64::from(sc.steps_per_period());
+    let period_s = sc.period_s();
+    let duration = sc.duration_s()?;
+    let n_periods = (duration / period_s).ceil() as u64;
+    let metric_steps = ((100e-6 / h).round() as u64).max(1);
+    let trace_steps = spec.trace_every_s.map(|d| ((d / h).round() as u64).max(1));
+    let supply = sc.supply();
+
+    let follower_cfgs = control::followers(&sc);
+    let columns: Vec<&[f64]> = follower_cfgs
+        .iter()
+        .map(|a| table.column(&a.name).unwrap_or(&[]))
+        .collect();
+    let mut follower = build_follower(&sc, table, tuning, spec.controller, spec.period_us)?;
+    let nf = follower_cfgs.len();
+
+    // Plants, in scenario order; followers start on the table at the master's start.
+    let mut plants: Vec<HydraulicAxis> = Vec::with_capacity(sc.axes.len());
+    let mut follower_idx = Vec::new();
+    let mut press_idx = Vec::new();
+    let mut presses: Vec<PressRt> = Vec::new();
+    for (i, a) in sc.axes.iter().enumerate() {
+        let x0_mm = match (a.x0_mm, a.role) {
+            (Some(x), _) => x,
+            (None, Role::Follower) => {
+                let c = table.column(&a.name).unwrap_or(&[]);
+                interpolate(&table.master, c, sc.master.start_deg, &mut 0)
+            }
+            (None, Role::Force) => 0.0,
+        };
+        plants.push(a.plant(supply, x0_mm * 1e-3));
+        match a.role {
+            Role::Follower => follower_idx.push(i),
+            Role::Force => {
+                press_idx.push(i);
+                presses.push(PressRt {
+                    law: Press::new(a, tuning, spec.period_us)?,
+                    f_ref_n: 0.0,
+                    phase: PressPhase::Approach,
+                    switch_s: None,
+                    jump_lsb: 0.0,
+                    last_cmd: 0.0,
+                    stat: Stat::default(),
+                });
+            }
+        }
+    }
+    let encoders: Vec<_> = sc.axes.iter().map(|a| a.encoder()).collect();
+    let adcs: Vec<_> = sc.axes.iter().map(|a| a.pressure_adc()).collect();
+    let n_axes = plants.len();
+
+    let mut trace = trace_steps.map(|_| {
+        let mut cols = vec![
+            "t_s".to_string(),
+            "master_deg".to_string(),
+            "master_estimate_deg".to_string(),
+        ];
+        for a in &sc.axes {
+            match a.role {
+                Role::Follower => {
+                    for c in ["target_mm", "x_mm", "error_um", "u", "controller_target_mm"] {
+                        cols.push(format!("{}_{c}", a.name));
+                    }
+                }
+                Role::Force => {
+                    for c in ["x_mm", "force_n", "force_ref_n", "u"] {
+                        cols.push(format!("{}_{c}", a.name));
+                    }
+                }
+            }
+        }
+        Trace {
+            columns: cols,
+            data: Vec::new(),
+        }
+    });
+
+    let mut u_now = vec![0.0f64; n_axes]; // applied this period
+    let mut u_next = vec![0.0f64; n_axes]; // computed at this period's sample
+    let mut pos = vec![PosUm::ZERO; nf];
+    let mut dac = vec![DacCode::NULL; nf];
+    let mut cmd = vec![CmdLsb::ZERO; nf];
+    let mut ctrl_target = vec![PosUm::ZERO; nf];
+    let mut master_est_deg = 0.0;
+    let mut err_stats = vec![Stat::default(); nf];
+    let mut peak = vec![0.0f64; n_axes];
+    let mut cursors = vec![0usize; nf];
+    let mut step: u64 = 0;
+    let progress_every = (n_periods / 100).max(1);
+
+    for k in 0..n_periods {
+        let t_k = k as f64 * period_s;
+        // 1–2. sample and compute
+        if let Some(f) = follower.as_mut() {
+            let m = Master::from_num(menc.count(master.angle_deg(t_k)));
+            for (j, &i) in follower_idx.iter().enumerate() {
+                let counts = encoders[i].count(plants[i].x_m());
+                pos[j] = PosUm::saturating_from_num(encoders[i].value(counts) * 1e6);
+            }
+            let est = f.tick(m, &pos, &mut dac, &mut cmd, &mut ctrl_target);
+            master_est_deg = est.to_num::<f64>() * sc.master.resolution_deg;
+            for (j, &i) in follower_idx.iter().enumerate() {
+                u_next[i] = dac_to_unit(dac[j]);
+            }
+        }
+        for (p, &i) in presses.iter_mut().zip(&press_idx) {
+            let counts = encoders[i].count(plants[i].x_m());
+            let x = PosUm::saturating_from_num(encoders[i].value(counts) * 1e6);
+            let (pa, pb) = plants[i].pressures_pa();
+            let pa = PressureBar::saturating_from_num(adcs[i].read_pa(pa) * 1e-5);
+            let pb = PressureBar::saturating_from_num(adcs[i].read_pa(pb) * 1e-5);
+            let o = p.law.tick(x, pa, pb);
+            let c = o.cmd_lsb.to_num::<f64>();
+            if o.phase == PressPhase::Force && p.phase == PressPhase::Approach {
+                p.switch_s = Some(t_k);
+                p.jump_lsb = (c - p.last_cmd).abs();
+            }
+            p.phase = o.phase;
+            p.f_ref_n = o.force_ref_n.to_num::<f64>();
+            p.last_cmd = c;
+            u_next[i] = dac_to_unit(o.dac);
+        }
+        // 3–4. integrate the period with the codes computed one period ago
+        for (pk, u) in peak.iter_mut().zip(&u_now) {
+            *pk = pk.max(u.abs());
+        }
+        for _ in 0..steps_per_period {
+            for (p, &u) in plants.iter_mut().zip(&u_now) {
+                p.step(u, h);
+            }
+            step += 1;
+            let metric = step.is_multiple_of(metric_steps);
+            let record = trace_steps.is_some_and(|n| step.is_multiple_of(n));
+            if !(metric || record) {
+                continue;
+            }
+            let t = step as f64 * h;
+            let theta = master.angle_deg(t);
+            let mut row: Option<&mut Vec<f64>> = None;
+            if record {
+                if let Some(tr) = trace.as_mut() {
+                    tr.data.extend_from_slice(&[t, theta, master_est_deg]);
+                    row = Some(&mut tr.data);
+                }
+            }
+            let mut fj = 0;
+            let mut pj = 0;
+            for (i, a) in sc.axes.iter().enumerate() {
+                match a.role {
+                    Role::Follower => {
+                        let target_mm =
+                            interpolate(&table.master, columns[fj], theta, &mut cursors[fj]);
+                        let e_um = (target_mm - plants[i].x_m() * 1e3) * 1e3;
+                        if metric && t >= sc.sim.error_skip_s {
+                            err_stats[fj].add(e_um);
+                        }
+                        if let Some(r) = row.as_deref_mut() {
+                            r.extend_from_slice(&[
+                                target_mm,
+                                plants[i].x_m() * 1e3,
+                                e_um,
+                                u_now[i],
+                                ctrl_target[fj].to_num::<f64>() * 1e-3,
+                            ]);
+                        }
+                        fj += 1;
+                    }
+                    Role::Force => {
+                        let p = &mut presses[pj];
+                        let f = plants[i].force_n();
+                        if metric && p.phase == PressPhase::Force {
+                            p.stat.add(p.f_ref_n - f);
+                        }
+                        if let Some(r) = row.as_deref_mut() {
+                            r.extend_from_slice(&[plants[i].x_m() * 1e3, f, p.f_ref_n, u_now[i]]);
+                        }
+                        pj += 1;
+                    }
+                }
+            }
+        }
+        std::mem::swap(&mut u_now, &mut u_next);
+        if k.is_multiple_of(progress_every) {
+            progress(t_k);
+        }
+    }
+    progress(n_periods as f64 * period_s);
+
+    let mut fj = 0;
+    let mut pj = 0;
+    let axes = sc
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let result = match a.role {
+                Role::Follower => {
+                    let st = err_stats[fj];
+                    fj += 1;
+                    AxisResult::Follower {
+                        max_error_um: st.max,
+                        rms_error_um: st.rms(),
+                    }
+                }
+                Role::Force => {
+                    let p = &presses[pj];
+                    pj += 1;
+                    AxisResult::Force {
+                        max_force_error_n: p.stat.max,
+                        rms_force_error_n: p.stat.rms(),
+                        switch_s: p.switch_s,
+                        switch_jump_lsb: p.jump_lsb,
+                        final_force_n: plants[i].force_n(),
+                    }
+                }
+            };
+            AxisReport {
+                name: a.name.clone(),
+                peak_command: peak[i],
+                result,
+            }
+        })
+        .collect();
+    Ok(RunReport {
+        scenario: s.name().to_string(),
+        controller: spec.controller,
+        period_us: spec.period_us,
+        tuned_period_us: tuning.period_us,
+        sim_seconds: n_periods as f64 * period_s,
+        wall_seconds: wall.elapsed().as_secs_f64(),
+        steps: step,
+        axes,
+        trace,
+    })
+}
