@@ -14,3 +14,4 @@ pub mod scenario;
 pub mod sim;
 pub mod tuning;
 pub mod vboard;
+pub mod xy;

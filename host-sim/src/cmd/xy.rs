@@ -1,10 +1,185 @@
-//! `host-sim` sub-command (in progress: filled by its issue).
+//! `host-sim xy`: the two-axis X–Y table of seed 004 with independent or cross-coupled
+//! control (see [`crate::xy`] for the plant, paths, controllers and what is measured).
+//!
+//! `--json` prints one object: `{"path", "controller", "max_contour_error_um",
+//! "rms_contour_error_um", "max_tracking_error_um": {"x", "y"},
+//! "disturbance_peak_contour_error_um", "max_command_lsb",
+//! "contour_sign_changes_per_s"}`.
+
+use crate::xy::{simulate, ControllerKind, PathKind, XyReport, XyScenario};
+use anyhow::Result;
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
 
 /// Arguments of the sub-command.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Path to run.
+    #[arg(long, value_enum, default_value = "circle")]
+    pub path: PathKind,
+    /// Controller.
+    #[arg(long, value_enum, default_value = "nccc")]
+    pub controller: ControllerKind,
+    /// Feed, mm/s.
+    #[arg(long = "feed", default_value_t = 50.0)]
+    pub feed_mm_per_s: f64,
+    /// Circle radius, mm.
+    #[arg(long, default_value_t = 50.0)]
+    pub radius_mm: f64,
+    /// Step load on X, N (positive opposes extension).
+    #[arg(long, requires = "disturbance_at_s")]
+    pub disturbance_n: Option<f64>,
+    /// Time of the load step, s.
+    #[arg(long, requires = "disturbance_n")]
+    pub disturbance_at_s: Option<f64>,
+    /// Write an SVG plot (path and actual point, contour error, commands).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Gains file (TOML: `[axis_linear]`, `[contour_linear]`, `[axis_nonlinear]`,
+    /// `[contour_nonlinear]`; omitted tables keep the tuned defaults).
+    #[arg(long)]
+    pub gains: Option<PathBuf>,
+    /// Print the result as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// Runs the sub-command.
-pub fn run(_args: &Args) -> anyhow::Result<()> {
-    anyhow::bail!("this sub-command is not built yet")
+pub fn run(args: &Args) -> Result<()> {
+    let gains = match &args.gains {
+        Some(f) => {
+            let text =
+                std::fs::read_to_string(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
+            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?
+        }
+        None => crate::xy::gains::Gains::default(),
+    };
+    let s = XyScenario {
+        gains,
+        path: args.path,
+        controller: args.controller,
+        feed_mm_per_s: args.feed_mm_per_s,
+        radius_mm: args.radius_mm,
+        disturbance: args.disturbance_n.zip(args.disturbance_at_s),
+        ..XyScenario::default()
+    };
+    let r = simulate(&s)?;
+    if let Some(p) = &args.plot {
+        plot(&r, p)?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&r)?);
+    } else {
+        println!(
+            "{} / {}: contour error max {:.1} µm, rms {:.1} µm; tracking max x {:.1} µm, y {:.1} µm",
+            r.path,
+            r.controller,
+            r.max_contour_error_um,
+            r.rms_contour_error_um,
+            r.max_tracking_error_um.x,
+            r.max_tracking_error_um.y
+        );
+        if let Some(d) = r.disturbance_peak_contour_error_um {
+            println!("peak contour error within 1 s of the load step: {d:.1} µm");
+        }
+        println!(
+            "largest valve command {:.0} LSB; contour-error sign changes {:.1} /s",
+            r.max_command_lsb, r.contour_sign_changes_per_s
+        );
+    }
+    Ok(())
+}
+
+fn bounds(v: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for x in v {
+        lo = lo.min(x);
+        hi = hi.max(x);
+    }
+    if !(lo.is_finite() && hi.is_finite()) || lo >= hi {
+        return (lo.min(0.0) - 1.0, hi.max(0.0) + 1.0);
+    }
+    let pad = (hi - lo) * 0.05;
+    (lo - pad, hi + pad)
+}
+
+/// Three panels: X–Y path (mm), exact and controller contour error (µm), commands (LSB).
+fn plot(r: &XyReport, file: &Path) -> Result<()> {
+    let root = SVGBackend::new(file, (1000, 1100)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(
+        &format!("{} — {}", r.path, r.controller),
+        ("sans-serif", 20),
+    )?;
+    let (top, rest) = root.split_vertically(500);
+    let (mid, bot) = rest.split_vertically(300);
+    let tr = &r.trace;
+    let (x0, x1) = bounds(tr.iter().map(|s| s.reference_um[0] / 1000.0));
+    let (y0, y1) = bounds(tr.iter().map(|s| s.reference_um[1] / 1000.0));
+    let mut c = ChartBuilder::on(&top)
+        .margin(8)
+        .x_label_area_size(28)
+        .y_label_area_size(50)
+        .build_cartesian_2d(x0..x1, y0..y1)?;
+    c.configure_mesh()
+        .x_desc("x (mm)")
+        .y_desc("y (mm)")
+        .draw()?;
+    c.draw_series(LineSeries::new(
+        tr.iter()
+            .map(|s| (s.reference_um[0] / 1000.0, s.reference_um[1] / 1000.0)),
+        BLUE,
+    ))?
+    .label("reference")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLUE));
+    c.draw_series(LineSeries::new(
+        tr.iter()
+            .map(|s| (s.actual_um[0] / 1000.0, s.actual_um[1] / 1000.0)),
+        RED,
+    ))?
+    .label("actual")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
+    c.configure_series_labels().border_style(BLACK).draw()?;
+    let t1 = tr.last().map(|s| s.t_s).unwrap_or(1.0).max(1e-3);
+    let (e0, e1) = bounds(
+        tr.iter()
+            .flat_map(|s| [s.contour_um, s.controller_contour_um]),
+    );
+    let mut c = ChartBuilder::on(&mid)
+        .margin(8)
+        .x_label_area_size(28)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..t1, e0..e1)?;
+    c.configure_mesh().x_desc("t (s)").y_desc("ε (µm)").draw()?;
+    c.draw_series(LineSeries::new(
+        tr.iter().map(|s| (s.t_s, s.contour_um)),
+        RED,
+    ))?
+    .label("exact ε")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
+    c.draw_series(LineSeries::new(
+        tr.iter().map(|s| (s.t_s, s.controller_contour_um)),
+        BLUE,
+    ))?
+    .label("controller's ε")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLUE));
+    c.configure_series_labels().border_style(BLACK).draw()?;
+    let (u0, u1) = bounds(tr.iter().flat_map(|s| s.command_lsb));
+    let mut c = ChartBuilder::on(&bot)
+        .margin(8)
+        .x_label_area_size(28)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..t1, u0..u1)?;
+    c.configure_mesh().x_desc("t (s)").y_desc("LSB").draw()?;
+    for (i, col) in [BLUE, RED].into_iter().enumerate() {
+        c.draw_series(LineSeries::new(
+            tr.iter().map(|s| (s.t_s, s.command_lsb[i])),
+            col,
+        ))?
+        .label(if i == 0 { "U1 (x)" } else { "U2 (y)" })
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col));
+    }
+    c.configure_series_labels().border_style(BLACK).draw()?;
+    root.present()?;
+    Ok(())
 }
