@@ -61,7 +61,6 @@ pub fn run(args: &Args) -> Result<()> {
         feed_mm_per_s: args.feed_mm_per_s,
         radius_mm: args.radius_mm,
         disturbance: args.disturbance_n.zip(args.disturbance_at_s),
-        ..XyScenario::default()
     };
     let r = simulate(&s)?;
     if let Some(p) = &args.plot {
