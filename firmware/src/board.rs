@@ -11,7 +11,8 @@
 //! | slave 0 encoder A/B | PA15 / PB3 | TIM2 ch 1/2 (32-bit) | PA15/PB3 are JTDI/SWO: debug with SWD only |
 //! | slave 1 encoder A/B | PB4 / PB5 | TIM3 ch 1/2 (16-bit, extended in software) | |
 //! | pressure 0…3 | PC1 / PC2 / PB0 / PB1 | ADC1 IN11 / IN12 / IN8 / IN9, DMA2 stream 0 | continuous scan, 144-cycle samples |
-//! | host link TX / RX | PA2 / PA3 | USART2, DMA1 stream 6 / 5 | 115 200 8N1 |
+//! | host link TX / RX | PA2 / PA3 | USART2, DMA1 stream 6 / 5 | 921 600 8N1 |
+//! | table slots | — | flash sectors 10 / 11 (0x080C_0000 / 0x080E_0000) | `crate::flash` |
 //! | valve-power enable | PE7 | GPIO push-pull out | high = valves powered; external pull-down |
 //! | E-stop chain | PE8 | GPIO in, pull-down | high = chain closed (run permitted) |
 //! | status LED | PD12 | GPIO out | green LED of the STM32F4-Discovery |
@@ -44,8 +45,9 @@ use crate::valves::{OnChipDac, ValveBank};
 pub const SLAVES: usize = 2;
 /// Pressure channels.
 pub const PRESSURES: usize = 4;
-/// Host-link baud rate.
-pub const LINK_BAUD: u32 = 115_200;
+/// Host-link baud rate (the host tools' `host-sim … --port`: 921 600; USART2 on the
+/// 42 MHz APB1 with 16× oversampling: divider 45.5625, 0.02 % error).
+pub const LINK_BAUD: u32 = 921_600;
 /// Independent-watchdog timeout, µs (nominal LSI 32 kHz; the F407's LSI spans
 /// 17–47 kHz, so the real timeout is 34–94 ms).
 pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
@@ -153,6 +155,9 @@ pub struct Board {
     pub iwdg: IndependentWatchdog<'static, peripherals::IWDG>,
     /// Status LED.
     pub led: Output<'static>,
+    /// The internal flash (table slots in sectors 10 and 11).
+    #[cfg_attr(feature = "console", allow(dead_code))]
+    pub flash: embassy_stm32::flash::Flash<'static, embassy_stm32::flash::Blocking>,
 }
 
 static ADC_BUF: StaticCell<[u16; ADC_BUF_LEN]> = StaticCell::new();
@@ -224,6 +229,7 @@ impl Board {
             tick_timer: p.TIM7,
             iwdg,
             led,
+            flash: embassy_stm32::flash::Flash::new_blocking(p.FLASH),
         }
     }
 }

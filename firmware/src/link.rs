@@ -1,18 +1,23 @@
 //! The host link: USART2 with DMA, served by one thread-mode task below every
 //! interrupt, so it can never delay the tick.
 //!
-//! RX is a DMA ring buffer ([`RingBufferedUartRx`], 256 bytes: 22 ms of traffic at
-//! 115 200 Bd) that keeps receiving while the task is busy; TX is one DMA write per
-//! batch of output. The task wakes on received bytes or every 10 ms, then:
-//! 1. feeds received bytes to the protocol ([`LinkProtocol::on_rx`]), which may queue
-//!    commands for the tick (lock-free SPSC queue, applied at the next tick);
-//! 2. hands the tick's replies to the protocol ([`LinkProtocol::on_reply`]);
-//! 3. takes the tick's 10 ms status snapshots, logs state changes over defmt and tells
-//!    the protocol ([`LinkProtocol::on_state_change`]);
-//! 4. writes what the protocol queued for the host.
+//! RX is a DMA ring buffer ([`RingBufferedUartRx`], [`RX_RING_LEN`] = 1024 bytes: 11 ms
+//! of traffic at 921 600 Bd, two maximal frames) that keeps receiving while the task is
+//! busy; TX is one DMA write per batch of output. The task wakes on received bytes or
+//! every 10 ms, then:
+//! 1. takes the tick's 10 ms status snapshots, logs state changes over defmt;
+//! 2. feeds received bytes to the protocol ([`LinkProtocol::on_rx`]), which may queue
+//!    commands for the tick (lock-free SPSC queue, applied at the next tick) and wait
+//!    for their answers ([`LinkIo::command_wait`]);
+//! 3. lets the protocol do deferred work ([`LinkProtocol::on_wake`]);
+//! 4. hands the tick's remaining replies ([`LinkProtocol::on_reply`]), the state change
+//!    ([`LinkProtocol::on_state_change`]) and every per-tick sample
+//!    ([`LinkProtocol::on_sample`]) to the protocol;
+//! 5. writes what the protocol queued for the host.
 //!
-//! The protocol is a trait so the bring-up [`crate::console::Console`] and the framed
-//! table-upload protocol (issue 8) plug into the same task.
+//! The protocol is a trait: the framed protocol ([`crate::framed::Framed`], default) and
+//! the bring-up text console ([`crate::console::Console`], `--features console`) plug
+//! into the same task.
 
 use core::sync::atomic::{AtomicU8, Ordering};
 use embassy_futures::select::{select, Either};
@@ -21,29 +26,71 @@ use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
 use embassy_time::Timer;
 use heapless::spsc::{Consumer, Producer};
 use heapless::Vec;
-use hydra_core::runtime::{Command, State};
+use hydra_core::runtime::{Command, CommandError, State};
 
-use crate::console::Console;
-use crate::tick::{BoardStatus, Reply};
+use crate::tick::{BoardStatus, Reply, TickSample};
+
+/// The protocol the link task runs.
+#[cfg(not(feature = "console"))]
+pub type Proto = &'static mut crate::framed::Framed;
+/// The protocol the link task runs.
+#[cfg(feature = "console")]
+pub type Proto = crate::console::Console;
 
 /// Bytes the protocol may queue for the host per wake-up.
-pub const OUT_LEN: usize = 1024;
+pub const OUT_LEN: usize = 2048;
 /// RX DMA ring size.
-pub const RX_RING_LEN: usize = 256;
+pub const RX_RING_LEN: usize = 1024;
+/// How long [`LinkIo::command_wait`] waits for the tick's answer: 10 periods.
+pub const COMMAND_WAIT_CYCLES: u32 =
+    (crate::board::SYSCLK_HZ / 1_000_000) * crate::program::PERIOD_US * 10;
 
 /// What a protocol handler can do on the link.
 pub struct LinkIo<'a> {
     cmd_tx: &'a mut Producer<'static, Command>,
+    reply_rx: &'a mut Consumer<'static, Reply>,
     out: &'a mut Vec<u8, OUT_LEN>,
     latest: Option<&'a BoardStatus>,
 }
 
 impl LinkIo<'_> {
     /// Queues a command for the next tick; `false` if the queue is full.
+    #[cfg_attr(not(feature = "console"), allow(dead_code))]
     pub fn command(&mut self, c: Command) -> bool {
         self.cmd_tx.enqueue(c).is_ok()
     }
 
+    /// Queues a command and busy-waits (thread mode: only the LED task waits meanwhile)
+    /// for the tick's answer, at most [`COMMAND_WAIT_CYCLES`]. `None`: the queue was
+    /// full or the tick did not answer in time. Answers to earlier commands still
+    /// queued are discarded first.
+    #[cfg_attr(feature = "console", allow(dead_code))]
+    pub fn command_wait(&mut self, c: Command) -> Option<Result<(), CommandError>> {
+        while self.reply_rx.dequeue().is_some() {}
+        self.cmd_tx.enqueue(c).ok()?;
+        let t0 = cortex_m::peripheral::DWT::cycle_count();
+        // Backstop if the cycle counter is not running: ≥ 10 cycles per spin.
+        for _ in 0..COMMAND_WAIT_CYCLES / 10 {
+            if let Some(r) = self.reply_rx.dequeue() {
+                if r.cmd == c {
+                    return Some(r.result);
+                }
+            }
+            if cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0) > COMMAND_WAIT_CYCLES {
+                break;
+            }
+        }
+        None
+    }
+
+    /// Queues bytes only if all of them fit (a frame is never cut); returns whether
+    /// they did.
+    #[cfg_attr(feature = "console", allow(dead_code))]
+    pub fn send_whole(&mut self, bytes: &[u8]) -> bool {
+        self.out.extend_from_slice(bytes).is_ok()
+    }
+
+    #[cfg_attr(not(feature = "console"), allow(dead_code))]
     /// Queues bytes for the host (truncated if the batch is full; returns whether all fit).
     pub fn send(&mut self, bytes: &[u8]) -> bool {
         let room = OUT_LEN.saturating_sub(self.out.len());
@@ -56,6 +103,7 @@ impl LinkIo<'_> {
     }
 
     /// The latest status snapshot (10 ms old at most once the tick runs).
+    #[cfg_attr(not(feature = "console"), allow(dead_code))]
     pub fn latest(&self) -> Option<&BoardStatus> {
         self.latest
     }
@@ -69,13 +117,18 @@ pub trait LinkProtocol {
     fn on_reply(&mut self, reply: Reply, io: &mut LinkIo<'_>);
     /// The runtime changed state or latched a fault.
     fn on_state_change(&mut self, status: &BoardStatus, io: &mut LinkIo<'_>);
+    /// Once per wake-up, after the received bytes (deferred work).
+    fn on_wake(&mut self, _io: &mut LinkIo<'_>) {}
+    /// One tick's sample, in tick order (samples the link was too slow for are lost).
+    fn on_sample(&mut self, _sample: &TickSample, _io: &mut LinkIo<'_>) {}
 }
 
 /// The runtime state as a small code for the status LED (0 Idle, 1 Following,
 /// 2 Holding, 3 Fault), published by the link task.
 pub static STATE_CODE: AtomicU8 = AtomicU8::new(0);
 
-fn state_code(s: State) -> u8 {
+/// The runtime state as the protocol's code: 0 Idle, 1 Following, 2 Holding, 3 Fault.
+pub fn state_code(s: State) -> u8 {
     match s {
         State::Idle => 0,
         State::Following => 1,
@@ -92,6 +145,8 @@ pub struct LinkChannels {
     pub reply_rx: Consumer<'static, Reply>,
     /// Status snapshots from the tick.
     pub status_rx: Consumer<'static, BoardStatus>,
+    /// Per-tick samples from the tick.
+    pub sample_rx: Consumer<'static, TickSample>,
 }
 
 /// The host-link task (see the module docs).
@@ -100,8 +155,9 @@ pub async fn link_task(
     mut rx: RingBufferedUartRx<'static>,
     mut tx: UartTx<'static, Async>,
     mut ch: LinkChannels,
+    #[allow(unused_mut)] // `Proto` is a `&mut` (framed) or a value (console)
+    mut proto: Proto,
 ) {
-    let mut proto = Console::default();
     let mut buf = [0u8; 64];
     let mut out: Vec<u8, OUT_LEN> = Vec::new();
     let mut latest: Option<BoardStatus> = None;
@@ -127,6 +183,7 @@ pub async fn link_task(
         }
         let mut io = LinkIo {
             cmd_tx: &mut ch.cmd_tx,
+            reply_rx: &mut ch.reply_rx,
             out: &mut out,
             latest: latest.as_ref(),
         };
@@ -135,12 +192,16 @@ pub async fn link_task(
                 proto.on_rx(bytes, &mut io);
             }
         }
-        while let Some(r) = ch.reply_rx.dequeue() {
+        proto.on_wake(&mut io);
+        while let Some(r) = io.reply_rx.dequeue() {
             defmt::info!("command {} -> {}", r.cmd, r.result);
             proto.on_reply(r, &mut io);
         }
         if let Some(s) = changed {
             proto.on_state_change(&s, &mut io);
+        }
+        while let Some(s) = ch.sample_rx.dequeue() {
+            proto.on_sample(&s, &mut io);
         }
         if !out.is_empty() {
             if let Err(e) = tx.write(&out).await {

@@ -6,15 +6,25 @@
 //! - [`valves`], [`encoders`], [`pressure`], [`safety`]: drivers behind the core's
 //!   board traits;
 //! - [`tick`]: the hard-period tick (TIM7 interrupt, priority 0);
-//! - [`link`] + [`console`]: the host link (thread mode, below every interrupt);
+//! - [`link`]: the host link (thread mode, below every interrupt) running [`framed`], the
+//!   table-upload protocol of `PROTOCOL.md` over [`device`] (the runtime as the
+//!   protocol's `Device`) and [`flash`] (tables in sectors 10/11) — or, built with
+//!   `--features console`, the bring-up text [`console`];
 //! - [`panic`]: panic/hard-fault handlers that null the valves first;
-//! - [`program`]: the configuration and law the board boots with.
+//! - [`program`]: the configuration the board boots with.
 #![no_std]
 #![no_main]
 
 mod board;
+#[cfg(feature = "console")]
 mod console;
+#[cfg(not(feature = "console"))]
+mod device;
 mod encoders;
+#[cfg(not(feature = "console"))]
+mod flash;
+#[cfg(not(feature = "console"))]
+mod framed;
 mod link;
 mod panic;
 mod pressure;
@@ -30,12 +40,16 @@ use hydra_core::runtime::{Command, Controller, Runtime};
 use static_cell::StaticCell;
 
 use board::Board;
-use tick::{BoardStatus, Reply, Tick, TickLinks};
+use tick::{BoardStatus, Reply, Tick, TickLinks, TickSample};
 use valves::ValveBank;
 
 static CMD_Q: StaticCell<Queue<Command, 8>> = StaticCell::new();
 static REPLY_Q: StaticCell<Queue<Reply, 8>> = StaticCell::new();
 static STATUS_Q: StaticCell<Queue<BoardStatus, 4>> = StaticCell::new();
+/// Per-tick samples: 32 ticks of slack for the link task (it wakes at least every 10 ms).
+static SAMPLE_Q: StaticCell<Queue<TickSample, 32>> = StaticCell::new();
+#[cfg(not(feature = "console"))]
+static FRAMED: StaticCell<framed::Framed> = StaticCell::new();
 static RX_RING: StaticCell<[u8; link::RX_RING_LEN]> = StaticCell::new();
 
 #[embassy_executor::main]
@@ -46,11 +60,32 @@ async fn main(spawner: Spawner) {
 
     // The law and its valve nulls first: the DAC leaves mid-scale for the calibrated
     // null before the runtime exists.
-    let law = match program::boot_law() {
-        Ok(l) => Some(l),
+    #[cfg(not(feature = "console"))]
+    let (proto, law) = {
+        let flash = flash::SlotFlash::new(board.flash);
+        let fr = match framed::Framed::new(flash) {
+            Ok(f) => FRAMED.init(f),
+            Err(e) => defmt::panic!("table slots: {}", e),
+        };
+        match fr.boot() {
+            Some(h) => defmt::info!(
+                "table {=u32} ({=u16} rows) from slot {=u8}, generation {=u32}",
+                h.id,
+                h.rows,
+                h.slot,
+                h.generation
+            ),
+            None => defmt::warn!("no valid table in flash: idle without a law"),
+        }
+        let law = fr.dev.law();
+        (fr, law)
+    };
+    #[cfg(feature = "console")]
+    let (proto, law) = match program::boot_law() {
+        Ok(l) => (console::Console::default(), Some(l)),
         Err(e) => {
             defmt::error!("boot program rejected: {}; running without a law", e);
-            None
+            (console::Console::default(), None)
         }
     };
     let nulls = law.as_ref().map(|l| l.null_codes());
@@ -81,6 +116,7 @@ async fn main(spawner: Spawner) {
     let (cmd_tx, cmd_rx) = CMD_Q.init(Queue::new()).split();
     let (reply_tx, reply_rx) = REPLY_Q.init(Queue::new()).split();
     let (status_tx, status_rx) = STATUS_Q.init(Queue::new()).split();
+    let (sample_tx, sample_rx) = SAMPLE_Q.init(Queue::new()).split();
 
     let Board {
         io,
@@ -88,6 +124,7 @@ async fn main(spawner: Spawner) {
         tick_timer,
         iwdg,
         led,
+        ..
     } = board;
     tick::start(Tick::new(
         rt,
@@ -98,6 +135,7 @@ async fn main(spawner: Spawner) {
             cmd_rx,
             reply_tx,
             status_tx,
+            sample_tx,
         },
     ));
 
@@ -107,8 +145,9 @@ async fn main(spawner: Spawner) {
         cmd_tx,
         reply_rx,
         status_rx,
+        sample_rx,
     };
-    match link::link_task(rx, tx, channels) {
+    match link::link_task(rx, tx, channels, proto) {
         Ok(t) => spawner.spawn(t),
         Err(e) => defmt::panic!("spawn link: {}", e),
     }

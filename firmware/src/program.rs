@@ -1,19 +1,26 @@
-//! The configuration and the control law the board boots with.
+//! The configuration the board boots with: runtime limits, the follower's gains and the
+//! limits every table is validated against.
 //!
-//! Until the table-upload protocol (issue 8) installs tables over the host link and
-//! restores them from flash, the board boots with the reference machine's program
-//! (PLANT.md): slave 0 is the tangent cylinder following the die's cam table — the
-//! support point of a 900 × 600 mm ellipse centred 250 mm off the rotation axis, nodes
+//! With the framed protocol (the default build) the cam table comes from flash (the
+//! newest valid slot) or over the host link; an empty flash boots without a law (Start
+//! is refused until a table is activated). The bring-up build (`--features console`)
+//! boots with the reference machine's program (PLANT.md) instead:
+//! slave 0 is the tangent cylinder following the die's cam table — the support point of a 900 × 600 mm ellipse centred 250 mm off the rotation axis, nodes
 //! every 0.5° from 0° to 90° (181 nodes), scaled to 20…480 mm — and slave 1 holds 20 mm
 //! over the whole table. The table is computed once at boot (f64, `libm`); the tick
 //! never touches a float.
 
+#[cfg(feature = "console")]
 use heapless::Vec;
 use hydra_core::axis::{AxisConfig, ControlMode};
 use hydra_core::follower::{Follower, FollowerConfig};
 use hydra_core::runtime::{RuntimeCoeffs, RuntimeConfig};
-use hydra_core::table::{AxisLimits, CamTable, Node, TableLimits};
-use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
+use hydra_core::table::{AxisLimits, TableLimits};
+#[cfg(feature = "console")]
+use hydra_core::table::{CamTable, Node};
+#[cfg(feature = "console")]
+use hydra_core::units::Master;
+use hydra_core::units::{MasterRate, PosUm, VelUmPerS};
 
 use crate::board::SLAVES;
 
@@ -30,8 +37,10 @@ pub enum ProgramError {
     /// The runtime configuration.
     Runtime(hydra_core::runtime::RuntimeConfigError),
     /// The cam table.
+    #[cfg(feature = "console")]
     Table(hydra_core::table::TableError),
     /// The follower configuration.
+    #[cfg(feature = "console")]
     Follower(hydra_core::follower::FollowerError),
 }
 
@@ -46,6 +55,7 @@ pub fn runtime_coeffs() -> Result<RuntimeCoeffs<SLAVES>, ProgramError> {
 }
 
 /// x_raw(θ) of PLANT.md, mm.
+#[cfg(feature = "console")]
 fn x_raw_mm(theta_deg: f64) -> f64 {
     let (a, b, e) = (900.0f64, 600.0f64, 250.0f64);
     let t = theta_deg.to_radians();
@@ -53,7 +63,46 @@ fn x_raw_mm(theta_deg: f64) -> f64 {
     e * c + (a * a - b * b) * s * c / libm::sqrt(a * a * s * s + b * b * c * c)
 }
 
+/// The limits every table is validated against (at upload, at boot from flash): slaves
+/// 0 … 500 mm at up to 200 mm/s, master up to 10 °/s (three times the nominal table
+/// speed; 1 master count = 0.001°).
+pub fn table_limits() -> TableLimits<SLAVES> {
+    let axis = AxisLimits {
+        min_um: PosUm::from_num(0),
+        max_um: PosUm::from_num(500_000),
+        max_speed_um_per_s: VelUmPerS::from_num(200_000),
+    };
+    TableLimits {
+        master_speed_per_s: MasterRate::from_num(10_000),
+        axes: [axis; SLAVES],
+    }
+}
+
+/// The follower's configuration: the reference valve/cylinder gains on every slave.
+pub fn follower_config() -> FollowerConfig<SLAVES> {
+    let axis = AxisConfig {
+        mode: ControlMode::Feedforward,
+        kp_lsb_per_um: 0.4,
+        ki_lsb_per_um_s: 5.0,
+        kd_lsb_s_per_um: 0.0005,
+        i_zone_um: 200.0,
+        i_limit_lsb: 100.0,
+        kv_pos_lsb_per_um_s: 0.017,
+        kv_neg_lsb_per_um_s: 0.025,
+        ka_lsb_per_um_s2: 0.0001,
+        valve_lag_us: 4200.0,
+        following_error_um: 5000.0,
+        ..AxisConfig::default()
+    };
+    FollowerConfig::<SLAVES> {
+        period_us: PERIOD_US,
+        axes: [axis; SLAVES],
+        ..FollowerConfig::default()
+    }
+}
+
 /// The reference cam table (see the module docs).
+#[cfg(feature = "console")]
 fn reference_table() -> Result<CamTable<SLAVES, TABLE_NODES>, ProgramError> {
     const ROWS: usize = 181;
     let mut raw = [0.0f64; ROWS];
@@ -73,39 +122,11 @@ fn reference_table() -> Result<CamTable<SLAVES, TABLE_NODES>, ProgramError> {
         // ROWS ≤ capacity: cannot fail.
         let _ = nodes.push(node);
     }
-    let axis = AxisLimits {
-        min_um: PosUm::from_num(0),
-        max_um: PosUm::from_num(500_000),
-        max_speed_um_per_s: VelUmPerS::from_num(200_000),
-    };
-    let limits = TableLimits {
-        // 10 °/s: three times the nominal table speed.
-        master_speed_per_s: MasterRate::from_num(10_000),
-        axes: [axis; SLAVES],
-    };
-    CamTable::try_from_nodes(&nodes, &limits).map_err(ProgramError::Table)
+    CamTable::try_from_nodes(&nodes, &table_limits()).map_err(ProgramError::Table)
 }
 
 /// The follower with the reference table and gains for the reference valve/cylinder.
+#[cfg(feature = "console")]
 pub fn boot_law() -> Result<Law, ProgramError> {
-    let axis = AxisConfig {
-        mode: ControlMode::Feedforward,
-        kp_lsb_per_um: 0.4,
-        ki_lsb_per_um_s: 5.0,
-        kd_lsb_s_per_um: 0.0005,
-        i_zone_um: 200.0,
-        i_limit_lsb: 100.0,
-        kv_pos_lsb_per_um_s: 0.017,
-        kv_neg_lsb_per_um_s: 0.025,
-        ka_lsb_per_um_s2: 0.0001,
-        valve_lag_us: 4200.0,
-        following_error_um: 5000.0,
-        ..AxisConfig::default()
-    };
-    let cfg = FollowerConfig::<SLAVES> {
-        period_us: PERIOD_US,
-        axes: [axis; SLAVES],
-        ..FollowerConfig::default()
-    };
-    Follower::new(&cfg, reference_table()?).map_err(ProgramError::Follower)
+    Follower::new(&follower_config(), reference_table()?).map_err(ProgramError::Follower)
 }

@@ -16,7 +16,9 @@
 //! 3. the independent watchdog fed (only here: a tick that stops running resets the
 //!    board within the watchdog timeout);
 //! 4. every 10 ms a status snapshot is queued for the host link;
-//! 5. the tick's cycles are recorded (max, window mean); if TIM7's update flag is set
+//! 5. a [`TickSample`] (tick, master, per-axis target/actual/DAC code) is queued for the
+//!    host link's telemetry (a full queue drops it);
+//! 6. the tick's cycles are recorded (max, window mean); if TIM7's update flag is set
 //!    again the next period began before the tick finished, and if two tick starts are
 //!    more than 1.5 periods apart a period was skipped: either is an overrun, reported to
 //!    the runtime (which latches `Fault::Overrun`) at the next tick.
@@ -50,6 +52,22 @@ pub struct Reply {
     pub result: Result<(), CommandError>,
 }
 
+/// One tick's telemetry sample (raw fixed-point bits, as on the wire).
+#[derive(Clone, Copy, Debug)]
+#[cfg_attr(feature = "console", allow(dead_code))]
+pub struct TickSample {
+    /// Tick number since boot.
+    pub tick: u32,
+    /// Filtered master, I48F16 master counts (raw bits).
+    pub master: i64,
+    /// Per slave: target, I24F8 µm (raw bits).
+    pub target_um: [i32; SLAVES],
+    /// Per slave: measured position, I24F8 µm (raw bits).
+    pub actual_um: [i32; SLAVES],
+    /// Per slave: valve command, DAC LSB.
+    pub dac: [i16; SLAVES],
+}
+
 /// Status snapshots are queued every this many µs.
 pub const STATUS_PERIOD_US: u32 = 10_000;
 
@@ -62,6 +80,7 @@ pub struct Tick {
     cmd_rx: Consumer<'static, Command>,
     reply_tx: Producer<'static, Reply>,
     status_tx: Producer<'static, BoardStatus>,
+    sample_tx: Producer<'static, TickSample>,
     period_cycles: u32,
     last_start: Option<u32>,
     overrun_pending: bool,
@@ -77,6 +96,8 @@ pub struct TickLinks {
     pub reply_tx: Producer<'static, Reply>,
     /// Status snapshots out.
     pub status_tx: Producer<'static, BoardStatus>,
+    /// Per-tick telemetry samples out.
+    pub sample_tx: Producer<'static, TickSample>,
 }
 
 /// The tick's state (≈ 9 KiB with the cam table) lives in `.bss`.
@@ -107,6 +128,7 @@ impl Tick {
             cmd_rx: links.cmd_rx,
             reply_tx: links.reply_tx,
             status_tx: links.status_tx,
+            sample_tx: links.sample_tx,
             period_cycles,
             last_start: None,
             overrun_pending: false,
@@ -139,7 +161,16 @@ impl Tick {
             // A full queue means the link is behind: skip this snapshot.
             let _ = self.status_tx.enqueue(*self.rt.status());
         }
-        // 5. timing and overrun.
+        // 5. telemetry sample (a full queue means the link is behind: dropped).
+        let st = self.rt.status();
+        let _ = self.sample_tx.enqueue(TickSample {
+            tick: st.tick,
+            master: st.master.to_bits(),
+            target_um: st.target_um.map(|v| v.to_bits()),
+            actual_um: st.pos_um.map(|v| v.to_bits()),
+            dac: st.dac.map(|d| d.get()),
+        });
+        // 6. timing and overrun.
         let t1 = cortex_m::peripheral::DWT::cycle_count();
         self.rt.record_tick_cycles(t1.wrapping_sub(t0));
         if self.timer.regs_core().sr().read().uif() {
@@ -156,6 +187,71 @@ impl Tick {
         self.last_start = Some(t0);
         late
     }
+}
+
+#[cfg(not(feature = "console"))]
+/// Runs `f` on the tick's runtime inside a critical section (the tick cannot run
+/// meanwhile): keep `f` short, it delays the next tick by its duration. `None` before
+/// [`start`].
+pub fn with_runtime<R>(f: impl FnOnce(&mut BoardRuntime) -> R) -> Option<R> {
+    critical_section::with(|cs| TICK.borrow_ref_mut(cs).as_mut().map(|t| f(&mut t.rt)))
+}
+
+#[cfg(not(feature = "console"))]
+/// Runs `f` — something that stalls the CPU for longer than a period, i.e. a flash
+/// sector erase — with the tick held off, then resynchronises it so the pause is not
+/// an overrun. Only call while every axis is idle (valves at null, power off).
+///
+/// Inside one critical section: the watchdog is lengthened to
+/// [`STALL_WATCHDOG_RELOAD`] (prescaler /256: 8.2 s at the fastest LSI, 47 kHz), `f`
+/// runs, the runtime's encoder history is dropped (`Runtime::set_coeffs` with the same
+/// coefficients: the next sample is not compared with the one before the pause, so
+/// a drift while the valves were unpowered is not an encoder jump), the start-to-start
+/// overrun check restarts, and the watchdog gets its normal timeout back. The tick
+/// pending during the pause runs as soon as the section ends.
+pub fn stalled<R>(f: impl FnOnce() -> R) -> R {
+    critical_section::with(|cs| {
+        let iwdg = embassy_stm32::pac::IWDG;
+        let (pr, rlr) = (iwdg.pr().read().pr(), iwdg.rlr().read().rl());
+        set_watchdog(
+            embassy_stm32::pac::iwdg::vals::Pr::DIVIDE_BY256,
+            STALL_WATCHDOG_RELOAD,
+        );
+        let r = f();
+        if let Some(t) = TICK.borrow_ref_mut(cs).as_mut() {
+            let c = *t.rt.coeffs();
+            // In Idle/Fault (the caller's precondition) this cannot be refused.
+            let _ = t.rt.set_coeffs(c);
+            t.last_start = None;
+            t.overrun_pending = false;
+        }
+        set_watchdog(pr, rlr);
+        r
+    })
+}
+
+#[cfg(not(feature = "console"))]
+/// Watchdog reload value while the CPU is stalled by a flash erase (see [`stalled`]):
+/// 1500 × 256 / LSI = 8.2 s at 47 kHz … 22.6 s at 17 kHz, against a 128 KiB sector
+/// erase of 1 s typical, 2 s maximum (x32 parallelism, RM0090 / DS8626).
+pub const STALL_WATCHDOG_RELOAD: u16 = 1500;
+
+#[cfg(not(feature = "console"))]
+/// Reprograms the IWDG's prescaler and reload and restarts its count.
+fn set_watchdog(pr: embassy_stm32::pac::iwdg::vals::Pr, rlr: u16) {
+    let iwdg = embassy_stm32::pac::IWDG;
+    // Reload first (the full present timeout to make the change in), then unlock PR/RLR
+    // (writing the reload key again locks them).
+    iwdg.kr()
+        .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::RESET));
+    iwdg.kr()
+        .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::ENABLE));
+    iwdg.pr().write(|w| w.set_pr(pr));
+    iwdg.rlr().write(|w| w.set_rl(rlr));
+    // The new values reach the LSI domain within a few LSI cycles (< 1 ms).
+    while iwdg.sr().read().pvu() || iwdg.sr().read().rvu() {}
+    iwdg.kr()
+        .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::RESET));
 }
 
 /// Hands the tick to its interrupt and starts the period timer.

@@ -1,0 +1,264 @@
+//! The board as the protocol handler sees it: `hydra_core::protocol::Device` over the
+//! tick's runtime (the firmware's counterpart of `host-sim/src/vboard.rs::Machine`).
+//!
+//! The runtime lives in the tick (priority 0); this side runs in the thread-mode link
+//! task. Reads (state, status, safe point) and law installs go through
+//! [`crate::tick::with_runtime`], a short critical section. Motion commands go through
+//! the tick's command queue and are answered after the tick that applied them
+//! ([`LinkIo::command_wait`]), so a command never races the tick.
+//!
+//! A new law (a table activated, a parameter changed) is built here, outside the
+//! critical section, then installed together with its valve null codes
+//! ([`ValveBank::publish_safe_codes`], read by the panic handler) in one critical
+//! section, only at a safe point (the handler checks it; `Runtime::install` refuses
+//! otherwise). That section moves the law (`Follower<2, 256>`) into the runtime: the tick
+//! after it starts late by that copy, once, while the valves are at null or holding the
+//! table's end.
+//!
+//! A copy of the active table is kept here for Save and for rebuilding the law when a
+//! gain changes, so this side never borrows the table the tick is using.
+
+use hydra_core::follower::FollowerConfig;
+use hydra_core::protocol::msg::{AxisStatus, StatusMsg};
+use hydra_core::protocol::{Device, Motion, Nak, NakCode, ParamId};
+use hydra_core::runtime::{Command, HoldReason, State};
+use hydra_core::table::{CamTable, TableLimits};
+use hydra_core::units::{MasterRate, PosUm};
+
+use crate::board::{SLAVES, SYSCLK_HZ};
+use crate::link::{state_code, LinkIo};
+use crate::program::{Law, PERIOD_US, TABLE_NODES};
+use crate::tick::{self, BoardStatus};
+use crate::valves::ValveBank;
+
+/// The board's table type.
+pub type Table = CamTable<SLAVES, TABLE_NODES>;
+
+const fn parse_u8(s: &str) -> u8 {
+    let b = s.as_bytes();
+    let mut v: u8 = 0;
+    let mut i = 0;
+    while i < b.len() {
+        v = v
+            .saturating_mul(10)
+            .saturating_add(b[i].saturating_sub(b'0'));
+        i += 1;
+    }
+    v
+}
+
+/// Firmware version reported by Info (the crate's version).
+pub const FIRMWARE: [u8; 3] = [
+    parse_u8(env!("CARGO_PKG_VERSION_MAJOR")),
+    parse_u8(env!("CARGO_PKG_VERSION_MINOR")),
+    parse_u8(env!("CARGO_PKG_VERSION_PATCH")),
+];
+
+/// What the link side keeps about the machine: gains, limits, the active table.
+pub struct DeviceState {
+    /// The follower's configuration (gains, calibration); SetParam edits it.
+    pub fcfg: FollowerConfig<SLAVES>,
+    /// The limits tables are validated against; SetParam edits them.
+    pub limits: TableLimits<SLAVES>,
+    /// Copy of the table inside the running law.
+    pub active: Option<Table>,
+}
+
+impl DeviceState {
+    /// The boot configuration (`crate::program`), no table.
+    pub fn new() -> Self {
+        Self {
+            fcfg: crate::program::follower_config(),
+            limits: crate::program::table_limits(),
+            active: None,
+        }
+    }
+
+    /// The law for the active table with the present configuration (boot).
+    pub fn law(&self) -> Option<Law> {
+        let t = self.active.clone()?;
+        match Law::new(&self.fcfg, t) {
+            Ok(l) => Some(l),
+            Err(e) => {
+                defmt::error!("follower rejected the table: {}", e);
+                None
+            }
+        }
+    }
+}
+
+/// The handler's view of the board for one call (`io` is `None` at boot, before the
+/// link runs: commands are then refused).
+pub struct BoardDevice<'a, 'b> {
+    /// Gains, limits, active table.
+    pub st: &'a mut DeviceState,
+    /// The link's queues to the tick.
+    pub io: Option<&'a mut LinkIo<'b>>,
+}
+
+/// Installs `law` (and its null codes for the panic handler) if the tick runs; `false`
+/// if the runtime refused it (not at a safe point).
+fn install(law: Law) -> bool {
+    let nulls = hydra_core::runtime::Controller::null_codes(&law);
+    tick::with_runtime(|rt| match rt.install(law) {
+        Ok(_) => {
+            ValveBank::publish_safe_codes(&nulls);
+            true
+        }
+        Err(_) => false,
+    })
+    .unwrap_or(false)
+}
+
+fn cycles_to_ns(c: u32) -> u32 {
+    let ns = u64::from(c).saturating_mul(1_000_000_000) / u64::from(SYSCLK_HZ);
+    u32::try_from(ns).unwrap_or(u32::MAX)
+}
+
+impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
+    fn firmware(&self) -> [u8; 3] {
+        FIRMWARE
+    }
+    fn period_us(&self) -> u32 {
+        PERIOD_US
+    }
+    fn table_limits(&self) -> TableLimits<SLAVES> {
+        self.st.limits
+    }
+    fn active_table(&self) -> Option<&Table> {
+        self.st.active.as_ref()
+    }
+    fn at_safe_point(&self) -> bool {
+        // Before the tick starts (boot) nothing runs: always safe.
+        tick::with_runtime(|rt| rt.at_safe_point()).unwrap_or(true)
+    }
+    fn all_idle(&self) -> bool {
+        tick::with_runtime(|rt| matches!(rt.state(), State::Idle | State::Fault)).unwrap_or(true)
+    }
+    fn install_table(&mut self, table: Table) {
+        let law = match Law::new(&self.st.fcfg, table.clone()) {
+            Ok(l) => l,
+            Err(e) => {
+                defmt::error!("follower rejected the table: {}", e);
+                return;
+            }
+        };
+        // Before the tick starts (boot) `main` builds the law from `st.active` itself.
+        let running = tick::with_runtime(|_| ()).is_some();
+        if !running || install(law) {
+            self.st.active = Some(table);
+            defmt::info!(
+                "table installed ({} rows)",
+                self.st.active.as_ref().map_or(0, |t| t.len())
+            );
+        } else {
+            defmt::warn!("table not installed: runtime not at a safe point");
+        }
+    }
+    fn command(&mut self, m: Motion) -> Result<(), Nak> {
+        let cmd = match m {
+            Motion::Start => Command::Start,
+            Motion::Stop => Command::Stop,
+            Motion::Hold => Command::Hold,
+            Motion::ClearFault => Command::ClearFault,
+        };
+        let state = tick::with_runtime(|rt| state_code(rt.state())).unwrap_or(0xFF);
+        let io = self
+            .io
+            .as_mut()
+            .ok_or(Nak::with(NakCode::BadState, 0xFFFF, 0))?;
+        match io.command_wait(cmd) {
+            Some(Ok(())) => Ok(()),
+            Some(Err(e)) => {
+                defmt::info!("command {} refused: {}", cmd, e);
+                Err(Nak::with(NakCode::BadState, u16::from(state), 0))
+            }
+            // The tick did not answer in time (or the queue is full): detail 0xFFFF.
+            None => Err(Nak::with(NakCode::BadState, 0xFFFF, 0)),
+        }
+    }
+    fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
+        let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+        if !self.all_idle() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        let i = usize::from(axis);
+        let mut f = self.st.fcfg;
+        let mut lim = self.st.limits;
+        let (Some(a), Some(l)) = (f.axes.get_mut(i), lim.axes.get_mut(i)) else {
+            return Err(Nak::with(
+                NakCode::UnknownParam,
+                u16::from(axis),
+                param as u8,
+            ));
+        };
+        match param {
+            ParamId::KpLsbPerUm => a.kp_lsb_per_um = value,
+            ParamId::KiLsbPerUmS => a.ki_lsb_per_um_s = value,
+            ParamId::KdLsbSPerUm => a.kd_lsb_s_per_um = value,
+            ParamId::KvLsbPerUmS => {
+                a.kv_pos_lsb_per_um_s = value;
+                a.kv_neg_lsb_per_um_s = value;
+            }
+            ParamId::KaLsbPerUmS2 => a.ka_lsb_per_um_s2 = value,
+            ParamId::FollowingErrorUm => a.following_error_um = value,
+            ParamId::ValveNullLsb => a.valve.null_lsb = value,
+            ParamId::MinUm | ParamId::MaxUm | ParamId::MaxSpeedUmPerS => {
+                let v = PosUm::checked_from_num(value).ok_or(range)?;
+                match param {
+                    ParamId::MinUm => l.min_um = v,
+                    ParamId::MaxUm => l.max_um = v,
+                    _ => l.max_speed_um_per_s = v,
+                }
+                if l.min_um >= l.max_um || l.max_speed_um_per_s <= 0 {
+                    return Err(range);
+                }
+            }
+            ParamId::MasterSpeedPerS => {
+                lim.master_speed_per_s = MasterRate::checked_from_num(value)
+                    .filter(|v| *v > 0)
+                    .ok_or(range)?;
+            }
+        }
+        // Validate with the configuration's own builder; rebuild the law if one runs.
+        a.build(f.period_us).map_err(|_| range)?;
+        if let Some(t) = self.st.active.clone() {
+            let law = Law::new(&f, t).map_err(|_| range)?;
+            if !install(law) {
+                return Err(Nak::new(NakCode::NotIdle));
+            }
+        }
+        self.st.fcfg = f;
+        self.st.limits = lim;
+        Ok(())
+    }
+    fn status(&self, out: &mut StatusMsg) {
+        let Some(st): Option<BoardStatus> = tick::with_runtime(|rt| *rt.status()) else {
+            return;
+        };
+        out.state = state_code(st.state);
+        out.flags = u8::from(matches!(st.state, State::Holding(HoldReason::EndOfTable)));
+        out.fault_axis = 0xFF;
+        if let Some(f) = st.fault {
+            let code = f.fault.code();
+            out.fault_code = code;
+            // Per-slave kinds carry the slave in the low byte (0x06aa, 0x07aa).
+            if matches!(code >> 8, 0x06 | 0x07) {
+                out.fault_axis = (code & 0xFF) as u8;
+            }
+        }
+        out.ticks = st.tick;
+        out.tick_max_ns = cycles_to_ns(st.timing.max_cycles);
+        out.tick_mean_ns = cycles_to_ns(st.timing.mean_cycles);
+        out.overruns = st.timing.overruns;
+        out.master = st.master.to_bits();
+        for i in 0..SLAVES {
+            let _ = out.axes.push(AxisStatus {
+                pos_um: st.pos_um[i].to_bits(),
+                target_um: st.target_um[i].to_bits(),
+                error_um: st.error_um[i].to_bits(),
+                dac: st.dac[i].get(),
+            });
+        }
+    }
+}

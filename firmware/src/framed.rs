@@ -1,0 +1,129 @@
+//! The framed protocol (`PROTOCOL.md`) on the host link: the same
+//! `hydra_core::protocol::Handler` the virtual board (`host-sim serve --pty`) runs,
+//! behind the link task's [`LinkProtocol`] slot.
+//!
+//! | handler entry point | called from |
+//! |---|---|
+//! | `Handler::boot` | [`Framed::boot`], in `main` before the tick starts: the newest valid flash slot becomes the boot law |
+//! | `Handler::on_bytes` | [`LinkProtocol::on_rx`], each chunk of the RX DMA ring |
+//! | `Handler::poll` | [`LinkProtocol::on_wake`], every wake-up of the link task (≤ 10 ms): an armed activation is installed at the next safe point |
+//! | `Handler::on_tick` | [`LinkProtocol::on_sample`], once per tick sample queued by the tick (telemetry every `decimation` samples) |
+//!
+//! The handler's output frames are collected whole and queued for the UART's DMA write;
+//! a frame that does not fit the batch is dropped whole (the host times out and
+//! retries with the same seq, which the handler answers `Duplicate` if it was done).
+
+use heapless::Vec;
+use hydra_core::protocol::msg::{AxisSample, Telemetry};
+use hydra_core::protocol::{Handler, SlotHeader, Store, StoreError};
+
+use crate::board::SLAVES;
+use crate::device::{BoardDevice, DeviceState};
+use crate::flash::{SlotFlash, SLOT0_OFFSET, SLOT_BYTES};
+use crate::link::{LinkIo, LinkProtocol};
+use crate::program::TABLE_NODES;
+use crate::tick::{BoardStatus, Reply, TickSample};
+
+/// Output bytes one `on_rx` call may produce (a 64-byte chunk of garbage yields at most
+/// 64 Nak frames of 15 wire bytes).
+const TX_LEN: usize = 1024;
+
+/// The framed protocol's state: handler, flash and the device's link-side state.
+pub struct Framed {
+    handler: Handler<SLAVES, TABLE_NODES>,
+    flash: SlotFlash,
+    /// Gains, limits and the copy of the active table.
+    pub dev: DeviceState,
+    tx: Vec<u8, TX_LEN>,
+}
+
+impl Framed {
+    /// The handler on the two slots of `flash` (sectors 10 and 11).
+    pub fn new(flash: SlotFlash) -> Result<Self, StoreError> {
+        let store = Store::new::<_, SLAVES, TABLE_NODES>(&flash, SLOT0_OFFSET, SLOT_BYTES)?;
+        Ok(Self {
+            handler: Handler::new(store),
+            flash,
+            dev: DeviceState::new(),
+            tx: Vec::new(),
+        })
+    }
+
+    /// Loads the newest valid slot into `dev.active` (call before the tick starts, then
+    /// build the boot law with [`DeviceState::law`]).
+    pub fn boot(&mut self) -> Option<SlotHeader> {
+        let mut dev = BoardDevice {
+            st: &mut self.dev,
+            io: None,
+        };
+        self.handler.boot(&mut dev, &mut self.flash)
+    }
+
+    fn flush(&mut self, io: &mut LinkIo<'_>) {
+        if !self.tx.is_empty() && !io.send_whole(&self.tx) {
+            defmt::warn!("host link: {} output bytes dropped", self.tx.len());
+        }
+        self.tx.clear();
+    }
+}
+
+/// Appends a whole frame or nothing.
+fn push_frame(tx: &mut Vec<u8, TX_LEN>, frame: &[u8]) {
+    if tx.extend_from_slice(frame).is_err() {
+        defmt::warn!("host link: frame of {} bytes dropped", frame.len());
+    }
+}
+
+fn telemetry(s: &TickSample) -> Telemetry {
+    let mut t = Telemetry {
+        tick: s.tick,
+        master: s.master,
+        axes: Vec::new(),
+    };
+    for ((&target_um, &actual_um), &dac) in s.target_um.iter().zip(&s.actual_um).zip(&s.dac) {
+        // SLAVES ≤ MAX_AXES: cannot fail.
+        let _ = t.axes.push(AxisSample {
+            target_um,
+            actual_um,
+            dac,
+        });
+    }
+    t
+}
+
+impl LinkProtocol for Framed {
+    fn on_rx(&mut self, bytes: &[u8], io: &mut LinkIo<'_>) {
+        let mut dev = BoardDevice {
+            st: &mut self.dev,
+            io: Some(&mut *io),
+        };
+        let tx = &mut self.tx;
+        self.handler
+            .on_bytes(&mut dev, &mut self.flash, bytes, &mut |f| push_frame(tx, f));
+        self.flush(io);
+    }
+
+    fn on_reply(&mut self, _reply: Reply, _io: &mut LinkIo<'_>) {
+        // Every command is answered inside `on_rx` (`LinkIo::command_wait`); a reply
+        // arriving later belongs to a command that timed out and was already Nak'd.
+    }
+
+    fn on_state_change(&mut self, _status: &BoardStatus, _io: &mut LinkIo<'_>) {
+        // The host polls Status; state changes are logged over defmt by the link task.
+    }
+
+    fn on_wake(&mut self, io: &mut LinkIo<'_>) {
+        let mut dev = BoardDevice {
+            st: &mut self.dev,
+            io: Some(&mut *io),
+        };
+        self.handler.poll(&mut dev);
+    }
+
+    fn on_sample(&mut self, sample: &TickSample, io: &mut LinkIo<'_>) {
+        let tx = &mut self.tx;
+        self.handler
+            .on_tick(&mut |f| push_frame(tx, f), || telemetry(sample));
+        self.flush(io);
+    }
+}
