@@ -3,7 +3,7 @@
 # flash (text + data) 128 KiB, static RAM (data + bss) 96 KiB.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-ELF=target/thumbv7em-none-eabihf/release/firmware
+ELF="${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/release/firmware"
 SIZE="$(rustc --print sysroot)/lib/rustlib/x86_64-unknown-linux-gnu/bin/llvm-size"
 "$SIZE" -A "$ELF" | grep -E '^(section|\.vector_table|\.text|\.rodata|\.data|\.bss|\.uninit|Total)' || true
 read -r text data bss <<<"$("$SIZE" -B "$ELF" | awk 'NR==2 {print $1, $2, $3}')"
