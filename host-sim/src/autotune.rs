@@ -56,12 +56,23 @@ const STEP_UM: f64 = 500.0;
 /// Largest first command of the test, LSB.
 const STEP_LSB: f64 = 500.0;
 
-fn round2(x: f64) -> f64 {
+/// `x` rounded to `digits` significant decimal digits: the `f64` nearest to the decimal
+/// number, so the value printed into a scenario file parses back to exactly it.
+fn round_sig(x: f64, digits: usize) -> f64 {
     if x == 0.0 || !x.is_finite() {
         return x;
     }
-    let e = 10f64.powf(x.abs().log10().floor() - 1.0);
-    (x / e).round() * e
+    format!("{:.*e}", digits.saturating_sub(1), x)
+        .parse()
+        .unwrap_or(x)
+}
+
+fn round2(x: f64) -> f64 {
+    round_sig(x, 2)
+}
+
+fn round4(x: f64) -> f64 {
+    round_sig(x, 4)
 }
 
 /// Where the step test runs: mid-stroke, or the middle of the free travel before a
@@ -226,13 +237,14 @@ pub fn ultimate_gain(
 
 /// Master-filter bandwidth of the rule, Hz.
 pub fn master_filter_hz(period_us: u32) -> f64 {
+    filter_limit_hz(period_us).min(8.0)
+}
+
+/// The master filter's bandwidth limit `0.2/T`, rounded down to 2 significant digits, Hz.
+pub fn filter_limit_hz(period_us: u32) -> f64 {
     let max = 0.2e6 / f64::from(period_us);
-    if 8.0 <= max {
-        8.0
-    } else {
-        let e = 10f64.powf(max.log10().floor() - 1.0);
-        (max / e).floor() * e
-    }
+    let e = 10f64.powf(max.log10().floor() - 1.0);
+    (max / e).floor() * e
 }
 
 /// Position gains of one follower axis by the rule.
@@ -273,14 +285,6 @@ pub fn position_gains(
         },
         ku,
     ))
-}
-
-fn round4(x: f64) -> f64 {
-    if x == 0.0 {
-        return 0.0;
-    }
-    let e = 10f64.powf(x.abs().log10().floor() - 3.0);
-    (x / e).round() * e
 }
 
 /// A scenario with only this force axis, for the press tests.

@@ -103,8 +103,12 @@ pub fn follower_config<const S: usize>(
 ) -> Result<FollowerConfig<S>, ScenarioError> {
     let mut cfg = FollowerConfig::<S> {
         period_us,
+        // A set used at a longer period than it was tuned at may ask for more bandwidth
+        // than the filter allows there (0.2/T): it gets the most the filter allows.
         master_filter: MasterFilterConfig {
-            bandwidth_hz: t.master_filter_hz as f32,
+            bandwidth_hz: t
+                .master_filter_hz
+                .min(crate::autotune::filter_limit_hz(period_us)) as f32,
         },
         predictor: match t.predictor {
             PredictorCfg::Eq4 => PredictorKind::Eq4,
