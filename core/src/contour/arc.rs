@@ -93,7 +93,40 @@ impl Arc {
     }
 }
 
+impl Arc {
+    /// φ(u) in turns: u (Q32) · k (Q64) → Q96 → Q32, wrapping to one turn.
+    fn angle(&self, u: Param) -> u32 {
+        let t = ((u.to_bits() as i128).wrapping_mul(self.turns_per_um_q64 as i128) >> 64) as u32;
+        if self.ccw {
+            self.phi0.wrapping_add(t)
+        } else {
+            self.phi0.wrapping_sub(t)
+        }
+    }
+
+    /// c + R·(cos, sin): R (Q12) · cos (Q62) → Q12.
+    fn on_circle(&self, s: i64, c: i64) -> Xy<PosFine> {
+        Xy::new(
+            PosFine::from_bits(
+                self.center
+                    .x
+                    .saturating_add(mul_shr_i64(self.radius, c, 62)),
+            ),
+            PosFine::from_bits(
+                self.center
+                    .y
+                    .saturating_add(mul_shr_i64(self.radius, s, 62)),
+            ),
+        )
+    }
+}
+
 impl ParametricPath for Arc {
+    fn position(&self, u: Param) -> Xy<PosFine> {
+        let (s, c) = sin_cos_q62(self.angle(u));
+        self.on_circle(s, c)
+    }
+
     fn u_start(&self) -> Param {
         Param::ZERO
     }
@@ -103,23 +136,8 @@ impl ParametricPath for Arc {
     }
 
     fn eval(&self, u: Param) -> PathPoint {
-        // Turns travelled: u (Q32) · k (Q64) → Q96 → Q32, wrapping to one turn.
-        let t = ((u.to_bits() as i128).wrapping_mul(self.turns_per_um_q64 as i128) >> 64) as u32;
-        let phi = if self.ccw {
-            self.phi0.wrapping_add(t)
-        } else {
-            self.phi0.wrapping_sub(t)
-        };
-        let (s, c) = sin_cos_q62(phi);
-        // R (Q12) · cos (Q62) → Q12.
-        let px = self
-            .center
-            .x
-            .saturating_add(mul_shr_i64(self.radius, c, 62));
-        let py = self
-            .center
-            .y
-            .saturating_add(mul_shr_i64(self.radius, s, 62));
+        let (s, c) = sin_cos_q62(self.angle(u));
+        let pos = self.on_circle(s, c);
         // r′ = σ(−sin, cos): Q62 → Q32.
         let (tx, ty) = (shr_round_i64(s, 30).wrapping_neg(), shr_round_i64(c, 30));
         let (tx, ty) = if self.ccw {
@@ -137,7 +155,7 @@ impl ParametricPath for Arc {
             94,
         ));
         PathPoint {
-            pos: Xy::new(PosFine::from_bits(px), PosFine::from_bits(py)),
+            pos,
             d1: Xy::new(Deriv::from_bits(tx), Deriv::from_bits(ty)),
             d2: Xy::new(
                 Deriv::from_bits(nx.wrapping_neg()),

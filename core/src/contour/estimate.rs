@@ -30,11 +30,12 @@
 //! **Worst case per call** (`N` ordinary points, `H` extra points per segment): N squared
 //! distances (2 subtractions, 2 `i32×i32→i64` products each), one dot product for the
 //! segment choice, ⌈log₂(H + 1)⌉ bisection steps (6 subtractions and 2 products each),
-//! and one point-to-chord distance (one normalisation = one `u64` integer square root
-//! and one 64-bit division, at most one more square root, 8 products). No allocation, no float, no panic; the window is only read.
+//! one point-to-chord distance (one inverse square root by 3 Newton steps, at most one
+//! more for a foot clamped to a chord end, about a dozen products) and one 32-bit
+//! division for [`ContourEstimate::u_foot`]. No 64-bit division, no library call. No allocation, no float, no panic; the window is only read.
 
 use super::fx::{clamp_to_i32, mul_shr_i64};
-use super::geom::{dot, norm2, rel, seg_dist, sub, SegDist};
+use super::geom::{dot, rel, seg_dist, sub, SegDist};
 use super::window::{ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
 use crate::units::PosUm;
@@ -121,7 +122,17 @@ pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usiz
         let pl = seq_point(extras, d, lo);
         let ph = seq_point(extras, d, hi);
         let pm = seq_point(extras, d, mid);
-        if dot(sub(w, pm), sub(ph, pl)) >= 0 {
+        // (P − E_mid)·(E_hi − E_lo) in i64: every component difference ≤ 2^31, each
+        // product ≤ 2^62, the sum saturates.
+        let (qx, qy) = (
+            i64::from(w.x).wrapping_sub(i64::from(pm.x)),
+            i64::from(w.y).wrapping_sub(i64::from(pm.y)),
+        );
+        let (cx, cy) = (
+            i64::from(ph.x).wrapping_sub(i64::from(pl.x)),
+            i64::from(ph.y).wrapping_sub(i64::from(pl.y)),
+        );
+        if qx.wrapping_mul(cx).saturating_add(qy.wrapping_mul(cy)) >= 0 {
             lo = mid;
         } else {
             hi = mid;
@@ -161,25 +172,15 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
     /// is saturated-far. `None` for an empty window; for a single point, a = 0.
     pub(crate) fn choose_segment(&self, p: Xy<i64>) -> Option<(usize, bool)> {
         let n = self.len();
-        let mut best = (u64::MAX, 0usize, false);
-        for i in 0..n {
-            if let Some(s) = self.pos_raw(i) {
-                let (w, sat) = rel(p, s);
-                let d2 = norm2(w);
-                if d2 < best.0 {
-                    best = (d2, i, sat);
-                }
-            }
-        }
-        let (_, m, saturated) = best;
+        let m = self.nearest_point(p)?;
+        let sm = self.pos_raw(m)?;
+        let (wm, saturated) = rel(p, sm);
         if n == 1 {
             return Some((0, saturated));
         }
         // Which side of the normal at S_m is P on? (P − S_m)·t_m ≥ 0: the foot lies
         // after S_m (outgoing segment), else before it (incoming).
-        let sm = self.pos_raw(m)?;
         let t = self.tangent_raw(m);
-        let (wm, _) = rel(p, sm);
         let forward = if t == Xy::new(0, 0) {
             None
         } else {
@@ -250,24 +251,19 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
     }
 }
 
-/// u at the foot: u_a + (u_b − u_a)·(lo + along/len)/(h + 1), the fraction in Q16
-/// (one 64-bit division).
+/// u at the foot: u_a + (u_b − u_a)·(lo + t)/(h + 1), t = along/len of the final
+/// chord; the fraction in Q16 by one 32-bit division (`udiv` on a Cortex-M4).
 pub(crate) fn u_at_foot(u_a: i64, u_b: i64, lo: usize, h: usize, seg: &SegDist) -> i64 {
-    let n = (h.min(usize::from(u16::MAX)) as u64).wrapping_add(1);
-    let lo = (lo.min(usize::from(u16::MAX))) as u64;
-    let len = seg.len.clamp(0, 1 << 31) as u64;
-    let along = seg.along.clamp(0, 1 << 31) as u64;
-    // lo·len + along ≤ 2^47 + 2^31: the Q16 shift stays below 2^64.
-    let (num, den) = if len == 0 {
-        (lo.wrapping_shl(16), n)
-    } else {
-        (
-            lo.wrapping_mul(len).wrapping_add(along).wrapping_shl(16),
-            n.wrapping_mul(len),
-        )
-    };
-    let frac = num.checked_div(den).unwrap_or(0).min(1 << 16) as i64;
-    u_a.saturating_add(mul_shr_i64(u_b.saturating_sub(u_a), frac, 16))
+    let n = (h.min(usize::from(u16::MAX)) as u32).wrapping_add(1);
+    let lo = lo.min(usize::from(u16::MAX)) as u32;
+    let t_q16 = (seg.t_q30.clamp(0, 1 << 30) >> 14) as u32;
+    let frac = lo
+        .wrapping_shl(16)
+        .saturating_add(t_q16)
+        .checked_div(n)
+        .unwrap_or(0)
+        .min(1 << 16);
+    u_a.saturating_add(mul_shr_i64(u_b.saturating_sub(u_a), i64::from(frac), 16))
 }
 
 /// Packs a segment distance (foot relative to `base`) into an estimate.

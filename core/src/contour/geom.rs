@@ -4,7 +4,7 @@
 //! Inputs are saturated to ±2^30 LSB (±262 mm, [`super::window`]), so every product of
 //! two components fits an `i64` exactly and sums of two products saturate harmlessly.
 
-use super::fx::{clamp_to_i32, mul_shr_i32, normalize, sqrt_round_u64};
+use super::fx::{clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, sqrt_u64};
 use super::window::REL_LIMIT;
 use super::Xy;
 
@@ -61,6 +61,8 @@ pub(crate) struct SegDist {
     pub along: i64,
     /// |B − A|, Q12 µm (0 for a zero-length segment).
     pub len: i64,
+    /// along/len, Q2.30 in [0, 2^30] (0 for a zero-length segment).
+    pub t_q30: i64,
 }
 
 /// Distance from P to the segment A→B, given w = P − A and d = B − A (Q12, saturated):
@@ -74,19 +76,21 @@ pub(crate) struct SegDist {
 /// ```
 ///
 /// A zero-length segment is a point: dist = |w|, the sign from `fallback` (a unit
-/// tangent, Q2.30). Cost: one normalisation (square root + 64-bit division), at most one
-/// more square root, eight `i32×i32` products.
+/// tangent, Q2.30). Cost: one normalisation (an inverse square root: 6 `umull`), at
+/// most one square root (another inverse square root), about a dozen `i32×i32` products;
+/// no division.
 pub(crate) fn seg_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>) -> SegDist {
-    let (unit, len) = match normalize(i64::from(d.x), i64::from(d.y)) {
+    let n = normalize(i64::from(d.x), i64::from(d.y));
+    let (unit, len) = match n {
         Some(u) => (Xy::new(u.ux, u.uy), u.len),
         None => (fallback, 0),
     };
     let along = mul_shr_i32(unit.x, w.x, 30).saturating_add(mul_shr_i32(unit.y, w.y, 30));
     let perp = mul_shr_i32(unit.x, w.y, 30).saturating_sub(mul_shr_i32(unit.y, w.x, 30));
     let (dist, foot) = if len == 0 || along <= 0 {
-        (sqrt_round_u64(norm2(w)) as i64, Xy::new(0, 0))
+        (sqrt_u64(norm2(w)) as i64, Xy::new(0, 0))
     } else if along >= len {
-        (sqrt_round_u64(norm2(sub(w, d))) as i64, d)
+        (sqrt_u64(norm2(sub(w, d))) as i64, d)
     } else {
         // 0 < along < |d| ≤ 2^31: û·along fits.
         let along32 = clamp_to_i32(along, i32::MAX);
@@ -98,13 +102,30 @@ pub(crate) fn seg_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>) -> SegDist {
             ),
         )
     };
+    let along = along.clamp(0, len.max(0));
+    // t = along·(1/len) = along·rsq·2^exp; in Q30: shift by exp + 30 (≤ 0 here since
+    // len < 2^32 in Q12); along, rsq < 2^32 so the product fits.
+    let t_q30 = match n {
+        Some(u) => {
+            let sh = u.exp.saturating_add(30);
+            let prod = along.wrapping_mul(i64::from(u.rsq));
+            let t = if sh >= 0 {
+                prod
+            } else {
+                shr_round_i64(prod, sh.unsigned_abs().min(63))
+            };
+            t.clamp(0, 1 << 30)
+        }
+        None => 0,
+    };
     SegDist {
         dist,
         eps: if perp > 0 { dist.wrapping_neg() } else { dist },
         foot,
         unit,
-        along: along.clamp(0, len.max(0)),
+        along,
         len,
+        t_q30,
     }
 }
 

@@ -117,6 +117,26 @@ impl Parabola {
     }
 }
 
+impl Parabola {
+    /// The position at u and u rounded to Q16 µm (|uq| ≤ 2^39).
+    fn local(&self, u: Param) -> (Xy<PosFine>, i64) {
+        let u = u.to_bits().clamp(-U_LIMIT, U_LIMIT);
+        let uq = shr_round_i64(u, 16);
+        let xl = shr_round_i64(uq, 4);
+        // u² (Q32, ≤ 2^78) · 1/(2p) (Q48, ≤ 2^47) → Q80 → Q12.
+        let sq = (uq as i128).wrapping_mul(uq as i128);
+        let yl = sat_i64(shr_round_i128(sq.wrapping_mul(self.inv_2p_q48 as i128), 68));
+        let (px, py) = self.rotate(xl, yl);
+        (
+            Xy::new(
+                PosFine::from_bits(self.vertex.x.saturating_add(px)),
+                PosFine::from_bits(self.vertex.y.saturating_add(py)),
+            ),
+            uq,
+        )
+    }
+}
+
 impl ParametricPath for Parabola {
     fn u_start(&self) -> Param {
         Param::from_bits(self.u0)
@@ -126,25 +146,19 @@ impl ParametricPath for Parabola {
         Param::from_bits(self.u1)
     }
 
+    fn position(&self, u: Param) -> Xy<PosFine> {
+        self.local(u).0
+    }
+
     fn eval(&self, u: Param) -> PathPoint {
-        let u = u.to_bits().clamp(-U_LIMIT, U_LIMIT);
-        // u in Q16 µm (|uq| ≤ 2^39).
-        let uq = shr_round_i64(u, 16);
-        let xl = shr_round_i64(uq, 4);
-        // u² (Q32, ≤ 2^78) · 1/(2p) (Q48, ≤ 2^47) → Q80 → Q12.
-        let sq = (uq as i128).wrapping_mul(uq as i128);
-        let yl = sat_i64(shr_round_i128(sq.wrapping_mul(self.inv_2p_q48 as i128), 68));
+        let (pos, uq) = self.local(u);
         // u/p: Q16·Q48 → Q64 → Q32.
         let slope = mul_shr_i64(uq, self.inv_p_q48, 32);
         let curv = shr_round_i64(self.inv_p_q48, 16);
-        let (px, py) = self.rotate(xl, yl);
         let (d1x, d1y) = self.rotate(1 << 32, slope);
         let (d2x, d2y) = self.rotate(0, curv);
         PathPoint {
-            pos: Xy::new(
-                PosFine::from_bits(self.vertex.x.saturating_add(px)),
-                PosFine::from_bits(self.vertex.y.saturating_add(py)),
-            ),
+            pos,
             d1: Xy::new(Deriv::from_bits(d1x), Deriv::from_bits(d1y)),
             d2: Xy::new(Deriv::from_bits(d2x), Deriv::from_bits(d2y)),
         }

@@ -47,6 +47,12 @@ pub trait ParametricPath {
     fn u_end(&self) -> Param;
     /// Position, first and second derivative at `u`.
     fn eval(&self, u: Param) -> PathPoint;
+
+    /// Position only (the interpolator's extra points); override when it is cheaper
+    /// than [`ParametricPath::eval`]. Must equal `eval(u).pos`.
+    fn position(&self, u: Param) -> Xy<PosFine> {
+        self.eval(u).pos
+    }
 }
 
 /// Why a path specification was rejected.
@@ -91,17 +97,15 @@ pub(crate) struct DerivFrame {
     pub inv_q30: i64,
 }
 
-/// û, |r′| and 1/|r′| (one square root, two 64-bit divisions). `None` where r′ = 0.
+/// û, |r′| and 1/|r′| (one normalisation: no division). `None` where r′ = 0.
 pub(crate) fn deriv_frame(p: &PathPoint) -> Option<DerivFrame> {
     let f = normalize(p.d1.x.to_bits(), p.d1.y.to_bits())?;
-    let len = f.len.max(1);
-    // 2^62 / len(Q32) = (1/|r′|) in Q30; len ≥ 1 raw.
-    let inv = ((1u64 << 62).checked_div(len as u64)).unwrap_or(0) as i64;
+    // 1/|r′| for r′ in Q32: (2^32/len_raw) in Q30 = recip with 62 fractional bits.
     Some(DerivFrame {
         ux: f.ux,
         uy: f.uy,
-        len_q32: len,
-        inv_q30: inv,
+        len_q32: f.len.max(1),
+        inv_q30: f.recip(62),
     })
 }
 

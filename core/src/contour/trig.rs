@@ -3,18 +3,20 @@
 //! Angle: `u32` in turns, Q0.32 (2^32 = one full turn, resolution 2^-32 turn =
 //! 1.46·10⁻⁹ rad, wrapping). Result: `i64` in Q2.62 (2^62 = 1.0).
 //!
-//! Method: octant reduction (exact, by symmetry) to θ ∈ [0, π/4], then the Taylor
-//! polynomials to degree 15 (sin) and 16 (cos) evaluated by Horner's rule in Q62 with
-//! `i128` products:
+//! Method: octant reduction (exact, by symmetry) to θ ∈ [0, π/4]; θ = a + b with
+//! a = i/1024 turn (i = 0 … 128) from a table and 0 ≤ b < 2π/1024 = 0.0061 rad;
 //!
 //! ```text
-//! sin θ = θ·(1 − z/3! + z²/5! − … − z⁷/15!),   cos θ = 1 − z/2! + z²/4! − … + z⁸/16!,   z = θ²
+//! sin b = b − b³/6 (+ b⁵/120),   cos b = 1 − b²/2 + b⁴/24
+//! sin θ = sin a·cos b + cos a·sin b,   cos θ = cos a·cos b − sin a·sin b
 //! ```
 //!
-//! Truncation error at θ = π/4: (π/4)^17/17! = 4.6·10⁻¹⁷ (sin), (π/4)^18/18! =
-//! 2·10⁻¹⁸ (cos); each of the ~10 Horner steps rounds by 2^-63. The maximum error
-//! against `f64` is below 10⁻¹⁵ (measured by the tests below: on a circle of radius
-//! 4 m that is 4·10⁻⁹ µm). Cost: 19 `i64×i64→i128` products.
+//! in Q62 with `i128` products (10 of them). The table is computed at compile time from
+//! the Taylor polynomials to degree 15/16 (error at π/4 below 5·10⁻¹⁷). Truncation of
+//! the short polynomials at b < 0.0061: b⁷/5040 = 6·10⁻²⁰ (sin, with the b⁵ term),
+//! b⁶/720 = 7·10⁻¹⁷ (cos); each product rounds by 2^-63. The maximum error against
+//! `f64` is below 10⁻¹⁵ (tests below): on a circle of radius 4 m that is 4·10⁻⁹ µm.
+//! Cost on a Cortex-M4: about 350 instructions (measured, `docs/contour.md`).
 
 use super::fx::{mul_shr_i64, sat_i64, shr_round_i128};
 
@@ -45,16 +47,80 @@ const COS_C: [i64; 8] = [
 ];
 
 /// Horner evaluation of `1 − c0·z + c1·z² − …` (alternating signs), all Q62.
-fn alternating_series(z: i64, c: &[i64]) -> i64 {
+/// Compile time only (it builds [`TABLE`]): an index out of range would fail the build,
+/// it cannot panic at run time.
+#[allow(clippy::indexing_slicing)]
+const fn alternating_series(z: i64, c: &[i64]) -> i64 {
     // Innermost first: p = ±c_last, then p = ±c_k + z·p … finally p = 1 + z·p.
     let mut p: i64 = 0;
-    let mut neg = c.len() % 2 == 1; // sign of the innermost coefficient
-    for &ck in c.iter().rev() {
+    let mut k = c.len();
+    let mut neg = k % 2 == 1; // sign of the innermost coefficient
+    while k > 0 {
+        k = k.wrapping_sub(1);
+        let ck = c[k];
         let term = if neg { ck.wrapping_neg() } else { ck };
         p = term.saturating_add(mul_shr_i64(z, p, 62));
         neg = !neg;
     }
     ONE_Q62.saturating_add(mul_shr_i64(z, p, 62))
+}
+
+/// An angle in Q32 turns within [0, 1/8] turn as radians, Q62.
+const fn radians_q62(x: u32) -> i64 {
+    // x·2π: Q32·Q61 = Q93 → Q62 (≤ π/4).
+    sat_i64(shr_round_i128((x as i128).wrapping_mul(TWO_PI_Q61), 31))
+}
+
+/// (sin θ, cos θ), Q62, for θ ∈ [0, π/4] by the degree-15/16 Taylor polynomials.
+const fn sin_cos_poly(theta: i64) -> (i64, i64) {
+    let z = mul_shr_i64(theta, theta, 62);
+    (
+        mul_shr_i64(theta, alternating_series(z, &SIN_C), 62),
+        alternating_series(z, &COS_C),
+    )
+}
+
+/// Table steps per 1/8 turn.
+const STEPS: usize = 128;
+/// log₂ of the Q32 turns per table step (2^29 / 128).
+const STEP_SHIFT: u32 = 22;
+
+/// sin and cos of i/1024 turn, i = 0 … 128, Q62 (computed at compile time; the
+/// indexing below runs in the compiler, never on the target).
+#[allow(clippy::indexing_slicing)]
+const TABLE: [(i64, i64); STEPS + 1] = {
+    let mut t = [(0i64, 0i64); STEPS + 1];
+    let mut i = 0;
+    while i <= STEPS {
+        t[i] = sin_cos_poly(radians_q62((i as u32) << STEP_SHIFT));
+        i += 1;
+    }
+    t
+};
+
+/// (sin θ, cos θ), Q62, for θ ∈ [0, 1/8 turn] given in Q32 turns (x ≤ 2^29).
+fn sin_cos_octant(x: u32) -> (i64, i64) {
+    let (sa, ca) = TABLE
+        .get((x >> STEP_SHIFT) as usize)
+        .copied()
+        .unwrap_or((0, ONE_Q62));
+    let b = radians_q62(x & ((1 << STEP_SHIFT) - 1));
+    let z = mul_shr_i64(b, b, 62);
+    // sin b = b·(1 − z/6 + z²/120); cos b = 1 − z/2 + z²/24.
+    let sb = b.saturating_sub(mul_shr_i64(
+        b,
+        mul_shr_i64(z, SIN_C[0].saturating_sub(mul_shr_i64(z, SIN_C[1], 62)), 62),
+        62,
+    ));
+    let cb = ONE_Q62.saturating_sub(mul_shr_i64(
+        z,
+        COS_C[0].saturating_sub(mul_shr_i64(z, COS_C[1], 62)),
+        62,
+    ));
+    (
+        mul_shr_i64(sa, cb, 62).saturating_add(mul_shr_i64(ca, sb, 62)),
+        mul_shr_i64(ca, cb, 62).saturating_sub(mul_shr_i64(sa, sb, 62)),
+    )
 }
 
 /// `(sin, cos)` of an angle in turns (Q0.32), both in Q2.62.
@@ -67,11 +133,7 @@ pub fn sin_cos_q62(turns: u32) -> (i64, i64) {
     } else {
         r
     };
-    // θ = x·2π (x in Q32 turns ≤ 2^29): Q32·Q61 = Q93 → Q62; θ ≤ π/4.
-    let theta = sat_i64(shr_round_i128((x as i128).wrapping_mul(TWO_PI_Q61), 31));
-    let z = mul_shr_i64(theta, theta, 62);
-    let s = mul_shr_i64(theta, alternating_series(z, &SIN_C), 62);
-    let c = alternating_series(z, &COS_C);
+    let (s, c) = sin_cos_octant(x);
     match octant {
         0 => (s, c),
         1 => (c, s),

@@ -116,6 +116,32 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         self.len = 0;
     }
 
+    /// Index (0 = oldest) of the ordinary point nearest to `p` (Q52.12 raw) by |p − S|²,
+    /// each component saturated to ±2^30 LSB (±262 mm). One pass over the slots in
+    /// storage order — the valid slots are always the first `len` (the head moves only
+    /// once the ring is full) — with one `i32×i32` square per component. `None` if empty.
+    pub(crate) fn nearest_point(&self, p: Xy<i64>) -> Option<usize> {
+        let mut best = (u64::MAX, None);
+        for (k, s) in self.slots.iter().take(self.len).enumerate() {
+            let dx = clamp_to_i32(p.x.saturating_sub(s.point.pos.x.to_bits()), REL_LIMIT);
+            let dy = clamp_to_i32(p.y.saturating_sub(s.point.pos.y.to_bits()), REL_LIMIT);
+            // |d| ≤ 2^30 per component: i32 squares (`smull`), sum < 2^61.
+            let d2 = (i64::from(dx).wrapping_mul(i64::from(dx)) as u64)
+                .wrapping_add(i64::from(dy).wrapping_mul(i64::from(dy)) as u64);
+            if d2 < best.0 {
+                best = (d2, Some(k));
+            }
+        }
+        // Logical index = (physical − head) mod N.
+        best.1.map(|k| {
+            if k >= self.head {
+                k.wrapping_sub(self.head)
+            } else {
+                k.wrapping_add(N).wrapping_sub(self.head)
+            }
+        })
+    }
+
     /// Physical slot index of logical index `i` (0 = oldest).
     fn phys(&self, i: usize) -> usize {
         let p = self.head.wrapping_add(i);
