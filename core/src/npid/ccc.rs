@@ -4,7 +4,8 @@
 //! u1 = law_x(x_V, x_P),  u2 = law_y(y_V, y_P)            (per-axis tracking laws)
 //! ε  = −C1·E1 + C2·E2                                    ([`super::contour_model`])
 //! u_c = law_c(ε)                                         (the contour law on ε)
-//! U1 = u1 − C1·u_c,   U2 = u2 + C2·u_c                   [DAC LSB, clamped to ±2047]
+//! U1 = u1 + u_ff1 − C1·u_c,   U2 = u2 + u_ff2 + C2·u_c   [DAC LSB, clamped to ±2047]
+//! (u_ff: optional velocity feed-forward, [`CrossCoupled::set_feedforward`])
 //! ```
 //!
 //! With ε > 0 when P is right of the direction of travel, `(−C1, C2) ≈ n` is the left
@@ -53,6 +54,9 @@ pub struct CrossCoupled<L> {
     pub y: L,
     /// Contour law.
     pub contour: L,
+    /// Feed-forward commands `[X, Y]` added to the axis laws' outputs, LSB (zero unless
+    /// set by [`CrossCoupled::set_feedforward`] before a tick).
+    feedforward_lsb: [CmdLsb; 2],
 }
 
 /// Classic cross-coupled controller (linear PIDs).
@@ -96,7 +100,20 @@ impl<L: ErrorLaw> CrossCoupled<L> {
         x.reset(px);
         y.reset(py);
         contour.reset(PosUm::ZERO);
-        Self { x, y, contour }
+        Self {
+            x,
+            y,
+            contour,
+            feedforward_lsb: [CmdLsb::ZERO; 2],
+        }
+    }
+
+    /// Sets the feed-forward commands `[X, Y]` (LSB, e.g. from
+    /// [`super::feedforward::VelocityFf`]) that every following tick adds to the axis
+    /// laws' outputs: `U1 = u1 + u_ff1 − C1·u_c`, `U2 = u2 + u_ff2 + C2·u_c`.
+    #[inline]
+    pub fn set_feedforward(&mut self, feedforward_lsb: [CmdLsb; 2]) {
+        self.feedforward_lsb = feedforward_lsb;
     }
 
     fn axes(
@@ -107,7 +124,11 @@ impl<L: ErrorLaw> CrossCoupled<L> {
     ) -> [CmdLsb; 2] {
         let [rx, ry] = reference_um;
         let [mx, my] = measured_um;
-        [self.x.track(&c.x, rx, mx), self.y.track(&c.y, ry, my)]
+        let [fx, fy] = self.feedforward_lsb;
+        [
+            self.x.track(&c.x, rx, mx).saturating_add(fx),
+            self.y.track(&c.y, ry, my).saturating_add(fy),
+        ]
     }
 
     /// Independent axes; ε from the model at `frame` is reported, not used.

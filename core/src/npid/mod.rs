@@ -6,6 +6,7 @@
 //! | [`fhan`] | Han's time-optimal synthesis function, integer square root |
 //! | [`td`] | the discrete tracking differentiator |
 //! | [`fal`] | the power law with a linear zone |
+//! | [`feedforward`] | velocity feed-forward per axis from the interpolated reference (direction-dependent gain, lead) |
 //! | [`npid`] | the single-axis nonlinear PID (TD-I on the reference, TD-II on the measurement) |
 //! | [`pid`] | the linear PID of the classic CCC |
 //! | [`contour_model`] | C1, C2 and ε for lines and circles, the sign convention |
@@ -35,6 +36,7 @@
 pub mod ccc;
 pub mod contour_model;
 pub mod fal;
+pub mod feedforward;
 pub mod fhan;
 mod fxmath;
 #[allow(clippy::module_inception)]
@@ -46,6 +48,7 @@ pub mod xy_loop;
 pub use ccc::{Ccc, Cnp, CrossCoupled, XyCoeffs, XyOutput};
 pub use contour_model::{contour_model, ContourModel, PathFrame};
 pub use fal::{fal, FalCoeffs, FalConfig};
+pub use feedforward::{FfError, VelocityFf, VelocityFfCoeffs, VelocityFfConfig};
 pub use fhan::{fhan, FhanCoeffs, FhanConfig, V_MAX_UM_PER_S};
 pub use npid::{Npid, NpidCoeffs, NpidConfig};
 pub use pid::{Pid, PidCoeffs, PidConfig};

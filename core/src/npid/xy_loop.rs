@@ -19,6 +19,7 @@
 
 use super::ccc::{Cnp, XyCoeffs, XyOutput};
 use super::contour_model::PathFrame;
+use super::feedforward::{VelocityFf, VelocityFfCoeffs};
 use super::npid::NpidCoeffs;
 use crate::contour::{ContourWindow, InterpCoeffs, Interpolator, ParametricPath, Reference, Xy};
 use crate::units::{PosUm, VelUmPerS};
@@ -30,6 +31,10 @@ pub struct EstimatedXy<const N: usize, const H: usize> {
     interp: Interpolator,
     /// The three nonlinear PIDs.
     pub ctl: Cnp,
+    /// Velocity feed-forward of X and Y.
+    ff: [VelocityFf; 2],
+    /// Has the feed-forward seen a reference (it starts at rest at the first one)?
+    ff_primed: bool,
 }
 
 /// One period's result: the motion command and the controller's output.
@@ -50,6 +55,8 @@ impl<const N: usize, const H: usize> EstimatedXy<N, H> {
             window,
             interp,
             ctl,
+            ff: [VelocityFf::default(); 2],
+            ff_primed: false,
         }
     }
 
@@ -58,8 +65,8 @@ impl<const N: usize, const H: usize> EstimatedXy<N, H> {
         &self.interp
     }
 
-    /// One period: interpolate at `feed`, estimate the contour error of `measured_um`,
-    /// run the cross-coupled nonlinear PID.
+    /// One period without feed-forward: interpolate at `feed`, estimate the contour
+    /// error of `measured_um`, run the cross-coupled nonlinear PID.
     #[inline]
     pub fn tick<P: ParametricPath>(
         &mut self,
@@ -69,8 +76,32 @@ impl<const N: usize, const H: usize> EstimatedXy<N, H> {
         feed: VelUmPerS,
         measured_um: [PosUm; 2],
     ) -> XyPeriod {
+        let none = [VelocityFfCoeffs::NONE; 2];
+        self.tick_with_feedforward(interp, coeffs, &none, path, feed, measured_um)
+    }
+
+    /// One period with velocity feed-forward `[X, Y]` computed from the new reference
+    /// ([`VelocityFf`]) and added to the axis laws' outputs.
+    #[inline]
+    pub fn tick_with_feedforward<P: ParametricPath>(
+        &mut self,
+        interp: &InterpCoeffs,
+        coeffs: &XyCoeffs<NpidCoeffs>,
+        ff: &[VelocityFfCoeffs; 2],
+        path: &P,
+        feed: VelUmPerS,
+        measured_um: [PosUm; 2],
+    ) -> XyPeriod {
         let reference = self.interp.step(interp, path, feed, &mut self.window);
         let r = reference.pos_um();
+        if !self.ff_primed {
+            self.ff = [VelocityFf::at_rest(r.x), VelocityFf::at_rest(r.y)];
+            self.ff_primed = true;
+        }
+        let [fcx, fcy] = ff;
+        let [fx, fy] = &mut self.ff;
+        self.ctl
+            .set_feedforward([fx.step(fcx, r.x), fy.step(fcy, r.y)]);
         let [mx, my] = measured_um;
         let (eps, frame) = match self.window.estimate(Xy::new(mx, my)) {
             Some(e) => (

@@ -42,10 +42,21 @@ pub struct Args {
     /// Print the result as one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Run the documented tuning procedure ([`crate::xy::tune`]): prints every evaluated
+    /// setting and the chosen gains of `independent`, `ccc` and `nccc` as TOML.
+    #[arg(long)]
+    pub tune: bool,
 }
 
 /// Runs the sub-command.
 pub fn run(args: &Args) -> Result<()> {
+    if args.tune {
+        let [ind, ccc, nccc] = crate::xy::tune::tune(&mut |l| println!("{l}"))?;
+        for (name, g) in [("independent", ind), ("ccc", ccc), ("nccc", nccc)] {
+            println!("# chosen for {name}\n{}", toml::to_string(&g)?);
+        }
+        return Ok(());
+    }
     let gains = match &args.gains {
         Some(f) => {
             let text =

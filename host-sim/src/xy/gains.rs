@@ -2,7 +2,8 @@
 
 use anyhow::{anyhow, Result};
 use hydra_core::npid::{
-    FalConfig, FhanConfig, NpidCoeffs, NpidConfig, PidCoeffs, PidConfig, XyCoeffs,
+    FalConfig, FhanConfig, NpidCoeffs, NpidConfig, PidCoeffs, PidConfig, VelocityFfCoeffs,
+    VelocityFfConfig, XyCoeffs,
 };
 use serde::{Deserialize, Serialize};
 
@@ -36,12 +37,27 @@ pub struct NlGains {
     pub td_h0: f64,
 }
 
+/// Velocity feed-forward of both axes (used by all four controllers alike).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FfGains {
+    /// X: command per speed extending / retracting, LSB/(mm/s).
+    pub x_lsb_per_mm_s: [f64; 2],
+    /// Y: command per speed extending / retracting, LSB/(mm/s).
+    pub y_lsb_per_mm_s: [f64; 2],
+    /// Lead time T_lead, s.
+    pub lead_s: f64,
+    /// Fraction of the identified gains applied (0 = no feed-forward, 1 = full).
+    pub scale: f64,
+}
+
 /// Every gain of the scenario (a TOML file for `--gains`; missing tables keep the
 /// defaults).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Gains {
-    /// Linear PID of each axis (`independent` and `ccc`).
+    /// Linear PID of each axis in `independent` (tuned on its own).
+    pub axis_independent: LinGains,
+    /// Linear PID of each axis in `ccc`.
     pub axis_linear: LinGains,
     /// Linear PID on ε (`ccc`).
     pub contour_linear: LinGains,
@@ -49,19 +65,28 @@ pub struct Gains {
     pub axis_nonlinear: NlGains,
     /// Nonlinear PID on ε (`nccc`, `nccc-est`).
     pub contour_nonlinear: NlGains,
+    /// Velocity feed-forward (all controllers).
+    pub feedforward: FfGains,
 }
 
 impl Default for Gains {
     fn default() -> Self {
         Self {
+            axis_independent: LinGains {
+                kp: 1.2,
+                ki: 15.0,
+                kd: 0.0,
+            },
+            // `--tune` step 3b: best coupled setting (17.6 µm; the grid's minimum 17.4
+            // µm is kc = 0, i.e. the independent setting).
             axis_linear: LinGains {
                 kp: 0.8,
-                ki: 30.0,
+                ki: 15.0,
                 kd: 0.0,
             },
             contour_linear: LinGains {
-                kp: 0.8,
-                ki: 60.0,
+                kp: 0.4,
+                ki: 0.0,
                 kd: 0.0,
             },
             axis_nonlinear: NlGains {
@@ -81,6 +106,14 @@ impl Default for Gains {
                 delta: [1.0, 5.0, 1.0],
                 td_r: 5e7,
                 td_h0: 2e-3,
+            },
+            // Identified by `host-sim xy --tune` (step 1); lead: step 2 (0…8 ms all
+            // within 0.1 µm; 0 chosen).
+            feedforward: FfGains {
+                x_lsb_per_mm_s: [13.713, 16.766],
+                y_lsb_per_mm_s: [19.410, 23.818],
+                lead_s: 0.0,
+                scale: 1.0,
             },
         }
     }
@@ -134,10 +167,32 @@ fn nl(g: &NlGains) -> Result<NpidCoeffs> {
     .map_err(|e| anyhow!("nonlinear PID gains: {e}"))
 }
 
+fn ff(k: [f64; 2], g: &FfGains) -> Result<VelocityFfCoeffs> {
+    VelocityFfConfig {
+        period_s: 1e-3,
+        extend_lsb_per_mm_s: k[0] * g.scale,
+        retract_lsb_per_mm_s: k[1] * g.scale,
+        lead_s: g.lead_s,
+    }
+    .build()
+    .map_err(|e| anyhow!("feed-forward gains: {e}"))
+}
+
 impl Gains {
+    /// Feed-forward coefficients `[X, Y]`.
+    pub fn ff_coeffs(&self) -> Result<[VelocityFfCoeffs; 2]> {
+        let g = &self.feedforward;
+        Ok([ff(g.x_lsb_per_mm_s, g)?, ff(g.y_lsb_per_mm_s, g)?])
+    }
+
     /// Coefficients of `independent` / `ccc`.
-    pub fn linear_coeffs(&self) -> Result<XyCoeffs<PidCoeffs>> {
-        let a = lin(&self.axis_linear)?;
+    /// `independent` = true: the axes use `axis_independent` (no contour law acts).
+    pub fn linear_coeffs(&self, independent: bool) -> Result<XyCoeffs<PidCoeffs>> {
+        let a = lin(if independent {
+            &self.axis_independent
+        } else {
+            &self.axis_linear
+        })?;
         Ok(XyCoeffs {
             x: a,
             y: a,

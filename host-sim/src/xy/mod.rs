@@ -22,6 +22,7 @@
 //!   step.
 
 pub mod gains;
+pub mod tune;
 
 use crate::contour_truth::TruthPath;
 use crate::plant::{HydraulicAxis, Supply};
@@ -32,7 +33,9 @@ use hydra_core::contour::{
     curvature_per_m, ArcSpec, ContourWindow, InterpConfig, Interpolator, LineSpec, ParabolaSpec,
     ParametricPath,
 };
-use hydra_core::npid::{Ccc, Cnp, CrossCoupled, EstimatedXy, PathFrame, XyCoeffs, XyOutput};
+use hydra_core::npid::{
+    Ccc, Cnp, CrossCoupled, EstimatedXy, PathFrame, VelocityFf, XyCoeffs, XyOutput,
+};
 use hydra_core::units::{PosUm, VelUmPerS};
 use serde::Serialize;
 
@@ -222,7 +225,7 @@ fn build_path(s: &XyScenario) -> Result<(CorePath, TruthPath)> {
 }
 
 /// The two axes: X per PLANT.md, Y with 1.5× mass and 30 % less valve flow.
-fn axes(start_um: [f64; 2]) -> (HydraulicAxis, HydraulicAxis, Supply) {
+pub(crate) fn axes(start_um: [f64; 2]) -> (HydraulicAxis, HydraulicAxis, Supply) {
     let supply = Scenario::default().supply();
     let x = AxisCfg::default();
     let mut y = AxisCfg::default();
@@ -292,7 +295,7 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
     let p0 = [um(start[0]), um(start[1])];
     let mut ctl = match s.controller {
         ControllerKind::Independent | ControllerKind::Ccc => {
-            let c = g.linear_coeffs()?;
+            let c = g.linear_coeffs(s.controller == ControllerKind::Independent)?;
             let st = CrossCoupled::at_rest(
                 Default::default(),
                 Default::default(),
@@ -322,6 +325,8 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
             Ctl::Estimated(Box::new(EstimatedXy::start(path, st)), c)
         }
     };
+    let ffc = g.ff_coeffs()?;
+    let mut ff = [VelocityFf::at_rest(p0[0]), VelocityFf::at_rest(p0[1])];
     let mut window: Box<ContourWindow<WINDOW_N, WINDOW_H>> = Box::default();
     let mut interp = Interpolator::start(path, &mut *window);
     let total_len = truth.arc_length(truth.domain().1);
@@ -357,7 +362,7 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
         let fq = VelUmPerS::saturating_from_num(f);
         let (reference, out, fin, u_now): ([f64; 2], XyOutput, bool, f64) = match &mut ctl {
             Ctl::Estimated(e, c) => {
-                let per = e.tick(&interp_c, c, path, fq, meas);
+                let per = e.tick_with_feedforward(&interp_c, c, &ffc, path, fq, meas);
                 let r = per.reference.pos_um();
                 (
                     [r.x.to_num(), r.y.to_num()],
@@ -373,6 +378,12 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
                 let kappa = curvature_per_m(&pt).unwrap_or_default();
                 let frame = PathFrame::from_contour(rf.point.tangent, kappa);
                 let refp = [r.x, r.y];
+                let u_ff = [ff[0].step(&ffc[0], r.x), ff[1].step(&ffc[1], r.y)];
+                match other {
+                    Ctl::Linear(st, ..) => st.set_feedforward(u_ff),
+                    Ctl::Nonlinear(st, _) => st.set_feedforward(u_ff),
+                    Ctl::Estimated(..) => unreachable!(),
+                }
                 let out = match other {
                     Ctl::Linear(st, c, true) => st.tick_model(c, refp, meas, &frame),
                     Ctl::Linear(st, c, false) => st.tick_independent(c, refp, meas, &frame),
