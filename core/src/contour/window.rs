@@ -6,7 +6,7 @@
 //! estimation, never as motion commands. Pushing into a full window overwrites the
 //! oldest ordinary point (a ring buffer: O(1), no allocation).
 //!
-//! Memory: `N · (40 + 8·H)` bytes (`ContourWindow<16, 63>`: 8.7 KiB).
+//! Memory: `N · (40 + 8·H) + 16` bytes (`ContourWindow<16, 63>`: 8.5 KiB).
 //!
 //! Every relative vector the estimator forms (extra points, chords, P − S) is saturated
 //! to ±2^30 LSB = ±262 mm, so a difference of two of them fits an `i32` and a sum of two
@@ -71,7 +71,7 @@ pub struct ContourWindow<const N: usize, const H: usize> {
 
 /// The window size the firmware uses: 16 ordinary points (15 segments, enough for a
 /// servo lagging up to 13 periods), up to 63 extra points per segment (bisection ≤ 6
-/// steps). 8.7 KiB.
+/// steps). 8.5 KiB.
 pub type DefaultWindow = ContourWindow<16, 63>;
 
 impl<const N: usize, const H: usize> Default for ContourWindow<N, H> {
@@ -274,6 +274,15 @@ mod tests {
         assert!(w.point(3).is_none());
         w.clear();
         assert!(w.is_empty());
+    }
+
+    #[test]
+    fn default_window_size_is_as_documented() {
+        // N·(40 + 8·H) + 16 bytes.
+        assert_eq!(
+            core::mem::size_of::<DefaultWindow>(),
+            16 * (40 + 8 * 63) + 16
+        );
     }
 
     #[test]
