@@ -85,6 +85,8 @@ pub fn press_config(axis: &AxisCfg, g: &PressGains) -> Option<PressConfig> {
         kp_lsb_per_um: g.kp_lsb_per_um as f32,
         kv_lsb_per_um_s: g.kv_lsb_per_um_s as f32,
         contact_force_n: p.contact_force_n as f32,
+        // The approach's own acceleration transient lasts a few tens of ms.
+        contact_arm_ms: 100.0,
         force_set_n: p.force_set_n as f32,
         force_ramp_ms: (p.force_ramp_s * 1e3) as f32,
         kp_lsb_per_n: g.kp_lsb_per_n as f32,

@@ -4,7 +4,8 @@
 //! ```text
 //! F = A_A·p_A − A_B·p_B                                   N (from the two transducers)
 //! Approach: x_ref += v_app·T toward x_end;  u = Kp·(x_ref − x) + kv·v_app
-//! Switch when F ≥ F_contact:  F_ref := F,  I_F := u(k−1)   (so u is continuous)
+//! Switch when F ≥ F_contact (once the approach has run t_arm):
+//!                             F_ref := F,  I_F := u(k−1)   (so u is continuous)
 //! Force:  F_ref → F_set at F_set/t_ramp;  e_F = F_ref − F
 //!         I_F = clamp(I_F + Ki_F·T·e_F, ±clamp) (not further into saturation)
 //!         u = Kp_F·e_F + I_F
@@ -36,6 +37,10 @@ pub struct PressConfig {
     pub kv_lsb_per_um_s: f32,
     /// Force at which contact is declared and force control takes over, N (> 0).
     pub contact_force_n: f32,
+    /// Time from the start of the approach before contact can be declared, ms
+    /// (0 … 60 000): the force that accelerates the piston at the start of the approach
+    /// must not be taken for the work.
+    pub contact_arm_ms: f32,
     /// Force set-point, N (> 0, ≤ 1e6).
     pub force_set_n: f32,
     /// Time to ramp the force reference from contact to the set-point, ms (1 … 60 000).
@@ -60,7 +65,7 @@ pub enum PressConfigError {
     ApproachSpeed,
     /// `kp_lsb_per_um` or `kv_lsb_per_um_s`.
     PositionGain,
-    /// `contact_force_n`.
+    /// `contact_force_n` or `contact_arm_ms`.
     ContactForce,
     /// `force_set_n`.
     ForceSet,
@@ -86,6 +91,7 @@ pub struct PressCoeffs {
     kp: i32,        // I16F16
     kv: i32,        // I8F24
     f_contact: i32, // N I24F8
+    arm_ticks: u32, // ticks of approach before contact detection
     f_set: i32,     // N I24F8
     f_step: i32,    // N per tick I24F8
     kp_f: i32,      // I8F24
@@ -125,6 +131,7 @@ impl PressConfig {
         let fc = chk(self.contact_force_n, 1e-3, 1e6, E::ContactForce)?;
         let fs = chk(self.force_set_n, 1e-3, 1e6, E::ForceSet)?;
         let ramp = chk(self.force_ramp_ms, 1.0, 60_000.0, E::ForceRamp)?;
+        let arm = chk(self.contact_arm_ms, 0.0, 60_000.0, E::ContactForce)?;
         let kpf = chk(self.kp_lsb_per_n, 0.0, 100.0, E::ForceGain)?;
         let kif = chk(self.ki_lsb_per_n_s, 0.0, 1e4, E::ForceGain)?;
         Ok(PressCoeffs {
@@ -136,6 +143,7 @@ impl PressConfig {
             kp: bits::<I16F16>(kp, E::PositionGain)?,
             kv: bits::<I8F24>(kv, E::PositionGain)?,
             f_contact: bits::<ForceN>(fc, E::ContactForce)?,
+            arm_ticks: (arm * 1e-3 / t) as u32,
             f_set: bits::<ForceN>(fs, E::ForceSet)?,
             f_step: bits::<ForceN>(fs * t / (ramp * 1e-3), E::ForceRamp)?.max(1),
             kp_f: bits::<I8F24>(kpf, E::ForceGain)?,
@@ -164,6 +172,7 @@ pub struct PressState {
     pub phase: PressPhase,
     x_ref: i32,
     started: bool,
+    approach_ticks: u32,
     f_ref: i32,
     integ: i32,
     u_last: i32,
@@ -211,7 +220,9 @@ impl PressState {
             self.started = true;
             self.x_ref = x.to_bits();
         }
-        if self.phase == PressPhase::Approach && f >= c.f_contact {
+        let armed = self.approach_ticks >= c.arm_ticks;
+        self.approach_ticks = self.approach_ticks.saturating_add(1);
+        if self.phase == PressPhase::Approach && armed && f >= c.f_contact {
             self.phase = PressPhase::Force;
             self.f_ref = f;
             // Bumpless: e_F = 0 at the switch, so u = I_F = u(k−1).
@@ -296,6 +307,7 @@ mod tests {
             kp_lsb_per_um: 0.2,
             kv_lsb_per_um_s: 0.017,
             contact_force_n: 1000.0,
+            contact_arm_ms: 0.0,
             force_set_n: 20_000.0,
             force_ramp_ms: 1000.0,
             kp_lsb_per_n: 0.01,
@@ -334,6 +346,24 @@ mod tests {
                 assert!((o.cmd_lsb - prev.cmd_lsb).abs() < CmdLsb::from_num(0.5));
             }
             last = Some(o);
+        }
+    }
+
+    #[test]
+    fn contact_is_not_declared_before_the_arm_time() {
+        let mut cfg = cfg();
+        cfg.contact_arm_ms = 50.0;
+        let c = cfg.build(1000).unwrap();
+        let mut st = PressState::default();
+        // a large force from the start (the acceleration transient): ignored for 50 ticks
+        for k in 0..60 {
+            let o = st.tick(
+                &c,
+                PosUm::ZERO,
+                PressureBar::from_num(50),
+                PressureBar::ZERO,
+            );
+            assert_eq!(o.phase == PressPhase::Force, k >= 50, "tick {k}");
         }
     }
 
