@@ -19,6 +19,26 @@ pub const fn sat_i32(x: i64) -> i32 {
     }
 }
 
+/// Saturates an `i128` to the `i64` range.
+#[inline(always)]
+pub const fn sat_i64(x: i128) -> i64 {
+    if x > i64::MAX as i128 {
+        i64::MAX
+    } else if x < i64::MIN as i128 {
+        i64::MIN
+    } else {
+        x as i64
+    }
+}
+
+/// `(a · b) >> s` for two `i64`, formed exactly in an `i128` (arithmetic shift: rounds
+/// toward −∞) and saturated to `i64`; `s` ≤ 126. On a Cortex-M4 the `i128` product is a
+/// library routine: keep it out of per-axis hot paths where a 32-bit form exists.
+#[inline(always)]
+pub const fn mul64_shr(a: i64, b: i64, s: u32) -> i64 {
+    sat_i64((a as i128).wrapping_mul(b as i128).wrapping_shr(s))
+}
+
 /// `(a · b) >> shift`, saturated to `i32` (arithmetic shift: rounds toward −∞).
 /// `shift` must be below 64 (it is a constant at every call site).
 #[inline(always)]

@@ -5,17 +5,7 @@
 //! `i64` are formed in an `i128` (exact: |a·b| ≤ 2^126); products of two `i32` in an
 //! `i64` (exact: ≤ 2^62).
 
-/// Saturates an `i128` to the `i64` range.
-#[inline(always)]
-pub(crate) const fn sat_i64(x: i128) -> i64 {
-    if x > i64::MAX as i128 {
-        i64::MAX
-    } else if x < i64::MIN as i128 {
-        i64::MIN
-    } else {
-        x as i64
-    }
-}
+pub(crate) use crate::q::sat_i64;
 
 /// `x >> s` rounded to nearest (ties toward +∞), for `1 ≤ s ≤ 126`.
 #[inline(always)]

@@ -44,24 +44,7 @@ const EXP2_TAB: [u32; 65] = [
     2147483648,
 ];
 
-/// Saturates an `i128` to the `i64` range.
-#[inline(always)]
-pub(crate) const fn sat_i64(x: i128) -> i64 {
-    if x > i64::MAX as i128 {
-        i64::MAX
-    } else if x < i64::MIN as i128 {
-        i64::MIN
-    } else {
-        x as i64
-    }
-}
-
-/// `(a · b) >> s` (arithmetic shift, rounds toward −∞), formed exactly in an `i128` and
-/// saturated to `i64`. `s` ≤ 126.
-#[inline(always)]
-pub(crate) const fn mul_shr(a: i64, b: i64, s: u32) -> i64 {
-    sat_i64((a as i128).wrapping_mul(b as i128).wrapping_shr(s))
-}
+pub(crate) use crate::q::{mul64_shr as mul_shr, sat_i64};
 
 /// `sign(x)` with `sign(0) = 0`, as −1, 0, +1.
 #[inline(always)]
