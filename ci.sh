@@ -20,8 +20,8 @@ cargo fmt --all -- --check
 step "clippy (host)"
 cargo clippy --all-targets -- -D warnings
 
-step "clippy (thumbv7em: core + firmware)"
-RUSTFLAGS="-D warnings" cargo clippy -p hydra-core -p firmware --release --target "$TARGET" -- -D warnings
+step "clippy (thumbv7em: core + firmware + bench-m4)"
+RUSTFLAGS="-D warnings" cargo clippy -p hydra-core -p firmware -p bench-m4 --release --target "$TARGET" -- -D warnings
 
 step "host tests"
 cargo test --release --no-fail-fast 2>&1 | tee target/host-tests.log | grep -E '^(test result|running|error|failures|---- )' || true
