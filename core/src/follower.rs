@@ -305,7 +305,9 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                         let rise = t.rise(&lk, i).to_bits();
                         // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
                         r.v_ff_um_per_s = VelUmPerS::from_bits(mul_shr(rise, seg_v, 16));
-                        r.a_ff_um_per_s2 = AccUmPerS2::from_bits(mul_shr(rise, seg_a, 24));
+                        if c.ka != 0 {
+                            r.a_ff_um_per_s2 = AccUmPerS2::from_bits(mul_shr(rise, seg_a, 24));
+                        }
                     }
                     ControlMode::Paper => r.x_ref_um = t.value(&lk_pred, i),
                     ControlMode::NextNode => {

@@ -84,6 +84,8 @@ pub struct ValveCoeffs {
     gain_neg: i32,  // I8F24 raw
     invert: bool,
     clamp: i32, // LSB, Q16.16 raw
+    /// No overlap and unit gains: the compensation is the identity (a fast path).
+    linear: bool,
 }
 
 fn in_range(x: f32, lo: f32, hi: f32) -> bool {
@@ -130,6 +132,10 @@ impl ValveCal {
             gain_neg: q24(self.gain_neg),
             invert: self.invert,
             clamp: i32::from(self.clamp_lsb).wrapping_shl(16),
+            linear: self.overlap_pos_lsb == 0.0
+                && self.overlap_neg_lsb == 0.0
+                && self.gain_pos == 1.0
+                && self.gain_neg == 1.0,
         })
     }
 }
@@ -139,7 +145,9 @@ impl ValveCoeffs {
     #[inline]
     pub fn compensate(&self, u: CmdLsb) -> CmdLsb {
         let u = u.to_bits();
-        let y = if u >= self.zone {
+        let y = if self.linear {
+            u
+        } else if u >= self.zone {
             self.ov_pos.saturating_add(mul_shr(u, self.gain_pos, 24))
         } else if u <= self.zone.wrapping_neg() {
             mul_shr(u, self.gain_neg, 24).saturating_sub(self.ov_neg)
