@@ -60,6 +60,35 @@ pub struct CamCsv {
     pub lines: Vec<usize>,
 }
 
+/// The data lines of a CSV text with their 1-based line numbers (blank lines and `#`
+/// comments skipped), after its header line: `(header line, header, rows)`. An empty text
+/// is an error naming the header it should have had (`expected`).
+pub(crate) fn csv_lines<'a>(
+    text: &'a str,
+    path: &Path,
+    expected: &str,
+) -> Result<(usize, &'a str, impl Iterator<Item = (usize, &'a str)>), TableError> {
+    let mut rows = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let (line, header) = rows.next().ok_or_else(|| TableError::File {
+        path: path.to_path_buf(),
+        reason: format!("empty file: expected a header `{expected}`"),
+    })?;
+    Ok((line, header, rows))
+}
+
+/// An error at a line of a CSV file.
+pub(crate) fn line_error(path: &Path, line: usize, reason: String) -> TableError {
+    TableError::Line {
+        path: path.to_path_buf(),
+        line,
+        reason,
+    }
+}
+
 impl CamCsv {
     /// Reads and parses a CSV file.
     pub fn load(path: &Path) -> Result<Self, TableError> {
@@ -72,20 +101,8 @@ impl CamCsv {
 
     /// Parses CSV text; `path` is only used in messages.
     pub fn parse(text: &str, path: &Path) -> Result<Self, TableError> {
-        let at = |line: usize, reason: String| TableError::Line {
-            path: path.to_path_buf(),
-            line,
-            reason,
-        };
-        let mut rows = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.trim()))
-            .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-        let (hline, header) = rows.next().ok_or_else(|| TableError::File {
-            path: path.to_path_buf(),
-            reason: "empty file: expected a header `master,<axis>,…`".into(),
-        })?;
+        let at = |line: usize, reason: String| line_error(path, line, reason);
+        let (hline, header, rows) = csv_lines(text, path, "master,<axis>,…")?;
         let names: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
         if names.first().map(String::as_str) != Some("master") {
             return Err(at(

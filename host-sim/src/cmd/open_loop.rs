@@ -11,7 +11,7 @@
 //! Output `--csv`: `t,x_mm,v_mm_s,pA_bar,pB_bar,spool` every 1 ms (true plant values,
 //! not the quantised sensor readings).
 
-use crate::camfile::TableError;
+use crate::camfile::{csv_lines, line_error, TableError};
 use crate::plant::HydraulicAxis;
 use crate::scenario::Scenario;
 use anyhow::Context as _;
@@ -57,20 +57,8 @@ pub struct Sample {
 
 /// Parses a `t,u` command recording; errors name the line.
 pub fn parse_command(text: &str, path: &Path) -> Result<Vec<(f64, f64)>, TableError> {
-    let at = |line: usize, reason: String| TableError::Line {
-        path: path.to_path_buf(),
-        line,
-        reason,
-    };
-    let mut rows = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let (hl, header) = rows.next().ok_or_else(|| TableError::File {
-        path: path.to_path_buf(),
-        reason: "empty file: expected a header `t,u`".into(),
-    })?;
+    let at = |line: usize, reason: String| line_error(path, line, reason);
+    let (hl, header, rows) = csv_lines(text, path, "t,u")?;
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
     if names != ["t", "u"] {
         return Err(at(hl, format!("header must be `t,u`, found `{header}`")));
