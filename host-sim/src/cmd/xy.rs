@@ -17,9 +17,9 @@ pub struct Args {
     /// Path to run.
     #[arg(long, value_enum, default_value = "circle")]
     pub path: PathKind,
-    /// Controller.
-    #[arg(long, value_enum, default_value = "nccc")]
-    pub controller: ControllerKind,
+    /// Controller (default `nccc`; with `--tune`: tune only this one).
+    #[arg(long, value_enum)]
+    pub controller: Option<ControllerKind>,
     /// Feed, mm/s.
     #[arg(long = "feed", default_value_t = 50.0)]
     pub feed_mm_per_s: f64,
@@ -43,7 +43,8 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     /// Run the documented tuning procedure ([`crate::xy::tune`]): prints every evaluated
-    /// setting and the chosen gains of `independent`, `ccc` and `nccc` as TOML.
+    /// setting and the chosen gains of each controller as TOML (`--controller C`: only
+    /// C's part of the procedure).
     #[arg(long)]
     pub tune: bool,
 }
@@ -51,9 +52,9 @@ pub struct Args {
 /// Runs the sub-command.
 pub fn run(args: &Args) -> Result<()> {
     if args.tune {
-        let [ind, ccc, nccc] = crate::xy::tune::tune(&mut |l| println!("{l}"))?;
-        for (name, g) in [("independent", ind), ("ccc", ccc), ("nccc", nccc)] {
-            println!("# chosen for {name}\n{}", toml::to_string(&g)?);
+        let tuned = crate::xy::tune::tune(args.controller, &mut |l| println!("{l}"))?;
+        for (kind, g) in tuned {
+            println!("# chosen for {}\n{}", kind.name(), toml::to_string(&g)?);
         }
         return Ok(());
     }
@@ -68,7 +69,7 @@ pub fn run(args: &Args) -> Result<()> {
     let s = XyScenario {
         gains,
         path: args.path,
-        controller: args.controller,
+        controller: args.controller.unwrap_or(ControllerKind::Nccc),
         feed_mm_per_s: args.feed_mm_per_s,
         radius_mm: args.radius_mm,
         disturbance: args.disturbance_n.zip(args.disturbance_at_s),

@@ -61,10 +61,15 @@ pub struct Gains {
     pub axis_linear: LinGains,
     /// Linear PID on ε (`ccc`).
     pub contour_linear: LinGains,
-    /// Nonlinear PID of each axis (`nccc`, `nccc-est`).
+    /// Nonlinear PID of each axis (`nccc`).
     pub axis_nonlinear: NlGains,
-    /// Nonlinear PID on ε (`nccc`, `nccc-est`).
+    /// Nonlinear PID on ε (`nccc`).
     pub contour_nonlinear: NlGains,
+    /// Nonlinear PID of each axis in `nccc-est` (tuned on its own: the estimator's ε
+    /// has a different lag and noise than the model's).
+    pub axis_estimated: NlGains,
+    /// Nonlinear PID on the estimated ε (`nccc-est`).
+    pub contour_estimated: NlGains,
     /// Velocity feed-forward (all controllers).
     pub feedforward: FfGains,
 }
@@ -89,24 +94,13 @@ impl Default for Gains {
                 ki: 0.0,
                 kd: 0.0,
             },
-            axis_nonlinear: NlGains {
-                beta0: 30.0,
-                beta1: 0.8 * 20f64.powf(0.2),
-                beta2: 0.002,
-                alpha: [1.0, 0.8, 1.0],
-                delta: [1.0, 20.0, 1.0],
-                td_r: 5e7,
-                td_h0: 2e-3,
-            },
-            contour_nonlinear: NlGains {
-                beta0: 60.0,
-                beta1: 0.8 * 5f64.powf(0.5),
-                beta2: 0.004,
-                alpha: [1.0, 0.5, 1.0],
-                delta: [1.0, 5.0, 1.0],
-                td_r: 5e7,
-                td_h0: 2e-3,
-            },
+            // `--tune --controller nccc` and `--controller nccc-est` (step 3c/3d) choose
+            // the same setting for both: axis kp 1.6 (fal α1 0.8, δ1 20 µm), ki 15,
+            // TD h0 1 ms; contour kc 0.2 (α1 0.5, δ1 5 µm), no integral, no β2.
+            axis_nonlinear: TUNED_NL_AXIS,
+            contour_nonlinear: TUNED_NL_CONTOUR,
+            axis_estimated: TUNED_NL_AXIS,
+            contour_estimated: TUNED_NL_CONTOUR,
             // Identified by `host-sim xy --tune` (step 1); lead: step 2 (0…8 ms all
             // within 0.1 µm; 0 chosen).
             feedforward: FfGains {
@@ -118,6 +112,32 @@ impl Default for Gains {
         }
     }
 }
+
+/// Tuned axis NPID of `nccc` / `nccc-est`: small-signal kp 1.6 LSB/µm through fal
+/// (β1 = 1.6·20^0.2 LSB/µm^0.8), β0 = ki = 15 LSB/(µm·s), no β2, TD h0 1 ms.
+const TUNED_NL_AXIS: NlGains = NlGains {
+    beta0: 15.0,
+    // 1.6 · 20^0.2
+    beta1: 2.912_902_724_841_728,
+    beta2: 0.0,
+    alpha: [1.0, 0.8, 1.0],
+    delta: [1.0, 20.0, 1.0],
+    td_r: 5e7,
+    td_h0: 1e-3,
+};
+
+/// Tuned contour NPID of `nccc` / `nccc-est`: small-signal kc 0.2 LSB/µm through fal
+/// (β1 = 0.2·5^0.5 LSB/µm^0.5), no integral (β0 = 0), no β2, TD h0 1 ms.
+const TUNED_NL_CONTOUR: NlGains = NlGains {
+    beta0: 0.0,
+    // 0.2 · 5^0.5
+    beta1: 0.447_213_595_499_958,
+    beta2: 0.0,
+    alpha: [1.0, 0.5, 1.0],
+    delta: [1.0, 5.0, 1.0],
+    td_r: 5e7,
+    td_h0: 1e-3,
+};
 
 /// Output limit of every law, LSB.
 const OUT_LIMIT: f64 = 2047.0;
@@ -200,13 +220,18 @@ impl Gains {
         })
     }
 
-    /// Coefficients of `nccc` / `nccc-est`.
-    pub fn nonlinear_coeffs(&self) -> Result<XyCoeffs<NpidCoeffs>> {
-        let a = nl(&self.axis_nonlinear)?;
+    /// Coefficients of `nccc` (`estimated` = false) or `nccc-est` (true).
+    pub fn nonlinear_coeffs(&self, estimated: bool) -> Result<XyCoeffs<NpidCoeffs>> {
+        let (axis, contour) = if estimated {
+            (&self.axis_estimated, &self.contour_estimated)
+        } else {
+            (&self.axis_nonlinear, &self.contour_nonlinear)
+        };
+        let a = nl(axis)?;
         Ok(XyCoeffs {
             x: a,
             y: a,
-            contour: nl(&self.contour_nonlinear)?,
+            contour: nl(contour)?,
         })
     }
 }

@@ -305,7 +305,7 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
             Ctl::Linear(st, c, s.controller == ControllerKind::Ccc)
         }
         ControllerKind::Nccc => {
-            let c = g.nonlinear_coeffs()?;
+            let c = g.nonlinear_coeffs(false)?;
             let st = CrossCoupled::at_rest(
                 Default::default(),
                 Default::default(),
@@ -315,7 +315,7 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
             Ctl::Nonlinear(st, c)
         }
         ControllerKind::NcccEst => {
-            let c = g.nonlinear_coeffs()?;
+            let c = g.nonlinear_coeffs(true)?;
             let st = CrossCoupled::at_rest(
                 Default::default(),
                 Default::default(),
