@@ -35,8 +35,9 @@ pub struct Args {
     /// Write an SVG plot (path and actual point, contour error, commands).
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Gains file (TOML: `[axis_linear]`, `[contour_linear]`, `[axis_nonlinear]`,
-    /// `[contour_nonlinear]`; omitted tables keep the tuned defaults).
+    /// Gains file (TOML: `[axis_independent]`, `[axis_linear]`, `[contour_linear]`,
+    /// `[axis_nonlinear]`, `[contour_nonlinear]`, `[axis_estimated]`,
+    /// `[contour_estimated]`, `[feedforward]`; omitted tables keep the tuned defaults).
     #[arg(long)]
     pub gains: Option<PathBuf>,
     /// Print the result as one JSON object.
