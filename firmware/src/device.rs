@@ -20,10 +20,9 @@
 
 use hydra_core::follower::FollowerConfig;
 use hydra_core::protocol::msg::{AxisStatus, StatusMsg};
-use hydra_core::protocol::{Device, Motion, Nak, NakCode, ParamId};
+use hydra_core::protocol::{apply_param, Device, Motion, Nak, NakCode, ParamId};
 use hydra_core::runtime::{Command, HoldReason, State};
 use hydra_core::table::{CamTable, TableLimits};
-use hydra_core::units::{MasterRate, PosUm};
 
 use crate::board::{SLAVES, SYSCLK_HZ};
 use crate::link::{state_code, LinkIo};
@@ -182,46 +181,10 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         if !self.all_idle() {
             return Err(Nak::new(NakCode::NotIdle));
         }
-        let i = usize::from(axis);
         let mut f = self.st.fcfg;
         let mut lim = self.st.limits;
-        let (Some(a), Some(l)) = (f.axes.get_mut(i), lim.axes.get_mut(i)) else {
-            return Err(Nak::with(
-                NakCode::UnknownParam,
-                u16::from(axis),
-                param as u8,
-            ));
-        };
-        match param {
-            ParamId::KpLsbPerUm => a.kp_lsb_per_um = value,
-            ParamId::KiLsbPerUmS => a.ki_lsb_per_um_s = value,
-            ParamId::KdLsbSPerUm => a.kd_lsb_s_per_um = value,
-            ParamId::KvLsbPerUmS => {
-                a.kv_pos_lsb_per_um_s = value;
-                a.kv_neg_lsb_per_um_s = value;
-            }
-            ParamId::KaLsbPerUmS2 => a.ka_lsb_per_um_s2 = value,
-            ParamId::FollowingErrorUm => a.following_error_um = value,
-            ParamId::ValveNullLsb => a.valve.null_lsb = value,
-            ParamId::MinUm | ParamId::MaxUm | ParamId::MaxSpeedUmPerS => {
-                let v = PosUm::checked_from_num(value).ok_or(range)?;
-                match param {
-                    ParamId::MinUm => l.min_um = v,
-                    ParamId::MaxUm => l.max_um = v,
-                    _ => l.max_speed_um_per_s = v,
-                }
-                if l.min_um >= l.max_um || l.max_speed_um_per_s <= 0 {
-                    return Err(range);
-                }
-            }
-            ParamId::MasterSpeedPerS => {
-                lim.master_speed_per_s = MasterRate::checked_from_num(value)
-                    .filter(|v| *v > 0)
-                    .ok_or(range)?;
-            }
-        }
-        // Validate with the configuration's own builder; rebuild the law if one runs.
-        a.build(f.period_us).map_err(|_| range)?;
+        apply_param(&mut f, &mut lim, axis, param, value)?;
+        // Rebuild the law if one runs.
         if let Some(t) = self.st.active.clone() {
             let law = Law::new(&f, t).map_err(|_| range)?;
             if !install(law) {

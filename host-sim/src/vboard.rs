@@ -21,7 +21,7 @@ use hydra_core::axis::AxisConfig;
 use hydra_core::follower::{Follower, FollowerConfig};
 use hydra_core::protocol::msg::{AxisSample, AxisStatus, StatusMsg, Telemetry};
 use hydra_core::protocol::ramflash::RamFlash;
-use hydra_core::protocol::{Device, Handler, Motion, Nak, NakCode, ParamId, Store};
+use hydra_core::protocol::{apply_param, Device, Handler, Motion, Nak, NakCode, ParamId, Store};
 use hydra_core::runtime::{
     BootCause, Command, CommandError, EncoderSample, Runtime, RuntimeConfig, Sample, State,
 };
@@ -254,48 +254,10 @@ impl Device<AXES, CAPACITY> for Machine {
         if !self.all_idle() {
             return Err(Nak::new(NakCode::NotIdle));
         }
-        let i = usize::from(axis);
-        if i >= AXES {
-            return Err(Nak::with(
-                NakCode::UnknownParam,
-                u16::from(axis),
-                param as u8,
-            ));
-        }
         let mut f = self.fcfg;
         let mut lim = self.limits;
-        let a = &mut f.axes[i];
-        match param {
-            ParamId::KpLsbPerUm => a.kp_lsb_per_um = value,
-            ParamId::KiLsbPerUmS => a.ki_lsb_per_um_s = value,
-            ParamId::KdLsbSPerUm => a.kd_lsb_s_per_um = value,
-            ParamId::KvLsbPerUmS => {
-                a.kv_pos_lsb_per_um_s = value;
-                a.kv_neg_lsb_per_um_s = value;
-            }
-            ParamId::KaLsbPerUmS2 => a.ka_lsb_per_um_s2 = value,
-            ParamId::FollowingErrorUm => a.following_error_um = value,
-            ParamId::ValveNullLsb => a.valve.null_lsb = value,
-            ParamId::MinUm | ParamId::MaxUm | ParamId::MaxSpeedUmPerS => {
-                let v = PosUm::checked_from_num(value).ok_or(range)?;
-                let l = &mut lim.axes[i];
-                match param {
-                    ParamId::MinUm => l.min_um = v,
-                    ParamId::MaxUm => l.max_um = v,
-                    _ => l.max_speed_um_per_s = v,
-                }
-                if l.min_um >= l.max_um || l.max_speed_um_per_s <= 0 {
-                    return Err(range);
-                }
-            }
-            ParamId::MasterSpeedPerS => {
-                lim.master_speed_per_s = MasterRate::checked_from_num(value)
-                    .filter(|v| *v > 0)
-                    .ok_or(range)?;
-            }
-        }
-        // Validate with the same builder as the configuration; rebuild the law if needed.
-        a.build(f.period_us).map_err(|_| range)?;
+        apply_param(&mut f, &mut lim, axis, param, value)?;
+        // Rebuild the law if one runs.
         if let Some(t) = self.rt.law().map(|l| l.table().clone()) {
             let law = Follower::new(&f, t).map_err(|_| range)?;
             self.rt

@@ -21,6 +21,7 @@ pub mod crc;
 pub mod frame;
 pub mod handler;
 pub mod msg;
+pub mod params;
 #[cfg(any(test, feature = "std"))]
 #[allow(
     clippy::indexing_slicing,
@@ -33,6 +34,7 @@ pub mod wire;
 
 pub use handler::{Device, Handler, Motion};
 pub use msg::{Nak, NakCode, ParamId, Request, Response};
+pub use params::apply_param;
 pub use store::{SlotHeader, Store, StoreError};
 
 #[cfg(test)]

@@ -1,0 +1,111 @@
+//! SetParam: one parameter applied to a follower configuration and its table limits.
+//!
+//! Shared by every [`super::Device`] (the firmware and the host's virtual board): the
+//! device works on copies, calls [`apply_param`], rebuilds its law from the result and
+//! keeps the copies only if that succeeds, so a refused parameter changes nothing.
+
+use super::msg::{Nak, NakCode, ParamId};
+use crate::follower::FollowerConfig;
+use crate::table::TableLimits;
+use crate::units::{MasterRate, PosUm};
+
+/// Sets `param` of slave `axis` to `value` (engineering units, see [`ParamId`]) in `cfg`
+/// and `lim`, and validates the axis with its own builder
+/// ([`crate::axis::AxisConfig::build`]).
+///
+/// Errors: `UnknownParam` for an axis the device does not have, `ParamRange` (detail: axis
+/// and parameter) for a value out of range; `cfg` and `lim` may then be partly changed, so
+/// pass copies.
+pub fn apply_param<const S: usize>(
+    cfg: &mut FollowerConfig<S>,
+    lim: &mut TableLimits<S>,
+    axis: u8,
+    param: ParamId,
+    value: f32,
+) -> Result<(), Nak> {
+    let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+    let i = usize::from(axis);
+    let period_us = cfg.period_us;
+    let (Some(a), Some(l)) = (cfg.axes.get_mut(i), lim.axes.get_mut(i)) else {
+        return Err(Nak::with(
+            NakCode::UnknownParam,
+            u16::from(axis),
+            param as u8,
+        ));
+    };
+    match param {
+        ParamId::KpLsbPerUm => a.kp_lsb_per_um = value,
+        ParamId::KiLsbPerUmS => a.ki_lsb_per_um_s = value,
+        ParamId::KdLsbSPerUm => a.kd_lsb_s_per_um = value,
+        ParamId::KvLsbPerUmS => {
+            a.kv_pos_lsb_per_um_s = value;
+            a.kv_neg_lsb_per_um_s = value;
+        }
+        ParamId::KaLsbPerUmS2 => a.ka_lsb_per_um_s2 = value,
+        ParamId::FollowingErrorUm => a.following_error_um = value,
+        ParamId::ValveNullLsb => a.valve.null_lsb = value,
+        ParamId::MinUm | ParamId::MaxUm | ParamId::MaxSpeedUmPerS => {
+            let v = PosUm::checked_from_num(value).ok_or(range)?;
+            match param {
+                ParamId::MinUm => l.min_um = v,
+                ParamId::MaxUm => l.max_um = v,
+                _ => l.max_speed_um_per_s = v,
+            }
+            if l.min_um >= l.max_um || l.max_speed_um_per_s <= 0 {
+                return Err(range);
+            }
+        }
+        ParamId::MasterSpeedPerS => {
+            lim.master_speed_per_s = MasterRate::checked_from_num(value)
+                .filter(|v| *v > 0)
+                .ok_or(range)?;
+        }
+    }
+    a.build(period_us).map(|_| ()).map_err(|_| range)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::axis::AxisConfig;
+    use crate::table::AxisLimits;
+
+    fn setup() -> (FollowerConfig<1>, TableLimits<1>) {
+        let lim = TableLimits {
+            master_speed_per_s: MasterRate::from_num(3000),
+            axes: [AxisLimits {
+                min_um: PosUm::ZERO,
+                max_um: PosUm::from_num(500_000),
+                max_speed_um_per_s: PosUm::from_num(100_000),
+            }],
+        };
+        (FollowerConfig::default(), lim)
+    }
+
+    #[test]
+    fn applies_and_validates() {
+        let (mut c, mut l) = setup();
+        apply_param(&mut c, &mut l, 0, ParamId::KpLsbPerUm, 0.5).unwrap();
+        assert_eq!(c.axes[0].kp_lsb_per_um, 0.5);
+        apply_param(&mut c, &mut l, 0, ParamId::KvLsbPerUmS, 0.02).unwrap();
+        assert_eq!(c.axes[0].kv_neg_lsb_per_um_s, 0.02);
+        apply_param(&mut c, &mut l, 0, ParamId::MasterSpeedPerS, 5000.0).unwrap();
+        assert_eq!(l.master_speed_per_s, MasterRate::from_num(5000));
+        let range = Nak::with(NakCode::ParamRange, 0, ParamId::KpLsbPerUm as u8);
+        assert_eq!(
+            apply_param(&mut c, &mut l, 0, ParamId::KpLsbPerUm, -1.0),
+            Err(range)
+        );
+        let range = Nak::with(NakCode::ParamRange, 0, ParamId::MinUm as u8);
+        assert_eq!(
+            apply_param(&mut c, &mut l, 0, ParamId::MinUm, 600_000.0),
+            Err(range)
+        );
+        let unknown = Nak::with(NakCode::UnknownParam, 3, ParamId::KpLsbPerUm as u8);
+        assert_eq!(
+            apply_param(&mut c, &mut l, 3, ParamId::KpLsbPerUm, 1.0),
+            Err(unknown)
+        );
+        assert_eq!(AxisConfig::default().valve, c.axes[0].valve);
+    }
+}
