@@ -134,12 +134,12 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
     fn all_idle(&self) -> bool {
         tick::with_runtime(|rt| matches!(rt.state(), State::Idle | State::Fault)).unwrap_or(true)
     }
-    fn install_table(&mut self, table: Table) {
+    fn install_table(&mut self, table: Table) -> Result<(), Nak> {
         let law = match Law::new(&self.st.fcfg, table.clone()) {
             Ok(l) => l,
             Err(e) => {
                 defmt::error!("follower rejected the table: {}", e);
-                return;
+                return Err(Nak::with(NakCode::Refused, 0, 0));
             }
         };
         // Before the tick starts (boot) `main` builds the law from `st.active` itself.
@@ -150,8 +150,10 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
                 "table installed ({} rows)",
                 self.st.active.as_ref().map_or(0, |t| t.len())
             );
+            Ok(())
         } else {
             defmt::warn!("table not installed: runtime not at a safe point");
+            Err(Nak::with(NakCode::Refused, 1, 0))
         }
     }
     fn command(&mut self, m: Motion) -> Result<(), Nak> {

@@ -117,7 +117,9 @@ impl LinkProtocol for Framed {
             st: &mut self.dev,
             io: Some(&mut *io),
         };
-        self.handler.poll(&mut dev);
+        if let Err(e) = self.handler.poll(&mut dev) {
+            defmt::warn!("deferred activation refused: {}", e);
+        }
     }
 
     fn on_sample(&mut self, sample: &TickSample, io: &mut LinkIo<'_>) {

@@ -225,11 +225,13 @@ impl Device<AXES, CAPACITY> for Machine {
     fn all_idle(&self) -> bool {
         matches!(self.rt.state(), State::Idle | State::Fault)
     }
-    fn install_table(&mut self, table: CamTable<AXES, CAPACITY>) {
-        if let Ok(f) = Follower::new(&self.fcfg, table) {
-            // at_safe_point() was checked by the handler, so install cannot be Busy.
-            let _ = self.rt.install(f);
-        }
+    fn install_table(&mut self, table: CamTable<AXES, CAPACITY>) -> Result<(), Nak> {
+        let f = Follower::new(&self.fcfg, table).map_err(|_| Nak::with(NakCode::Refused, 0, 0))?;
+        // at_safe_point() was checked by the handler, so Busy would be a handler bug.
+        self.rt
+            .install(f)
+            .map(|_| ())
+            .map_err(|_| Nak::with(NakCode::Refused, 1, 0))
     }
     fn command(&mut self, m: Motion) -> Result<(), Nak> {
         let cmd = match m {
@@ -331,7 +333,8 @@ impl VBoard {
     /// One control period, with telemetry through `tx` when due.
     pub fn tick(&mut self, tx: &mut impl FnMut(&[u8])) {
         self.machine.tick(None);
-        self.handler.poll(&mut self.machine);
+        // A refused deferred activation keeps the running table; Status shows the id.
+        let _ = self.handler.poll(&mut self.machine);
         let m = &self.machine;
         self.handler.on_tick(tx, || m.telemetry());
     }

@@ -63,8 +63,9 @@ pub trait Device<const S: usize, const N: usize> {
     fn at_safe_point(&self) -> bool;
     /// Every axis idle (valves at null, not following).
     fn all_idle(&self) -> bool;
-    /// Installs a table (only called at a safe point).
-    fn install_table(&mut self, table: CamTable<S, N>);
+    /// Installs a table (only called at a safe point). Errors: [`NakCode::Refused`] if the
+    /// device cannot run it; what runs is then unchanged.
+    fn install_table(&mut self, table: CamTable<S, N>) -> Result<(), Nak>;
     /// Start / Stop / Hold / ClearFault.
     fn command(&mut self, m: Motion) -> Result<(), Nak>;
     /// Sets one parameter (validated; typed error).
@@ -142,9 +143,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         let r = self.store.load(flash, &limits, &mut self.staging);
         self.staging.clear();
         let (h, t) = r?;
-        dev.install_table(t);
-        self.active_id = h.id;
+        // The slot stays the saved one even if the device refuses its table.
         self.saved = Some(h);
+        dev.install_table(t).ok()?;
+        self.active_id = h.id;
         Some(h)
     }
 
@@ -154,14 +156,16 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     }
 
     /// Installs an armed activation once the device is at a safe point. Call every loop.
-    pub fn poll<D: Device<S, N>>(&mut self, dev: &mut D) {
+    /// Returns the device's refusal, if it refused (the active id then stays).
+    pub fn poll<D: Device<S, N>>(&mut self, dev: &mut D) -> Result<(), Nak> {
         if self.pending && dev.at_safe_point() {
             self.pending = false;
             if let Some((id, t)) = self.committed.take() {
-                dev.install_table(t);
+                dev.install_table(t)?;
                 self.active_id = id;
             }
         }
+        Ok(())
     }
 
     /// Counts one control tick; every `decimation` ticks sends `sample()` as Telemetry.
@@ -217,7 +221,9 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 }
             };
             send(tx, seq, &resp);
-            self.poll(dev);
+            // A refused deferred activation leaves the active id as it was; the host sees
+            // that in Status.
+            let _ = self.poll(dev);
         }
     }
 
@@ -284,9 +290,13 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             Request::Activate { id } => match &self.committed {
                 Some((cid, _)) if *cid == id => {
                     self.pending = true;
-                    self.poll(dev);
-                    let flags = if self.pending { ACK_DEFERRED } else { 0 };
-                    return Response::Ack { req: t, flags };
+                    match self.poll(dev) {
+                        Ok(()) => {
+                            let flags = if self.pending { ACK_DEFERRED } else { 0 };
+                            return Response::Ack { req: t, flags };
+                        }
+                        Err(e) => Err(e),
+                    }
                 }
                 _ => Err(Nak::new(NakCode::UnknownTable)),
             },

@@ -27,6 +27,8 @@ struct Mock {
     running: bool,
     ended: bool,
     kp: f32,
+    /// Refuse every table (as a device whose law cannot be built).
+    refuse: bool,
 }
 
 impl Device<S, N> for Mock {
@@ -55,9 +57,13 @@ impl Device<S, N> for Mock {
     fn all_idle(&self) -> bool {
         !self.running
     }
-    fn install_table(&mut self, t: CamTable<S, N>) {
+    fn install_table(&mut self, t: CamTable<S, N>) -> Result<(), Nak> {
+        if self.refuse {
+            return Err(Nak::with(NakCode::Refused, 0, 0));
+        }
         self.table = Some(t);
         self.ended = false;
+        Ok(())
     }
     fn command(&mut self, m: Motion) -> Result<(), Nak> {
         match m {
@@ -268,7 +274,7 @@ fn upload_activate_save_boot() {
     assert_eq!(r.ack(&Request::Activate { id: 8 }), ACK_DEFERRED);
     assert_eq!(r.h.active_id(), 7);
     r.dev.ended = true;
-    r.h.poll(&mut r.dev);
+    r.h.poll(&mut r.dev).unwrap();
     assert_eq!(r.h.active_id(), 8);
     assert_eq!(r.dev.table.as_ref().unwrap().len(), 12);
     r.ack(&Request::Stop);
@@ -483,6 +489,41 @@ fn bad_frames_change_nothing() {
 
 /// Invalid tables get the CamTable rule that failed, and change nothing.
 #[test]
+fn a_table_the_device_refuses_changes_nothing() {
+    let mut r = Rig::new();
+    assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
+    r.upload(7, &nodes(40, 100)).unwrap();
+    r.ack(&Request::Activate { id: 7 });
+    r.ack(&Request::Start);
+    // Immediate activation refused: typed Nak, the running table and its id stay.
+    r.dev.ended = true;
+    r.dev.refuse = true;
+    r.upload(8, &nodes(12, 50)).unwrap();
+    let before = r.dev.table.clone();
+    assert_eq!(
+        nak_code(&r.req(&Request::Activate { id: 8 })),
+        NakCode::Refused
+    );
+    assert_eq!(r.h.active_id(), 7);
+    assert_eq!(r.dev.table, before);
+    // Deferred activation refused at the safe point: poll reports it, the id stays.
+    r.dev.ended = false;
+    r.upload(9, &nodes(12, 50)).unwrap();
+    assert_eq!(r.ack(&Request::Activate { id: 9 }), ACK_DEFERRED);
+    r.dev.ended = true;
+    assert_eq!(
+        r.h.poll(&mut r.dev).map_err(|n| n.code),
+        Err(NakCode::Refused)
+    );
+    assert_eq!(r.h.active_id(), 7);
+    assert_eq!(r.dev.table, before);
+    match r.req(&Request::GetStatus) {
+        Response::Status(s) => assert_eq!(s.active_id, 7),
+        x => panic!("{x:?}"),
+    }
+}
+
+#[test]
 fn invalid_tables_are_refused() {
     let mut r = loaded_rig();
     let mut not_mono = nodes(6, 10);
@@ -667,7 +708,7 @@ fn run_ops(ops: &[Op]) {
             Op::Stop => (r.raw(&Rig::frame(seq, &Request::Stop)), false),
             Op::End => {
                 r.dev.ended = true;
-                r.h.poll(&mut r.dev);
+                let _ = r.h.poll(&mut r.dev);
                 continue;
             }
             Op::Save => (r.raw(&Rig::frame(seq, &Request::Save)), false),

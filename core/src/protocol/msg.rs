@@ -123,13 +123,17 @@ pub enum NakCode {
     NothingToSave = 28,
     /// Save: flash erase/write/verify failed.
     Flash = 29,
+    /// Activate: the device refused the committed table (`detail` = 0: its law could not
+    /// be built with the present parameters, 1: the runtime was not at a safe point). The
+    /// running table and the active id are unchanged; the committed table is consumed.
+    Refused = 30,
 }
 
 impl NakCode {
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use NakCode::*;
-        const ALL: [NakCode; 29] = [
+        const ALL: [NakCode; 30] = [
             UnknownType,
             Truncated,
             Oversized,
@@ -159,6 +163,7 @@ impl NakCode {
             ParamRange,
             NothingToSave,
             Flash,
+            Refused,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -740,7 +745,8 @@ mod tests {
         }
         assert_eq!(NakCode::from_u8(29), Some(NakCode::Flash));
         assert_eq!(NakCode::from_u8(0), None);
-        assert_eq!(NakCode::from_u8(30), None);
+        assert_eq!(NakCode::from_u8(30), Some(NakCode::Refused));
+        assert_eq!(NakCode::from_u8(31), None);
     }
 
     #[test]
