@@ -21,7 +21,9 @@
 //!   a safe point (idle, or the running table has ended), otherwise it is armed
 //!   (Ack flag bit 0) and [`Handler::poll`] installs it at the next safe point.
 //! - `Save` needs every axis idle (erasing a sector stalls the CPU for up to 2 s on the
-//!   single-bank STM32F4, so never while a table runs) and writes the older slot.
+//!   single-bank STM32F4, so never while a table runs) and writes the older slot: the
+//!   active table and every parameter changed by SetParam since boot (boot applies them
+//!   again before it validates the table).
 
 use super::crc::Crc32;
 use super::frame::{self, FrameDecoder, FrameError, MAX_PAYLOAD, MAX_WIRE};
@@ -29,6 +31,7 @@ use super::msg::{
     read_row, row_len, ty, Info, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
     NO_TABLE, PROTOCOL_VERSION,
 };
+use super::overrides::ParamOverrides;
 use super::store::{SlotHeader, Store};
 use crate::table::{CamTable, Node, TableLimits};
 use embedded_storage::nor_flash::NorFlash;
@@ -95,6 +98,8 @@ pub struct Handler<const S: usize, const N: usize> {
     pending: bool,
     active_id: u32,
     saved: Option<SlotHeader>,
+    /// SetParams accepted since boot (plus those boot applied): what Save stores.
+    overrides: ParamOverrides,
     decimation: u16,
     tick_count: u16,
     tel_seq: u16,
@@ -127,27 +132,53 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             pending: false,
             active_id: NO_TABLE,
             saved: None,
+            overrides: ParamOverrides::new(),
             decimation: 0,
             tick_count: 0,
             tel_seq: 0,
         }
     }
 
-    /// Loads the newest valid flash slot and installs its table. Returns its header.
+    /// Loads the newest valid flash slot: applies its parameters through
+    /// [`Device::set_param`] (a record the device refuses now is skipped), then installs its
+    /// table if it passes the [`CamTable`] rules with the resulting limits; otherwise the
+    /// older slot the same way (its parameters applied on top). Returns the header of the
+    /// slot whose table runs.
     pub fn boot<D: Device<S, N>, F: NorFlash>(
         &mut self,
         dev: &mut D,
         flash: &mut F,
     ) -> Option<SlotHeader> {
-        let limits = dev.table_limits();
-        let r = self.store.load(flash, &limits, &mut self.staging);
-        self.staging.clear();
-        let (h, t) = r?;
-        // The slot stays the saved one even if the device refuses its table.
-        self.saved = Some(h);
-        dev.install_table(t).ok()?;
-        self.active_id = h.id;
-        Some(h)
+        let mut params = ParamOverrides::new();
+        for h in self
+            .store
+            .newest_first::<F, S, N>(flash)
+            .into_iter()
+            .flatten()
+        {
+            if self
+                .store
+                .read_slot(flash, h.slot, &mut self.staging, &mut params)
+                .is_none()
+            {
+                continue;
+            }
+            for r in params.iter() {
+                if dev.set_param(r.axis, r.param, r.value).is_ok() {
+                    self.overrides.record(r.axis, r.param, r.value);
+                }
+            }
+            let t = CamTable::try_from_nodes(&self.staging, &dev.table_limits());
+            self.staging.clear();
+            if let Ok(t) = t {
+                // The slot stays the saved one even if the device refuses its table.
+                self.saved = Some(h);
+                dev.install_table(t).ok()?;
+                self.active_id = h.id;
+                return Some(h);
+            }
+        }
+        None
     }
 
     /// Id of the active table ([`NO_TABLE`] if none).
@@ -305,7 +336,9 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             Request::Hold => dev.command(Motion::Hold),
             Request::ClearFault => dev.command(Motion::ClearFault),
             Request::SetParam { axis, param, value } => match ParamId::from_u8(param) {
-                Some(p) => dev.set_param(axis, p, value),
+                Some(p) => dev.set_param(axis, p, value).map(|()| {
+                    self.overrides.record(axis, p, value);
+                }),
                 None => Err(Nak::with(NakCode::UnknownParam, u16::from(axis), param)),
             },
             Request::Save => self.save(dev, flash),
@@ -444,7 +477,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         let t = dev.active_table().ok_or(Nak::new(NakCode::NothingToSave))?;
         let h = self
             .store
-            .save(flash, self.active_id, t)
+            .save(flash, self.active_id, t, &self.overrides)
             .map_err(|_| Nak::new(NakCode::Flash))?;
         self.saved = Some(h);
         Ok(())

@@ -7,6 +7,7 @@ use super::msg::{
     row_len, write_row, AxisStatus, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
     NO_TABLE,
 };
+use super::overrides::ParamOverrides;
 use super::ramflash::RamFlash;
 use super::store::Store;
 use super::wire::Writer;
@@ -297,6 +298,50 @@ fn upload_activate_save_boot() {
 }
 
 #[test]
+fn saved_parameters_come_back_at_boot() {
+    let mut r = loaded_rig();
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: 0.5,
+    });
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: 0.75,
+    });
+    // A refused value is not recorded.
+    r.req(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: -1.0,
+    });
+    r.ack(&Request::Save);
+    let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
+    let mut h2 = Handler::<S, N>::new(store);
+    let mut dev2 = Mock::default();
+    let hd = h2.boot(&mut dev2, &mut r.flash).unwrap();
+    assert_eq!((hd.id, hd.params), (2, 1));
+    assert_eq!(dev2.kp, 0.75);
+    assert_eq!(dev2.table, r.dev.table);
+    // Saved again after that boot without a SetParam: the parameter is still stored.
+    let mut r3 = Rig {
+        h: h2,
+        dev: dev2,
+        flash: r.flash.clone(),
+        seq: 0,
+    };
+    assert!(matches!(r3.req(&Request::Hello), Response::Info(_)));
+    r3.ack(&Request::Save);
+    let mut dev4 = Mock::default();
+    let hd = Handler::<S, N>::new(store)
+        .boot(&mut dev4, &mut r3.flash)
+        .unwrap();
+    assert_eq!(hd.generation, 4, "a new slot was written");
+    assert_eq!(dev4.kp, 0.75);
+}
+
+#[test]
 fn set_param_and_telemetry() {
     let mut r = Rig::new();
     r.req(&Request::Hello);
@@ -570,7 +615,10 @@ fn power_cut_at_every_byte_of_save() {
     let mut f = base.clone();
     let ops0 = f.ops;
     let store = Store::new::<_, S, N>(&f, 0, SLOT).unwrap();
-    store.save(&mut f, 3, &new).unwrap();
+    // The new slot also carries a changed parameter.
+    let mut params = ParamOverrides::new();
+    params.record(0, ParamId::KpLsbPerUm, 0.25);
+    store.save(&mut f, 3, &new, &params).unwrap();
     let total = f.ops - ops0;
     assert!(
         total > SLOT as usize,
@@ -581,7 +629,7 @@ fn power_cut_at_every_byte_of_save() {
     for cut in 0..=total {
         let mut f = base.clone();
         f.cut_after(cut);
-        let res = store.save(&mut f, 3, &new);
+        let res = store.save(&mut f, 3, &new, &params);
         assert_eq!(res.is_ok(), cut == total, "cut {cut}");
         f.power_on();
         let mut h = Handler::<S, N>::new(store);
@@ -590,10 +638,12 @@ fn power_cut_at_every_byte_of_save() {
         let t = dev.table.unwrap();
         if hd.id == 3 {
             assert_eq!(t, new);
+            assert_eq!(dev.kp, 0.25, "the new table comes with its parameters");
             saw_new += 1;
         } else {
             assert_eq!(hd.id, 2);
             assert_eq!(t, old);
+            assert_eq!(dev.kp, 0.0, "the old table with the old parameters");
             saw_old += 1;
         }
     }

@@ -7,7 +7,8 @@
 //! - [`frame`]: `seq · type · payload · crc32`, the streaming [`frame::FrameDecoder`];
 //! - [`wire`]: little-endian field reader/writer;
 //! - [`msg`]: requests, responses, typed [`msg::NakCode`]s;
-//! - [`store`]: two flash slots through the `embedded-storage` NorFlash traits;
+//! - [`store`]: two flash slots (table + [`overrides`], the changed parameters) through
+//!   the `embedded-storage` NorFlash traits;
 //! - [`handler`]: the board's state machine ([`handler::Handler`]) behind the
 //!   [`handler::Device`] seam;
 //! - `ramflash` (host only): a NOR flash in RAM that can lose power at any byte.
@@ -21,6 +22,7 @@ pub mod crc;
 pub mod frame;
 pub mod handler;
 pub mod msg;
+pub mod overrides;
 pub mod params;
 #[cfg(any(test, feature = "std"))]
 #[allow(
@@ -34,6 +36,7 @@ pub mod wire;
 
 pub use handler::{Device, Handler, Motion};
 pub use msg::{Nak, NakCode, ParamId, Request, Response};
+pub use overrides::{ParamOverrides, ParamRecord};
 pub use params::apply_param;
 pub use store::{SlotHeader, Store, StoreError};
 

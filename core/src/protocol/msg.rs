@@ -252,10 +252,13 @@ pub enum ParamId {
 }
 
 impl ParamId {
+    /// Number of parameter ids.
+    pub const COUNT: usize = 11;
+
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use ParamId::*;
-        const ALL: [ParamId; 11] = [
+        const ALL: [ParamId; ParamId::COUNT] = [
             KpLsbPerUm,
             KiLsbPerUmS,
             KdLsbSPerUm,

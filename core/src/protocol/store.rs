@@ -1,4 +1,5 @@
-//! Two flash slots holding the active table, so a table is never lost.
+//! Two flash slots holding the active table and the changed parameters, so neither is
+//! ever lost.
 //!
 //! Each slot is `slot_size` bytes (a multiple of the flash's erase size) at
 //! `base + slot · slot_size`, slot ∈ {0, 1}. Layout (little-endian):
@@ -6,36 +7,42 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 12 | 0xFF (pads the magic to a 16-byte program unit) |
-//! | 12 | 4 | magic `0x31545948` ("HYT1"), **written last**, its last byte last |
+//! | 12 | 4 | magic `0x32545948` ("HYT2"), **written last**, its last byte last |
 //! | 16 | 4 | generation: 1 + the newest valid slot's generation at save time |
 //! | 20 | 4 | table id |
 //! | 24 | 2 | columns |
 //! | 26 | 2 | rows |
-//! | 28 | rows · (8 + 4·columns) | rows, as on the wire ([`super::msg::row_len`]) |
-//! | 28 + L | 4 | CRC-32 of bytes 16 … 28 + L − 1 |
+//! | 28 | 2 | parameter records P (the SetParams accepted since boot, [`ParamOverrides`]) |
+//! | 30 | 2 | 0 (reserved) |
+//! | 32 | 6 · P | records: `u8 axis · u8 param id · f32 value` |
+//! | 32 + 6P | rows · (8 + 4·columns) | rows, as on the wire ([`super::msg::row_len`]) |
+//! | 32 + 6P + L | 4 | CRC-32 of bytes 16 … 32 + 6P + L − 1 |
 //!
 //! **Save** erases the slot that does not hold the newest valid table, writes bytes 16 …
-//! end, then the magic, then reads the slot back and checks it. **Boot** takes the valid
-//! slot with the highest generation (valid: magic, CRC, columns = S, rows ≤ N, and the
-//! table passes the [`CamTable`] rules with the present limits); if it fails to build, the
-//! other slot. A power cut at any byte of a Save therefore leaves the previous slot
-//! untouched and the one being written without its magic (or with a bad CRC): boot finds
-//! the old table, or the new one once the magic is down.
+//! end, then the magic, then reads the slot back and checks it. **Boot**
+//! ([`super::Handler::boot`]) takes the valid slot with the highest generation (valid:
+//! magic, CRC, columns = S, rows ≤ N, P ≤ S · [`ParamId::COUNT`]), applies its parameters,
+//! and installs its table if it passes the [`CamTable`] rules with the resulting limits;
+//! otherwise the other slot. A power cut at any byte of a Save therefore leaves the
+//! previous slot untouched and the one being written without its magic (or with a bad
+//! CRC): boot finds the old table and parameters, or the new ones once the magic is down.
+//! Slots of the first layout ("HYT1", no parameters) are not valid in this one.
 //!
 //! Generations are compared as plain `u32`: at one save per second that is 136 years,
 //! far beyond the flash's 10 000 erase cycles.
 
 use super::crc::Crc32;
-use super::msg::row_len;
+use super::msg::{row_len, ParamId};
+use super::overrides::{ParamOverrides, ParamRecord, RECORD_LEN};
 use super::wire::{Reader, Writer};
-use crate::table::{CamTable, Node, TableLimits};
+use crate::table::{CamTable, Node};
 use embedded_storage::nor_flash::NorFlash;
 use heapless::Vec;
 
 /// Magic of a complete slot.
-pub const MAGIC: u32 = 0x3154_5948;
-/// Bytes before the rows.
-pub const HEADER: usize = 28;
+pub const MAGIC: u32 = 0x3254_5948;
+/// Bytes before the parameter records.
+pub const HEADER: usize = 32;
 /// Size of the magic's program unit (a flash's WRITE_SIZE must divide it).
 const MAGIC_UNIT: usize = 16;
 /// Write buffer, bytes (a multiple of every supported WRITE_SIZE).
@@ -46,7 +53,7 @@ const BUF: usize = 64;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum StoreError {
     /// Slot size not a multiple of ERASE_SIZE, WRITE_SIZE not dividing 16, the slots beyond
-    /// the flash, or a full table of N rows not fitting a slot.
+    /// the flash, or a full table of N rows with every parameter not fitting a slot.
     Geometry,
     /// The flash driver returned an error (or the power went).
     Flash,
@@ -66,6 +73,8 @@ pub struct SlotHeader {
     pub id: u32,
     /// Rows.
     pub rows: u16,
+    /// Parameter records.
+    pub params: u16,
 }
 
 /// The two-slot store: where the slots are.
@@ -87,6 +96,7 @@ impl Store {
         let need = row_len(S)
             .checked_mul(N)
             .and_then(|b| b.checked_add(HEADER + 4))
+            .and_then(|b| b.checked_add(max_records(S).checked_mul(RECORD_LEN)?))
             .ok_or(g)?;
         let end = u64::from(base).saturating_add(u64::from(slot_size).saturating_mul(2));
         let ok = F::ERASE_SIZE > 0
@@ -118,20 +128,29 @@ impl Store {
         flash: &mut F,
         slot: u8,
     ) -> Option<SlotHeader> {
-        self.walk::<F, S, N>(flash, slot, |_| Some(()))
+        self.walk::<F, S, N>(flash, slot, |_| Some(()), |_| Some(()))
     }
 
-    /// Reads a valid slot's rows into `nodes`.
-    pub fn read_nodes<F: NorFlash, const S: usize, const N: usize>(
+    /// Reads a valid slot's parameter records into `params` and its rows into `nodes`
+    /// (both empty if the slot is not valid).
+    pub fn read_slot<F: NorFlash, const S: usize, const N: usize>(
         &self,
         flash: &mut F,
         slot: u8,
         nodes: &mut Vec<Node<S>, N>,
+        params: &mut ParamOverrides,
     ) -> Option<SlotHeader> {
         nodes.clear();
-        let h = self.walk::<F, S, N>(flash, slot, |n| nodes.push(n).ok());
+        params.clear();
+        let h = self.walk::<F, S, N>(
+            flash,
+            slot,
+            |r| params.record(r.axis, r.param, r.value).then_some(()),
+            |n| nodes.push(n).ok(),
+        );
         if h.is_none() {
             nodes.clear();
+            params.clear();
         }
         h
     }
@@ -140,6 +159,7 @@ impl Store {
         &self,
         flash: &mut F,
         slot: u8,
+        mut each_param: impl FnMut(ParamRecord) -> Option<()>,
         mut each: impl FnMut(Node<S>) -> Option<()>,
     ) -> Option<SlotHeader> {
         let at = self.slot_base(slot);
@@ -156,11 +176,23 @@ impl Store {
         let id = r.u32()?;
         let columns = r.u16()?;
         let rows = r.u16()?;
-        if usize::from(columns) != S || usize::from(rows) > N || rows < 2 {
+        let params = r.u16()?;
+        if usize::from(columns) != S
+            || usize::from(rows) > N
+            || rows < 2
+            || usize::from(params) > max_records(S)
+        {
             return None;
         }
-        let rl = row_len(S);
         let mut off = at.checked_add(u32::try_from(HEADER).ok()?)?;
+        for _ in 0..params {
+            let mut rec = [0u8; RECORD_LEN];
+            flash.read(off, &mut rec).ok()?;
+            crc.update(&rec);
+            each_param(ParamRecord::read(&mut Reader::new(&rec))?)?;
+            off = off.checked_add(RECORD_LEN as u32)?;
+        }
+        let rl = row_len(S);
         let step = u32::try_from(rl).ok()?;
         let mut row = [0u8; super::msg::row_len(super::msg::MAX_AXES)];
         for _ in 0..rows {
@@ -177,6 +209,7 @@ impl Store {
             generation,
             id,
             rows,
+            params,
         })
     }
 
@@ -193,38 +226,27 @@ impl Store {
         }
     }
 
-    /// Boot: the newest slot whose table builds with `limits`, else the other one.
-    /// `scratch` is used for the rows (its contents are lost).
-    pub fn load<F: NorFlash, const S: usize, const N: usize>(
+    /// The valid slots, newest (highest generation) first: the order boot tries them.
+    pub fn newest_first<F: NorFlash, const S: usize, const N: usize>(
         &self,
         flash: &mut F,
-        limits: &TableLimits<S>,
-        scratch: &mut Vec<Node<S>, N>,
-    ) -> Option<(SlotHeader, CamTable<S, N>)> {
+    ) -> [Option<SlotHeader>; 2] {
         let a = self.scan::<F, S, N>(flash, 0);
         let b = self.scan::<F, S, N>(flash, 1);
-        let mut order = [a, b];
-        if let (Some(x), Some(y)) = (a, b) {
-            if y.generation > x.generation {
-                order = [b, a];
-            }
+        match (a, b) {
+            (Some(x), Some(y)) if y.generation > x.generation => [b, a],
+            _ => [a, b],
         }
-        for h in order.into_iter().flatten() {
-            if self.read_nodes::<F, S, N>(flash, h.slot, scratch).is_some() {
-                if let Ok(t) = CamTable::try_from_nodes(scratch, limits) {
-                    return Some((h, t));
-                }
-            }
-        }
-        None
     }
 
-    /// Saves `table` under `id` into the slot not holding the newest valid table.
+    /// Saves `table` under `id`, with the parameter records `params`, into the slot not
+    /// holding the newest valid table.
     pub fn save<F: NorFlash, const S: usize, const N: usize>(
         &self,
         flash: &mut F,
         id: u32,
         table: &CamTable<S, N>,
+        params: &ParamOverrides,
     ) -> Result<SlotHeader, StoreError> {
         let newest = self.newest::<F, S, N>(flash);
         let slot = match newest {
@@ -233,6 +255,10 @@ impl Store {
         };
         let generation = newest.map_or(1, |h| h.generation.saturating_add(1));
         let rows = u16::try_from(table.len()).map_err(|_| StoreError::Geometry)?;
+        let n_params = u16::try_from(params.len()).map_err(|_| StoreError::Geometry)?;
+        if params.len() > max_records(S) {
+            return Err(StoreError::Geometry);
+        }
         let at = self.slot_base(slot);
         let fl = StoreError::Flash;
         flash
@@ -251,7 +277,15 @@ impl Store {
         w.u32(id).ok_or(fl)?;
         w.u16(S as u16).ok_or(fl)?;
         w.u16(rows).ok_or(fl)?;
+        w.u16(n_params).ok_or(fl)?;
+        w.u16(0).ok_or(fl)?;
         out.put(flash, &hdr, true)?;
+        for p in params.iter() {
+            let mut rec = [0u8; RECORD_LEN];
+            p.write(&mut Writer::new(&mut rec))
+                .ok_or(StoreError::Geometry)?;
+            out.put(flash, &rec, true)?;
+        }
         for i in 0..table.len() {
             let n = table.node(i).ok_or(StoreError::Geometry)?;
             let mut row = [0u8; super::msg::row_len(super::msg::MAX_AXES)];
@@ -270,10 +304,23 @@ impl Store {
             .copy_from_slice(&MAGIC.to_le_bytes());
         flash.write(at, &magic).map_err(|_| fl)?;
         match self.scan::<F, S, N>(flash, slot) {
-            Some(h) if h.generation == generation && h.id == id && h.rows == rows => Ok(h),
+            Some(h)
+                if h.generation == generation
+                    && h.id == id
+                    && h.rows == rows
+                    && h.params == n_params =>
+            {
+                Ok(h)
+            }
             _ => Err(StoreError::Verify),
         }
     }
+}
+
+/// Most parameter records a slot of an `S`-axis board holds: every parameter of every
+/// axis.
+const fn max_records(s: usize) -> usize {
+    s.saturating_mul(ParamId::COUNT)
 }
 
 /// Buffers writes into WRITE_SIZE-aligned program operations.
