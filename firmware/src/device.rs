@@ -19,15 +19,16 @@
 //! gain changes, so this side never borrows the table the tick is using.
 
 use hydra_core::follower::FollowerConfig;
-use hydra_core::protocol::msg::{AxisStatus, StatusMsg};
+use hydra_core::protocol::msg::StatusMsg;
+use hydra_core::protocol::report::{fill_status, state_code};
 use hydra_core::protocol::{apply_param, Device, Motion, Nak, NakCode, ParamId};
-use hydra_core::runtime::{Command, HoldReason, State};
+use hydra_core::runtime::{Command, State};
 use hydra_core::table::{CamTable, TableLimits};
 
 use crate::board::{SLAVES, SYSCLK_HZ};
-use crate::link::{state_code, LinkIo};
+use crate::link::LinkIo;
 use crate::program::{Law, PERIOD_US, TABLE_NODES};
-use crate::tick::{self, BoardStatus};
+use crate::tick;
 use crate::valves::ValveBank;
 
 /// The board's table type.
@@ -198,32 +199,8 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {
-        let Some(st): Option<BoardStatus> = tick::with_runtime(|rt| *rt.status()) else {
-            return;
-        };
-        out.state = state_code(st.state);
-        out.flags = u8::from(matches!(st.state, State::Holding(HoldReason::EndOfTable)));
-        out.fault_axis = 0xFF;
-        if let Some(f) = st.fault {
-            let code = f.fault.code();
-            out.fault_code = code;
-            // Per-slave kinds carry the slave in the low byte (0x06aa, 0x07aa).
-            if matches!(code >> 8, 0x06 | 0x07) {
-                out.fault_axis = (code & 0xFF) as u8;
-            }
-        }
-        out.ticks = st.tick;
-        out.tick_max_ns = cycles_to_ns(st.timing.max_cycles);
-        out.tick_mean_ns = cycles_to_ns(st.timing.mean_cycles);
-        out.overruns = st.timing.overruns;
-        out.master = st.master.to_bits();
-        for i in 0..SLAVES {
-            let _ = out.axes.push(AxisStatus {
-                pos_um: st.pos_um[i].to_bits(),
-                target_um: st.target_um[i].to_bits(),
-                error_um: st.error_um[i].to_bits(),
-                dac: st.dac[i].get(),
-            });
+        if let Some(st) = tick::with_runtime(|rt| *rt.status()) {
+            fill_status::<SLAVES, _>(&st, cycles_to_ns, out);
         }
     }
 }

@@ -26,7 +26,8 @@ use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
 use embassy_time::Timer;
 use heapless::spsc::{Consumer, Producer};
 use heapless::Vec;
-use hydra_core::runtime::{Command, CommandError, State};
+use hydra_core::protocol::report::state_code;
+use hydra_core::runtime::{Command, CommandError};
 
 use crate::tick::{BoardStatus, Reply, TickSample};
 
@@ -126,16 +127,6 @@ pub trait LinkProtocol {
 /// The runtime state as a small code for the status LED (0 Idle, 1 Following,
 /// 2 Holding, 3 Fault), published by the link task.
 pub static STATE_CODE: AtomicU8 = AtomicU8::new(0);
-
-/// The runtime state as the protocol's code: 0 Idle, 1 Following, 2 Holding, 3 Fault.
-pub fn state_code(s: State) -> u8 {
-    match s {
-        State::Idle => 0,
-        State::Following => 1,
-        State::Holding(_) => 2,
-        State::Fault => 3,
-    }
-}
 
 /// The link's channels to the tick.
 pub struct LinkChannels {

@@ -19,8 +19,9 @@ use crate::plant::{HydraulicAxis, MasterProfile};
 use crate::scenario::Scenario;
 use hydra_core::axis::AxisConfig;
 use hydra_core::follower::{Follower, FollowerConfig};
-use hydra_core::protocol::msg::{AxisSample, AxisStatus, StatusMsg, Telemetry};
+use hydra_core::protocol::msg::{AxisSample, StatusMsg, Telemetry};
 use hydra_core::protocol::ramflash::RamFlash;
+use hydra_core::protocol::report::{fill_status, state_code};
 use hydra_core::protocol::{apply_param, Device, Handler, Motion, Nak, NakCode, ParamId, Store};
 use hydra_core::runtime::{
     BootCause, Command, CommandError, EncoderSample, Runtime, RuntimeConfig, Sample, State,
@@ -192,15 +193,6 @@ impl Machine {
     }
 }
 
-fn state_code(s: State) -> u8 {
-    match s {
-        State::Idle => 0,
-        State::Following => 1,
-        State::Holding(_) => 2,
-        State::Fault => 3,
-    }
-}
-
 fn command_nak(e: CommandError, state: u8) -> Nak {
     let _ = e;
     Nak::with(NakCode::BadState, u16::from(state), 0)
@@ -271,29 +263,8 @@ impl Device<AXES, CAPACITY> for Machine {
         Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {
-        let st = self.rt.status();
-        out.state = state_code(st.state);
-        out.flags = u8::from(matches!(
-            st.state,
-            State::Holding(hydra_core::runtime::HoldReason::EndOfTable)
-        ));
-        if let Some(f) = st.fault {
-            out.fault_code = f.fault.code();
-        }
-        out.fault_axis = 0xFF;
-        out.ticks = st.tick;
-        out.tick_max_ns = st.timing.max_cycles;
-        out.tick_mean_ns = st.timing.mean_cycles;
-        out.overruns = st.timing.overruns;
-        out.master = st.master.to_bits();
-        for i in 0..AXES {
-            let _ = out.axes.push(AxisStatus {
-                pos_um: st.pos_um[i].to_bits(),
-                target_um: st.target_um[i].to_bits(),
-                error_um: st.error_um[i].to_bits(),
-                dac: st.dac[i].get(),
-            });
-        }
+        // The simulation has no CPU clock: its timing fields are 0 (reported as is).
+        fill_status(self.rt.status(), |c| c, out);
     }
 }
 

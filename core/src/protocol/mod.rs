@@ -9,6 +9,7 @@
 //! - [`msg`]: requests, responses, typed [`msg::NakCode`]s;
 //! - [`store`]: two flash slots (table + [`overrides`], the changed parameters) through
 //!   the `embedded-storage` NorFlash traits;
+//! - [`report`]: the runtime's status as Status reports it (shared by every device);
 //! - [`handler`]: the board's state machine ([`handler::Handler`]) behind the
 //!   [`handler::Device`] seam;
 //! - `ramflash` (host only): a NOR flash in RAM that can lose power at any byte.
@@ -31,6 +32,7 @@ pub mod params;
     clippy::cast_possible_truncation
 )]
 pub mod ramflash;
+pub mod report;
 pub mod store;
 pub mod wire;
 

@@ -1,0 +1,126 @@
+//! The runtime's [`Status`] as the protocol reports it: one mapping for every
+//! [`super::Device`] (the firmware and the host's virtual board).
+
+use super::msg::{AxisStatus, StatusMsg};
+use crate::runtime::{Fault, State, Status};
+
+/// State byte of Status: 0 Idle, 1 Following, 2 Holding, 3 Fault.
+pub const fn state_code(s: State) -> u8 {
+    match s {
+        State::Idle => 0,
+        State::Following => 1,
+        State::Holding(_) => 2,
+        State::Fault => 3,
+    }
+}
+
+/// Fills the runtime's part of a Status (state, end-of-table flag, fault and its axis,
+/// tick count and timing, master, per-axis fields); the handler fills the rest (table
+/// ids, upload, session). `cycles_to_ns` converts the tick timing's CPU cycles to ns.
+pub fn fill_status<const S: usize, const P: usize>(
+    st: &Status<S, P>,
+    cycles_to_ns: impl Fn(u32) -> u32,
+    out: &mut StatusMsg,
+) {
+    out.state = state_code(st.state);
+    out.flags = u8::from(matches!(
+        st.state,
+        State::Holding(crate::runtime::HoldReason::EndOfTable)
+    ));
+    out.fault_code = st.fault.map_or(0, |f| f.fault.code());
+    out.fault_axis = match st.fault.map(|f| f.fault) {
+        Some(Fault::FollowingError { axis } | Fault::Controller { axis }) => axis,
+        _ => 0xFF,
+    };
+    out.ticks = st.tick;
+    out.tick_max_ns = cycles_to_ns(st.timing.max_cycles);
+    out.tick_mean_ns = cycles_to_ns(st.timing.mean_cycles);
+    out.overruns = st.timing.overruns;
+    out.master = st.master.to_bits();
+    out.axes.clear();
+    for (((p, t), e), d) in st
+        .pos_um
+        .iter()
+        .zip(&st.target_um)
+        .zip(&st.error_um)
+        .zip(&st.dac)
+    {
+        let _ = out.axes.push(AxisStatus {
+            pos_um: p.to_bits(),
+            target_um: t.to_bits(),
+            error_um: e.to_bits(),
+            dac: d.get(),
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runtime::{FaultRecord, FaultSet, HoldReason};
+    use crate::units::{DacCode, Master, PosUm, PressureBar};
+
+    fn status(state: State, fault: Option<Fault>) -> Status<2, 4> {
+        let mut timing = crate::runtime::timing::TickTiming::default();
+        timing.max_cycles = 1680;
+        timing.mean_cycles = 840;
+        timing.overruns = 3;
+        Status {
+            tick: 77,
+            state,
+            fault: fault.map(|fault| FaultRecord { fault, tick: 70 }),
+            fault_set: FaultSet::EMPTY,
+            master: Master::from_num(12.5),
+            pos_um: [PosUm::from_num(100), PosUm::from_num(-5)],
+            target_um: [PosUm::from_num(101), PosUm::from_num(-4)],
+            error_um: [PosUm::from_num(1), PosUm::from_num(1)],
+            dac: [DacCode::NULL, DacCode::NULL],
+            enable: true,
+            estop: false,
+            pressure_bar: [PressureBar::ZERO; 4],
+            timing,
+        }
+    }
+
+    #[test]
+    fn status_fields_map_one_to_one() {
+        let mut out = StatusMsg::default();
+        fill_status(&status(State::Following, None), |c| c * 10, &mut out);
+        assert_eq!((out.state, out.flags, out.fault_code), (1, 0, 0));
+        assert_eq!(out.fault_axis, 0xFF);
+        assert_eq!(
+            (out.ticks, out.tick_max_ns, out.tick_mean_ns),
+            (77, 16800, 8400)
+        );
+        assert_eq!(out.overruns, 3);
+        assert_eq!(out.master, Master::from_num(12.5).to_bits());
+        assert_eq!(out.axes.len(), 2);
+        assert_eq!(out.axes[1].pos_um, PosUm::from_num(-5).to_bits());
+        assert_eq!(out.axes[0].target_um, PosUm::from_num(101).to_bits());
+        assert_eq!(out.axes[1].error_um, PosUm::from_num(1).to_bits());
+        assert_eq!(out.axes[0].dac, DacCode::NULL.get());
+        // Filling twice does not append twice.
+        fill_status(&status(State::Following, None), |c| c, &mut out);
+        assert_eq!(out.axes.len(), 2);
+    }
+
+    #[test]
+    fn end_of_table_flag_and_fault_axis() {
+        let mut out = StatusMsg::default();
+        fill_status(
+            &status(State::Holding(HoldReason::EndOfTable), None),
+            |c| c,
+            &mut out,
+        );
+        assert_eq!((out.state, out.flags), (2, 1));
+        let f = Fault::FollowingError { axis: 1 };
+        fill_status(&status(State::Fault, Some(f)), |c| c, &mut out);
+        assert_eq!(
+            (out.state, out.fault_code, out.fault_axis),
+            (3, f.code(), 1)
+        );
+        let f = Fault::EStop;
+        fill_status(&status(State::Fault, Some(f)), |c| c, &mut out);
+        assert_eq!((out.fault_code, out.fault_axis), (f.code(), 0xFF));
+    }
+}
