@@ -48,6 +48,17 @@ pub struct FfGains {
     pub lead_s: f64,
     /// Fraction of the identified gains applied (0 = no feed-forward, 1 = full).
     pub scale: f64,
+    /// Friction compensation: oil-column deflection under Coulomb friction D_c = F_c/k_h,
+    /// µm, `[X, Y]` (0 = off; see `hydra_core::npid::feedforward`).
+    #[serde(default)]
+    pub friction_um: [f64; 2],
+    /// Reversal speed band v_s of the friction compensation, mm/s.
+    #[serde(default = "default_friction_speed")]
+    pub friction_speed_mm_s: f64,
+}
+
+fn default_friction_speed() -> f64 {
+    1.0
 }
 
 /// Every gain of the scenario (a TOML file for `--gains`; missing tables keep the
@@ -108,6 +119,8 @@ impl Default for Gains {
                 y_lsb_per_mm_s: [19.410, 23.818],
                 lead_s: 0.0,
                 scale: 1.0,
+                friction_um: [0.0, 0.0],
+                friction_speed_mm_s: 1.0,
             },
         }
     }
@@ -187,12 +200,14 @@ fn nl(g: &NlGains) -> Result<NpidCoeffs> {
     .map_err(|e| anyhow!("nonlinear PID gains: {e}"))
 }
 
-fn ff(k: [f64; 2], g: &FfGains) -> Result<VelocityFfCoeffs> {
+fn ff(k: [f64; 2], friction_um: f64, g: &FfGains) -> Result<VelocityFfCoeffs> {
     VelocityFfConfig {
         period_s: 1e-3,
         extend_lsb_per_mm_s: k[0] * g.scale,
         retract_lsb_per_mm_s: k[1] * g.scale,
         lead_s: g.lead_s,
+        friction_deflection_um: friction_um,
+        friction_speed_mm_s: g.friction_speed_mm_s,
     }
     .build()
     .map_err(|e| anyhow!("feed-forward gains: {e}"))
@@ -202,7 +217,10 @@ impl Gains {
     /// Feed-forward coefficients `[X, Y]`.
     pub fn ff_coeffs(&self) -> Result<[VelocityFfCoeffs; 2]> {
         let g = &self.feedforward;
-        Ok([ff(g.x_lsb_per_mm_s, g)?, ff(g.y_lsb_per_mm_s, g)?])
+        Ok([
+            ff(g.x_lsb_per_mm_s, g.friction_um[0], g)?,
+            ff(g.y_lsb_per_mm_s, g.friction_um[1], g)?,
+        ])
     }
 
     /// Coefficients of `independent` / `ccc`.
