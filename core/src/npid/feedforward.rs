@@ -8,6 +8,24 @@
 //! u_ff   = K_ext·v_ff  if v_ff ≥ 0,   K_ret·v_ff  if v_ff < 0      [DAC LSB, ±2047]
 //! ```
 //!
+//! **Friction (quadrant) compensation.** A valve-controlled cylinder is a flow source
+//! behind an oil spring of stiffness `k_h = E·(A_A²/V_A + A_B²/V_B)` (PLANT.md: 3.7·10⁷
+//! N/m at mid-stroke). Coulomb friction `F_c·sgn(v)` compresses that spring by
+//! `D_c = F_c/k_h` (400 N ⇒ 10.8 µm): moving, the oil column "leads" the piston by
+//! `D_c`; at a velocity reversal the deflection swings by `2·D_c` and the piston
+//! overshoots, then lags (the quadrant glitch of a circle). The compensation adds the
+//! flow that re-deflects the spring as the reference reverses:
+//!
+//! ```text
+//! d(k)   = D_c · sat(v_ff(k) / v_s)                   [µm]    (sat: clamp to ±1)
+//! u_fc   = K_ext|K_ret · (d(k) − d(k−1)) / h          [LSB]   (gain by the sign of Δd)
+//! ```
+//!
+//! `D_c` (µm) and the reversal speed band `v_s` (mm/s) are commissioning figures
+//! (friction force from the pressure transducers at constant speed in both directions,
+//! `k_h` from the cylinder data; or tuned, see `host-sim xy --tune`). `D_c = 0` switches
+//! it off.
+//!
 //! `K_ext`, `K_ret` (LSB/(µm/s)) are the inverse velocity gains of the axis when
 //! extending and retracting: a single-rod cylinder on a symmetric valve moves at
 //! different speeds per LSB in the two directions (area ratio), so one gain cannot
@@ -16,8 +34,9 @@
 //! period of computation delay and the valve's lag (≈ 2ζ/ω_v).
 //!
 //! Formats: reference and the last reference µm Q16, velocities µm/s Q16, gains
-//! LSB/(µm/s) Q32 (resolution 2.3·10⁻¹⁰, range 0 … 1), `1/h` and `T_lead/h` Q16, output
-//! [`CmdLsb`].
+//! LSB/(µm/s) Q32 (resolution 2.3·10⁻¹⁰, range 0 … 1), `1/h` and `T_lead/h` Q16,
+//! `D_c` and `d` µm Q16 (range 0 … 1000 µm), `1/v_s` (µm/s)⁻¹ Q32 (v_s 0.01 … 100 mm/s),
+//! output [`CmdLsb`].
 
 use super::fxmath::mul_shr;
 use super::{cmd_from_q16, q16_from_pos};
@@ -35,6 +54,10 @@ pub struct VelocityFfConfig {
     pub retract_lsb_per_mm_s: f64,
     /// Lead time T_lead, s (0 … 0.05).
     pub lead_s: f64,
+    /// Friction deflection D_c = F_c/k_h, µm (0 … 1000; 0 = no friction compensation).
+    pub friction_deflection_um: f64,
+    /// Reversal speed band v_s of the friction compensation, mm/s (0.01 … 100).
+    pub friction_speed_mm_s: f64,
 }
 
 /// Why a feed-forward configuration was rejected.
@@ -49,6 +72,10 @@ pub enum FfError {
     RetractGain,
     /// Lead outside 0 … 50 ms or not finite.
     Lead,
+    /// Friction deflection outside 0 … 1000 µm or not finite.
+    FrictionDeflection,
+    /// Friction reversal speed outside 0.01 … 100 mm/s or not finite.
+    FrictionSpeed,
 }
 
 #[cfg(feature = "std")]
@@ -72,6 +99,10 @@ pub struct VelocityFfCoeffs {
     inv_h_q16: i64,
     /// T_lead/h, Q16.
     lead_over_h_q16: i64,
+    /// D_c, µm Q16.
+    friction_um_q16: i64,
+    /// 1/v_s, (µm/s)⁻¹ Q32.
+    inv_friction_speed_q32: i64,
 }
 
 impl VelocityFfCoeffs {
@@ -81,6 +112,8 @@ impl VelocityFfCoeffs {
         k_ret_q32: 0,
         inv_h_q16: 0,
         lead_over_h_q16: 0,
+        friction_um_q16: 0,
+        inv_friction_speed_q32: 0,
     };
 }
 
@@ -101,6 +134,13 @@ impl VelocityFfConfig {
         if !ok(self.lead_s, 0.05) {
             return Err(FfError::Lead);
         }
+        if !ok(self.friction_deflection_um, 1000.0) {
+            return Err(FfError::FrictionDeflection);
+        }
+        let vs = self.friction_speed_mm_s;
+        if !(vs.is_finite() && (0.01..=100.0).contains(&vs)) {
+            return Err(FfError::FrictionSpeed);
+        }
         // LSB/(mm/s) → LSB/(µm/s): /1000.
         let q32 = |v: f64| (v * 1e-3 * 4_294_967_296.0 + 0.5) as i64;
         Ok(VelocityFfCoeffs {
@@ -108,11 +148,15 @@ impl VelocityFfConfig {
             k_ret_q32: q32(self.retract_lsb_per_mm_s),
             inv_h_q16: (65536.0 / h + 0.5) as i64,
             lead_over_h_q16: (self.lead_s / h * 65536.0 + 0.5) as i64,
+            friction_um_q16: (self.friction_deflection_um * 65536.0 + 0.5) as i64,
+            // mm/s → µm/s: ×1000.
+            inv_friction_speed_q32: (4_294_967_296.0 / (vs * 1e3) + 0.5) as i64,
         })
     }
 }
 
-/// Feed-forward state: the last reference and the last speed.
+/// Feed-forward state: the last reference, the last speed and the last friction
+/// deflection.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct VelocityFf {
@@ -120,6 +164,8 @@ pub struct VelocityFf {
     last_ref_q16: i64,
     /// v(k−1), µm/s Q16.
     last_v_q16: i64,
+    /// d(k−1), µm Q16.
+    last_d_q16: i64,
 }
 
 /// |command| limit, LSB Q16.
@@ -131,6 +177,7 @@ impl VelocityFf {
         Self {
             last_ref_q16: q16_from_pos(position_um),
             last_v_q16: 0,
+            last_d_q16: 0,
         }
     }
 
@@ -144,7 +191,15 @@ impl VelocityFf {
         self.last_ref_q16 = r;
         self.last_v_q16 = v;
         let k = if vff >= 0 { c.k_ext_q32 } else { c.k_ret_q32 };
-        cmd_from_q16(mul_shr(vff, k, 32).clamp(-U_MAX_Q16, U_MAX_Q16))
+        let u_v = mul_shr(vff, k, 32);
+        // Friction: d = D_c·sat(v_ff/v_s), u_fc = K·Δd/h.
+        let s = mul_shr(vff, c.inv_friction_speed_q32, 32).clamp(-65_536, 65_536);
+        let d = mul_shr(s, c.friction_um_q16, 16);
+        let dd = d.saturating_sub(self.last_d_q16);
+        self.last_d_q16 = d;
+        let kd = if dd >= 0 { c.k_ext_q32 } else { c.k_ret_q32 };
+        let u_fc = mul_shr(mul_shr(dd, c.inv_h_q16, 16), kd, 32);
+        cmd_from_q16(u_v.saturating_add(u_fc).clamp(-U_MAX_Q16, U_MAX_Q16))
     }
 }
 
@@ -158,6 +213,8 @@ mod tests {
             extend_lsb_per_mm_s: 20.0,
             retract_lsb_per_mm_s: 30.0,
             lead_s: 0.005,
+            friction_deflection_um: 0.0,
+            friction_speed_mm_s: 1.0,
         }
     }
 
@@ -215,5 +272,61 @@ mod tests {
         let mut c = cfg();
         c.lead_s = 1.0;
         assert_eq!(c.build(), Err(FfError::Lead));
+        let mut c = cfg();
+        c.friction_deflection_um = -0.1;
+        assert_eq!(c.build(), Err(FfError::FrictionDeflection));
+        let mut c = cfg();
+        c.friction_speed_mm_s = 0.0;
+        assert_eq!(c.build(), Err(FfError::FrictionSpeed));
+    }
+
+    /// A reference that reverses at constant deceleration: the friction term is a
+    /// pulse whose integral is 2·D_c of equivalent position (K·2·D_c LSB·s), signed
+    /// like the new direction, and zero at constant speed.
+    #[test]
+    fn friction_term_redeflects_the_oil_column_at_a_reversal() {
+        let mut with = cfg();
+        with.lead_s = 0.0;
+        with.friction_deflection_um = 10.0;
+        with.friction_speed_mm_s = 1.0;
+        let cw = with.build().unwrap();
+        let mut without = with;
+        without.friction_deflection_um = 0.0;
+        let c0 = without.build().unwrap();
+        // 5 mm/s for t < 0, then v(t) = 5 mm/s − 50 mm/s²·t over 0.2 s: +5 → −5 mm/s,
+        // reversal at 0.1 s. The filters start moving 20 ms before t = 0.
+        let h = 1e-3;
+        let x_um = |t: f64| {
+            if t < 0.0 {
+                5000.0 * t
+            } else {
+                5000.0 * t - 25_000.0 * t * t
+            }
+        };
+        let start = PosUm::from_num(x_um(-0.021));
+        let (mut fw, mut f0) = (VelocityFf::at_rest(start), VelocityFf::at_rest(start));
+        let mut sum_lsb_s = 0.0;
+        let mut last = 0.0;
+        for k in -20..=200 {
+            let t = k as f64 * h;
+            let r = PosUm::from_num(x_um(t));
+            let du = fw.step(&cw, r).to_num::<f64>() - f0.step(&c0, r).to_num::<f64>();
+            if k < 1 {
+                continue;
+            }
+            sum_lsb_s += du * h;
+            last = du;
+            // Outside the band (|v| > 1 mm/s + one step) the term is zero.
+            let v = 5.0 - 50.0 * t;
+            if v.abs() > 1.2 {
+                assert!(du.abs() < 0.01, "t {t}: {du}");
+            } else {
+                // Reversing from + to −: retracting flow, K_ret = 30 LSB/(mm/s).
+                assert!(du <= 0.01, "t {t}: {du}");
+            }
+        }
+        // ∫u dt = K_ret · (−2·D_c) = 30e-3 LSB/(µm/s) · −20 µm = −0.6 LSB·s.
+        assert!((sum_lsb_s + 0.6).abs() < 0.02, "{sum_lsb_s}");
+        assert!(last.abs() < 0.01);
     }
 }

@@ -35,11 +35,20 @@ pub struct Args {
     /// Write an SVG plot (path and actual point, contour error, commands).
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Write the trace as CSV (t_s, reference x/y µm, actual x/y µm, exact ε µm,
+    /// controller ε µm, commands x/y LSB), one row per control period.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
     /// Gains file (TOML: `[axis_independent]`, `[axis_linear]`, `[contour_linear]`,
     /// `[axis_nonlinear]`, `[contour_nonlinear]`, `[axis_estimated]`,
     /// `[contour_estimated]`, `[feedforward]`; omitted tables keep the tuned defaults).
     #[arg(long)]
     pub gains: Option<PathBuf>,
+    /// Velocity feed-forward (all four controllers alike): `on` (the product default,
+    /// identified gains) or `off` (feedback only, as in the seed's comparison; scale 0).
+    /// Also honoured by `--tune`: `off` tunes every controller without feed-forward.
+    #[arg(long, value_enum, default_value = "on")]
+    pub feedforward: OnOff,
     /// Print the result as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -50,16 +59,26 @@ pub struct Args {
     pub tune: bool,
 }
 
+/// A switch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
+}
+
 /// Runs the sub-command.
 pub fn run(args: &Args) -> Result<()> {
     if args.tune {
-        let tuned = crate::xy::tune::tune(args.controller, &mut |l| println!("{l}"))?;
+        let ff_on = args.feedforward == OnOff::On;
+        let tuned = crate::xy::tune::tune(args.controller, ff_on, &mut |l| println!("{l}"))?;
         for (kind, g) in tuned {
             println!("# chosen for {}\n{}", kind.name(), toml::to_string(&g)?);
         }
         return Ok(());
     }
-    let gains = match &args.gains {
+    let mut gains: crate::xy::gains::Gains = match &args.gains {
         Some(f) => {
             let text =
                 std::fs::read_to_string(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
@@ -67,6 +86,9 @@ pub fn run(args: &Args) -> Result<()> {
         }
         None => crate::xy::gains::Gains::default(),
     };
+    if args.feedforward == OnOff::Off {
+        gains.feedforward.scale = 0.0;
+    }
     let s = XyScenario {
         gains,
         path: args.path,
@@ -78,6 +100,9 @@ pub fn run(args: &Args) -> Result<()> {
     let r = simulate(&s)?;
     if let Some(p) = &args.plot {
         plot(&r, p)?;
+    }
+    if let Some(p) = &args.csv {
+        write_csv(&r, p)?;
     }
     if args.json {
         println!("{}", serde_json::to_string(&r)?);
@@ -100,6 +125,29 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// One row per period: `t_s,ref_x_um,ref_y_um,act_x_um,act_y_um,eps_um,ctl_eps_um,u_x_lsb,u_y_lsb`.
+fn write_csv(r: &XyReport, file: &Path) -> Result<()> {
+    use std::fmt::Write as _;
+    let mut s =
+        String::from("t_s,ref_x_um,ref_y_um,act_x_um,act_y_um,eps_um,ctl_eps_um,u_x_lsb,u_y_lsb\n");
+    for p in &r.trace {
+        writeln!(
+            s,
+            "{:.3},{:.2},{:.2},{:.2},{:.2},{:.3},{:.3},{:.2},{:.2}",
+            p.t_s,
+            p.reference_um[0],
+            p.reference_um[1],
+            p.actual_um[0],
+            p.actual_um[1],
+            p.contour_um,
+            p.controller_contour_um,
+            p.command_lsb[0],
+            p.command_lsb[1]
+        )?;
+    }
+    std::fs::write(file, s).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))
 }
 
 fn bounds(v: impl Iterator<Item = f64>) -> (f64, f64) {

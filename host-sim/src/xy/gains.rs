@@ -48,6 +48,17 @@ pub struct FfGains {
     pub lead_s: f64,
     /// Fraction of the identified gains applied (0 = no feed-forward, 1 = full).
     pub scale: f64,
+    /// Friction compensation: oil-column deflection under Coulomb friction D_c = F_c/k_h,
+    /// µm, `[X, Y]` (0 = off; see `hydra_core::npid::feedforward`).
+    #[serde(default)]
+    pub friction_um: [f64; 2],
+    /// Reversal speed band v_s of the friction compensation, mm/s.
+    #[serde(default = "default_friction_speed")]
+    pub friction_speed_mm_s: f64,
+}
+
+fn default_friction_speed() -> f64 {
+    1.0
 }
 
 /// Every gain of the scenario (a TOML file for `--gains`; missing tables keep the
@@ -82,8 +93,8 @@ impl Default for Gains {
                 ki: 15.0,
                 kd: 0.0,
             },
-            // `--tune` step 3b: best coupled setting (17.6 µm; the grid's minimum 17.4
-            // µm is kc = 0, i.e. the independent setting).
+            // `--tune` step 3b: kp 0.8, ki 15, kc 0.4 (cost 16.9 µm, tied with kc = 0,
+            // i.e. the independent setting). `independent`: step 3a (16.9 µm).
             axis_linear: LinGains {
                 kp: 0.8,
                 ki: 15.0,
@@ -94,47 +105,48 @@ impl Default for Gains {
                 ki: 0.0,
                 kd: 0.0,
             },
-            // `--tune --controller nccc` and `--controller nccc-est` (step 3c/3d) choose
-            // the same setting for both: axis kp 1.6 (fal α1 0.8, δ1 20 µm), ki 15,
-            // TD h0 1 ms; contour kc 0.2 (α1 0.5, δ1 5 µm), no integral, no β2.
+            // `--tune` step 3c/3d (cost includes the parabola): `nccc` and `nccc-est`
+            // choose the same setting: axis kp 0.8 (fal α1 1, i.e. linear), ki 15, TD
+            // h0 1 ms; contour kc 0.4 (α1 1), no integral, no β2.
             axis_nonlinear: TUNED_NL_AXIS,
             contour_nonlinear: TUNED_NL_CONTOUR,
             axis_estimated: TUNED_NL_AXIS,
             contour_estimated: TUNED_NL_CONTOUR,
-            // Identified by `host-sim xy --tune` (step 1); lead: step 2 (0…8 ms all
-            // within 0.1 µm; 0 chosen).
+            // Identified by `host-sim xy --tune` (steps 1 and 1b); lead and friction
+            // band: step 2 (lead 2 ms: 16.6 µm vs 16.7 at 0; v_s 4 mm/s: 12.5 µm vs
+            // 16.6 without friction compensation).
             feedforward: FfGains {
                 x_lsb_per_mm_s: [13.713, 16.766],
                 y_lsb_per_mm_s: [19.410, 23.818],
-                lead_s: 0.0,
+                lead_s: 0.002,
                 scale: 1.0,
+                friction_um: [10.732, 10.683],
+                friction_speed_mm_s: 4.0,
             },
         }
     }
 }
 
-/// Tuned axis NPID of `nccc` / `nccc-est`: small-signal kp 1.6 LSB/µm through fal
-/// (β1 = 1.6·20^0.2 LSB/µm^0.8), β0 = ki = 15 LSB/(µm·s), no β2, TD h0 1 ms.
+/// Tuned axis NPID of `nccc` / `nccc-est`: kp 0.8 LSB/µm with fal α1 = 1 (linear,
+/// β1 = kp), β0 = ki = 15 LSB/(µm·s), no β2, TD h0 1 ms.
 const TUNED_NL_AXIS: NlGains = NlGains {
     beta0: 15.0,
-    // 1.6 · 20^0.2
-    beta1: 2.912_902_724_841_728,
+    beta1: 0.8,
     beta2: 0.0,
-    alpha: [1.0, 0.8, 1.0],
-    delta: [1.0, 20.0, 1.0],
+    alpha: [1.0, 1.0, 1.0],
+    delta: [1.0, 1.0, 1.0],
     td_r: 5e7,
     td_h0: 1e-3,
 };
 
-/// Tuned contour NPID of `nccc` / `nccc-est`: small-signal kc 0.2 LSB/µm through fal
-/// (β1 = 0.2·5^0.5 LSB/µm^0.5), no integral (β0 = 0), no β2, TD h0 1 ms.
+/// Tuned contour NPID of `nccc` / `nccc-est`: kc 0.4 LSB/µm with fal α1 = 1 (linear),
+/// no integral (β0 = 0), no β2, TD h0 1 ms.
 const TUNED_NL_CONTOUR: NlGains = NlGains {
     beta0: 0.0,
-    // 0.2 · 5^0.5
-    beta1: 0.447_213_595_499_958,
+    beta1: 0.4,
     beta2: 0.0,
-    alpha: [1.0, 0.5, 1.0],
-    delta: [1.0, 5.0, 1.0],
+    alpha: [1.0, 1.0, 1.0],
+    delta: [1.0, 1.0, 1.0],
     td_r: 5e7,
     td_h0: 1e-3,
 };
@@ -187,12 +199,14 @@ fn nl(g: &NlGains) -> Result<NpidCoeffs> {
     .map_err(|e| anyhow!("nonlinear PID gains: {e}"))
 }
 
-fn ff(k: [f64; 2], g: &FfGains) -> Result<VelocityFfCoeffs> {
+fn ff(k: [f64; 2], friction_um: f64, g: &FfGains) -> Result<VelocityFfCoeffs> {
     VelocityFfConfig {
         period_s: 1e-3,
         extend_lsb_per_mm_s: k[0] * g.scale,
         retract_lsb_per_mm_s: k[1] * g.scale,
         lead_s: g.lead_s,
+        friction_deflection_um: friction_um,
+        friction_speed_mm_s: g.friction_speed_mm_s,
     }
     .build()
     .map_err(|e| anyhow!("feed-forward gains: {e}"))
@@ -202,7 +216,10 @@ impl Gains {
     /// Feed-forward coefficients `[X, Y]`.
     pub fn ff_coeffs(&self) -> Result<[VelocityFfCoeffs; 2]> {
         let g = &self.feedforward;
-        Ok([ff(g.x_lsb_per_mm_s, g)?, ff(g.y_lsb_per_mm_s, g)?])
+        Ok([
+            ff(g.x_lsb_per_mm_s, g.friction_um[0], g)?,
+            ff(g.y_lsb_per_mm_s, g.friction_um[1], g)?,
+        ])
     }
 
     /// Coefficients of `independent` / `ccc`.
