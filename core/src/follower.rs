@@ -23,16 +23,15 @@
 //!
 //! Every table lookup starts from its own cursor, so the search is O(1) amortised.
 
-use crate::axis::{
-    position_law, AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosRef, PosState,
-};
+use crate::axis::position::{paper_law_bits, positional_law_bits};
+use crate::axis::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosState};
 use crate::master::{
     MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig, MasterFilterError,
 };
 use crate::master::{Predictor, PredictorKind};
 use crate::q::mul_shr;
-use crate::table::{CamTable, Lookup};
-use crate::units::{AccUmPerS2, CmdLsb, DacCode, Master, PosUm, VelUmPerS};
+use crate::table::CamTable;
+use crate::units::{CmdLsb, DacCode, Master, PosUm};
 
 /// Follower configuration in engineering units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -273,77 +272,86 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         out.end_of_table = self.ended;
         out.master_jump = master_jump;
         out.master = self.filter.estimate(&self.mf, 0);
-        // Feed-forward lookup, shared by the axes with the same lead:
-        // (lead, lookup, segments/s Q16, segments/s² Q16).
-        let mut ff: Option<(i32, Lookup, i32, i32)> = None;
-        for (i, (c, rt)) in self.axes.iter().zip(self.rt.iter_mut()).enumerate() {
-            let x = inp.pos_um.get(i).copied().unwrap_or(PosUm::ZERO);
-            let target = t.value(&lk_now, i);
-            let err = PosUm::from_bits(target.to_bits().saturating_sub(x.to_bits()));
-            let mut r = PosRef {
-                x_ref_um: target,
-                ..PosRef::default()
+        let (Some(now), Some(pred)) = (t.span(&lk_now), t.span(&lk_pred)) else {
+            // Unreachable: `locate` only returns segments of this table.
+            out.dac = self.safe_outputs();
+            return;
+        };
+        // Feed-forward lookup, shared by the axes with the same lead: the lead it was
+        // taken for, the segment, and the master's speed and acceleration in segments/s
+        // and segments/s² (Q16).
+        let mut ff_lead = -1i32;
+        let mut ff_span = now;
+        let mut seg_v = 0i32;
+        let mut seg_a = 0i32;
+        for i in 0..S {
+            let (Some(c), Some(rt), Some(x)) =
+                (self.axes.get(i), self.rt.get_mut(i), inp.pos_um.get(i))
+            else {
+                continue;
             };
-            if !self.ended {
-                match c.mode {
-                    ControlMode::Feedforward => {
-                        let (_, lk, seg_v, seg_a) = match ff {
-                            Some(f) if f.0 == c.lead_q16 => f,
-                            _ => {
-                                let ahead = self.filter.ahead(&self.mf, c.lead_q16);
-                                let lk = t.locate(&mut self.cur_ff, ahead.pos);
-                                let f = (
-                                    c.lead_q16,
-                                    lk,
-                                    t.seg_rate_q16(&lk, ahead.rate_q8),
-                                    t.seg_rate_q16(&lk, ahead.acc_q8),
-                                );
-                                ff = Some(f);
-                                f
-                            }
-                        };
-                        let rise = t.rise(&lk, i).to_bits();
-                        // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
-                        r.v_ff_um_per_s = VelUmPerS::from_bits(mul_shr(rise, seg_v, 16));
-                        if c.ka != 0 {
-                            r.a_ff_um_per_s2 = AccUmPerS2::from_bits(mul_shr(rise, seg_a, 24));
-                        }
-                    }
-                    ControlMode::Paper => r.x_ref_um = t.value(&lk_pred, i),
-                    ControlMode::NextNode => {
-                        let node = if dir >= 0 {
-                            lk_now.seg.saturating_add(1)
-                        } else {
-                            lk_now.seg
-                        };
-                        if let Some(x_node) = t.node(node).and_then(|n| n.slave_um.get(i).copied())
-                        {
-                            r.x_ref_um = x_node;
-                        }
-                    }
-                }
-            }
-            if rt.fault.is_none() && err.to_bits().saturating_abs() > c.fe_limit {
+            let x = x.to_bits();
+            let target = now.value_bits(i);
+            let err = target.saturating_sub(x);
+            if rt.fault.is_none() && err.saturating_abs() > c.fe_limit {
                 rt.fault = Some(AxisFault::FollowingError);
                 rt.st.reset();
             }
             let (u, code) = if rt.fault.is_some() {
-                (CmdLsb::ZERO, c.valve.null_code())
+                (0, c.valve.null_code())
             } else {
-                let u = position_law(c, &mut rt.st, &r, x);
-                (u, c.valve.output(u))
+                let u = match (c.mode, self.ended) {
+                    (ControlMode::Paper, true) => paper_law_bits(c, &mut rt.st, err),
+                    (ControlMode::Paper, false) => {
+                        let e = pred.value_bits(i).saturating_sub(x);
+                        paper_law_bits(c, &mut rt.st, e)
+                    }
+                    (ControlMode::Feedforward, false) => {
+                        if c.lead_q16 != ff_lead {
+                            let ahead = self.filter.ahead(&self.mf, c.lead_q16);
+                            let lk = t.locate(&mut self.cur_ff, ahead.pos);
+                            ff_lead = c.lead_q16;
+                            ff_span = t.span(&lk).unwrap_or(now);
+                            // Zero beyond the ends: no feed-forward there.
+                            seg_v = t.seg_rate_q16(&lk, ahead.rate_q8);
+                            seg_a = t.seg_rate_q16(&lk, ahead.acc_q8);
+                        }
+                        let rise = ff_span.rise_bits(i);
+                        // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
+                        let v = mul_shr(rise, seg_v, 16);
+                        let a = if c.ka != 0 {
+                            mul_shr(rise, seg_a, 24)
+                        } else {
+                            0
+                        };
+                        positional_law_bits(c, &mut rt.st, err, v, a)
+                    }
+                    (ControlMode::NextNode, false) => {
+                        // The node at the far end of the segment in the direction of motion.
+                        let node = if dir >= 0 {
+                            now.start_bits(i).saturating_add(now.rise_bits(i))
+                        } else {
+                            now.start_bits(i)
+                        };
+                        positional_law_bits(c, &mut rt.st, node.saturating_sub(x), 0, 0)
+                    }
+                    (ControlMode::Feedforward | ControlMode::NextNode, true) => {
+                        positional_law_bits(c, &mut rt.st, err, 0, 0)
+                    }
+                };
+                (u, c.valve.output(CmdLsb::from_bits(u)))
             };
             if let Some(o) = out.dac.get_mut(i) {
                 *o = code;
             }
             if let Some(o) = out.cmd_lsb.get_mut(i) {
-                *o = u;
+                *o = CmdLsb::from_bits(u);
             }
             if let Some(o) = out.target_um.get_mut(i) {
-                *o = target;
+                *o = PosUm::from_bits(target);
             }
             if let Some(o) = out.error_um.get_mut(i) {
-                *o = err;
+                *o = PosUm::from_bits(err);
             }
             if let Some(o) = out.fault.get_mut(i) {
                 *o = rt.fault;

@@ -401,6 +401,60 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     }
 }
 
+/// A located segment as the follower's axis loop reads it: the segment's start values
+/// x_j and rises Δx_j (raw `I24F8` µm, one per slave) and the fraction through it.
+///
+/// Beyond an end the lookup already points at an end segment with the fraction clamped
+/// (below the first node: segment 0, fraction 0; at or above the last: the last segment,
+/// fraction 2^32 − 1), and [`Span::value_bits`] then gives that end's node value exactly:
+/// x_j + round(Δx_j·(2^32 − 1)/2^32) = x_j + Δx_j for |Δx_j| < 2^31, because
+/// Δx·(2^32 − 1) + 2^31 = Δx·2^32 + (2^31 − Δx) with 0 < 2^31 − Δx < 2^32. So the loop needs
+/// no per-axis test of the ends (the feed-forward is zero there through
+/// [`CamTable::seg_rate_q16`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Span<'a, const S: usize> {
+    x0: &'a [i32; S],
+    dx: &'a [i32; S],
+    frac_q32: u32,
+}
+
+impl<const S: usize> Span<'_, S> {
+    /// x*(θ) = x_j + round(Δx_j·frac / 2^32), raw `I24F8` µm (0 for a column beyond `S`).
+    #[inline(always)]
+    pub(crate) fn value_bits(&self, axis: usize) -> i32 {
+        let x0 = self.x0.get(axis).copied().unwrap_or(0);
+        let dx = self.dx.get(axis).copied().unwrap_or(0);
+        // |dx|·2^32 < 2^63; rounded to nearest; between x_j and x_{j+1}.
+        let p = i64::from(dx).wrapping_mul(i64::from(self.frac_q32));
+        x0.saturating_add((p.wrapping_add(1 << 31) >> 32) as i32)
+    }
+
+    /// x_j, raw `I24F8` µm.
+    #[inline(always)]
+    pub(crate) fn start_bits(&self, axis: usize) -> i32 {
+        self.x0.get(axis).copied().unwrap_or(0)
+    }
+
+    /// Δx_j, raw `I24F8` µm.
+    #[inline(always)]
+    pub(crate) fn rise_bits(&self, axis: usize) -> i32 {
+        self.dx.get(axis).copied().unwrap_or(0)
+    }
+}
+
+impl<const S: usize, const N: usize> CamTable<S, N> {
+    /// The segment of a lookup from [`CamTable::locate`] (`None` only for a lookup that
+    /// did not come from this table).
+    #[inline(always)]
+    pub(crate) fn span(&self, lk: &Lookup) -> Option<Span<'_, S>> {
+        self.segs.get(lk.seg).map(|s| Span {
+            x0: &s.x0,
+            dx: &s.dx,
+            frac_q32: lk.frac_q32,
+        })
+    }
+}
+
 /// (m, s) with m = ⌈2^(24+s) / len⌉ ∈ [2^31, 2^32), for 2 ≤ len < 2^32 (table build only).
 fn float_recip(len: u64) -> (u32, u32) {
     let len = u128::from(len.max(2));
@@ -575,6 +629,31 @@ mod tests {
                     let want = x0 + (x1 - x0) * (mf - m0) / (m1 - m0);
                     prop_assert!((got - want).abs() <= 2.0 / 256.0, "got {} want {}", got, want);
                     prop_assert!(got >= x0.min(x1) && got <= x0.max(x1));
+                }
+            }
+        }
+
+        /// The follower's span reads the same values as [`CamTable::value`], beyond the
+        /// ends too.
+        #[test]
+        fn span_matches_value(steps in table_strategy(), probes in proptest::collection::vec(-0.2f64..1.2, 1..40)) {
+            let mut nodes = std::vec::Vec::new();
+            let mut m = -10_000.0;
+            for (dm, x, y) in &steps {
+                m += dm.round().max(1.0);
+                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
+            }
+            let mut l = lim::<2>();
+            l.master_speed_per_s = MasterRate::from_num(1);
+            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &l).unwrap();
+            let lo = nodes[0].master.to_num::<f64>();
+            let hi = nodes[nodes.len() - 1].master.to_num::<f64>();
+            let mut c = 0;
+            for p in probes {
+                let lk = t.locate(&mut c, Master::from_num(lo + p * (hi - lo)));
+                let sp = t.span(&lk).unwrap();
+                for axis in 0..2 {
+                    prop_assert_eq!(sp.value_bits(axis), t.value(&lk, axis).to_bits());
                 }
             }
         }

@@ -2,8 +2,10 @@
 //! f64 reference of the same law.
 
 use super::*;
+use crate::axis::{position_law, PosRef};
 use crate::table::{AxisLimits, Node, TableLimits};
 use crate::units::MasterRate;
+use crate::units::VelUmPerS;
 use proptest::prelude::*;
 use std::vec::Vec;
 
