@@ -30,7 +30,7 @@ use crate::master::{
 };
 use crate::master::{Predictor, PredictorKind};
 use crate::q::mul_shr;
-use crate::table::CamTable;
+use crate::table::{CamTable, Span};
 use crate::units::{CmdLsb, DacCode, Master, PosUm};
 
 /// Follower configuration in engineering units.
@@ -148,6 +148,8 @@ pub struct Follower<const S: usize, const N: usize> {
     cur_ff: usize,
     /// Whether any axis runs the Paper law (only then is the prediction looked up).
     any_paper: bool,
+    /// The lead of the first Feedforward axis (its lookup is taken before the axis loop).
+    ff_lead0: Option<i32>,
     rt: [AxisRt; S],
     ended: bool,
     /// Which end `ended` latched at (true: the last node): fixed while ended, so a master
@@ -181,6 +183,10 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             cur_pred: 0,
             cur_ff: 0,
             any_paper: cfg.axes.iter().any(|a| a.mode == ControlMode::Paper),
+            ff_lead0: axes
+                .iter()
+                .find(|a| a.mode == ControlMode::Feedforward)
+                .map(|a| a.lead_q16),
             rt: [AxisRt::default(); S],
             ended: false,
             end_high: true,
@@ -271,19 +277,29 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         };
         out.end_of_table = self.ended;
         out.master_jump = master_jump;
-        out.master = self.filter.estimate(&self.mf, 0);
+        out.master = self.filter.estimate_now(&self.mf);
         let (Some(now), Some(pred)) = (t.span(&lk_now), t.span(&lk_pred)) else {
             // Unreachable: `locate` only returns segments of this table.
             out.dac = self.safe_outputs();
             return;
         };
-        // Feed-forward lookup, shared by the axes with the same lead: the lead it was
-        // taken for, the segment, and the master's speed and acceleration in segments/s
-        // and segments/s² (Q16).
-        let mut ff_lead = -1i32;
-        let mut ff_span = now;
-        let mut seg_v = 0i32;
-        let mut seg_a = 0i32;
+        // Feed-forward lookup, shared by the axes with the same lead (taken here for the
+        // first Feedforward axis' lead, again only for an axis with another lead).
+        let mut ff = match (self.ff_lead0, self.ended) {
+            (Some(lead), false) => ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, lead)
+                .unwrap_or(FfRef {
+                    lead,
+                    span: now,
+                    seg_v: 0,
+                    seg_a: 0,
+                }),
+            _ => FfRef {
+                lead: -1,
+                span: now,
+                seg_v: 0,
+                seg_a: 0,
+            },
+        };
         for i in 0..S {
             let (Some(c), Some(rt), Some(x)) =
                 (self.axes.get(i), self.rt.get_mut(i), inp.pos_um.get(i))
@@ -307,20 +323,18 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                         paper_law_bits(c, &mut rt.st, e)
                     }
                     (ControlMode::Feedforward, false) => {
-                        if c.lead_q16 != ff_lead {
-                            let ahead = self.filter.ahead(&self.mf, c.lead_q16);
-                            let lk = t.locate(&mut self.cur_ff, ahead.pos);
-                            ff_lead = c.lead_q16;
-                            ff_span = t.span(&lk).unwrap_or(now);
-                            // Zero beyond the ends: no feed-forward there.
-                            seg_v = t.seg_rate_q16(&lk, ahead.rate_q8);
-                            seg_a = t.seg_rate_q16(&lk, ahead.acc_q8);
+                        if c.lead_q16 != ff.lead {
+                            if let Some(f) =
+                                ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, c.lead_q16)
+                            {
+                                ff = f;
+                            }
                         }
-                        let rise = ff_span.rise_bits(i);
+                        let rise = ff.span.rise_bits(i);
                         // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
-                        let v = mul_shr(rise, seg_v, 16);
+                        let v = mul_shr(rise, ff.seg_v, 16);
                         let a = if c.ka != 0 {
-                            mul_shr(rise, seg_a, 24)
+                            mul_shr(rise, ff.seg_a, 24)
                         } else {
                             0
                         };
@@ -358,6 +372,38 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             }
         }
     }
+}
+
+/// The feed-forward's view of the table for one lead.
+#[derive(Clone, Copy)]
+struct FfRef<'a, const S: usize> {
+    /// The lead it was taken for, ticks Q16 (−1: none).
+    lead: i32,
+    /// The segment at θ_f(k + lead).
+    span: Span<'a, S>,
+    /// Master speed there in segments/s, Q16 (0 beyond the ends).
+    seg_v: i32,
+    /// Master acceleration in segments/s², Q16 (0 beyond the ends).
+    seg_a: i32,
+}
+
+/// Locates θ_f(k + lead) with the feed-forward cursor.
+#[inline(never)]
+fn ff_lookup<'a, const S: usize, const N: usize>(
+    filter: &MasterFilter,
+    mf: &MasterFilterCoeffs,
+    t: &'a CamTable<S, N>,
+    cursor: &mut usize,
+    lead: i32,
+) -> Option<FfRef<'a, S>> {
+    let ahead = filter.ahead(mf, lead);
+    let lk = t.locate(cursor, ahead.pos);
+    Some(FfRef {
+        lead,
+        span: t.span(&lk)?,
+        seg_v: t.seg_rate_q16(&lk, ahead.rate_q8),
+        seg_a: t.seg_rate_q16(&lk, ahead.acc_q8),
+    })
 }
 
 #[cfg(test)]

@@ -83,6 +83,15 @@ impl DacCode {
         DacCode(c as i16)
     }
 
+    /// A code the caller has already limited to ±[`DacCode::MAX`] (the valve output
+    /// stage's fast path, which clamps to its own `clamp_lsb` ≤ 2047 first): no second
+    /// clamp. Crate-private, since the range is the caller's proof.
+    #[inline(always)]
+    pub(crate) const fn from_in_range(code: i32) -> Self {
+        debug_assert!(code.unsigned_abs() <= DacCode::MAX as u32);
+        DacCode(code as i16)
+    }
+
     /// The signed code.
     pub const fn get(self) -> i16 {
         self.0

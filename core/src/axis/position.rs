@@ -147,8 +147,9 @@ pub(crate) fn positional_law_bits(
     let ff32 = i64::from(v)
         .wrapping_mul(i64::from(kv))
         .wrapping_add(i64::from(a).wrapping_mul(i64::from(c.ka)));
-    // Both shifted to Q16 (< 2^55 and < 2^47): one saturation for the sum.
-    let base = sat_i32((pd24 >> 8).wrapping_add(ff32 >> 16));
+    // Each shifted to Q16 and saturated to 32 bits, then one saturating 32-bit add
+    // (`qadd`): cheaper on the Cortex-M4 than a 64-bit sum and a 64-bit clamp.
+    let base = sat_i32(pd24 >> 8).saturating_add(sat_i32(ff32 >> 16));
     if e.saturating_abs() <= c.i_zone {
         let cand = clamp_sym(
             st.integ.saturating_add(mul_shr(e, c.ki_tick, 16)),
