@@ -285,14 +285,17 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         };
         // Feed-forward lookup, shared by the axes with the same lead (taken here for the
         // first Feedforward axis' lead, again only for an axis with another lead).
-        let mut ff = match (self.ff_lead0, self.ended) {
-            (Some(lead), false) => ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, lead)
-                .unwrap_or(FfRef {
-                    lead,
-                    span: now,
-                    seg_v: 0,
-                    seg_a: 0,
-                }),
+        let ff = match (self.ff_lead0, self.ended) {
+            (Some(lead), false) => {
+                ff_lookup_inline(&self.filter, &self.mf, t, &mut self.cur_ff, lead).unwrap_or(
+                    FfRef {
+                        lead,
+                        span: now,
+                        seg_v: 0,
+                        seg_a: 0,
+                    },
+                )
+            }
             _ => FfRef {
                 lead: -1,
                 span: now,
@@ -300,77 +303,133 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 seg_a: 0,
             },
         };
+        let mut ctx = TickCtx {
+            now,
+            pred,
+            ff,
+            dir,
+            ended: self.ended,
+        };
         for i in 0..S {
             let (Some(c), Some(rt), Some(x)) =
                 (self.axes.get(i), self.rt.get_mut(i), inp.pos_um.get(i))
             else {
                 continue;
             };
-            let x = x.to_bits();
-            let target = now.value_bits(i);
-            let err = target.saturating_sub(x);
-            if rt.fault.is_none() && err.saturating_abs() > c.fe_limit {
-                rt.fault = Some(AxisFault::FollowingError);
-                rt.st.reset();
+            if c.mode == ControlMode::Feedforward && !ctx.ended && c.lead_q16 != ctx.ff.lead {
+                if let Some(f) = ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, c.lead_q16)
+                {
+                    ctx.ff = f;
+                }
             }
-            let (u, code) = if rt.fault.is_some() {
-                (0, c.valve.null_code())
+            if S == 1 {
+                // One axis: no loop to keep registers for, so no call.
+                axis_step_inline(&ctx, c, rt, x.to_bits(), i, out);
             } else {
-                let u = match (c.mode, self.ended) {
-                    (ControlMode::Paper, true) => paper_law_bits(c, &mut rt.st, err),
-                    (ControlMode::Paper, false) => {
-                        let e = pred.value_bits(i).saturating_sub(x);
-                        paper_law_bits(c, &mut rt.st, e)
-                    }
-                    (ControlMode::Feedforward, false) => {
-                        if c.lead_q16 != ff.lead {
-                            if let Some(f) =
-                                ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, c.lead_q16)
-                            {
-                                ff = f;
-                            }
-                        }
-                        let rise = ff.span.rise_bits(i);
-                        // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
-                        let v = mul_shr(rise, ff.seg_v, 16);
-                        let a = if c.ka != 0 {
-                            mul_shr(rise, ff.seg_a, 24)
-                        } else {
-                            0
-                        };
-                        positional_law_bits(c, &mut rt.st, err, v, a)
-                    }
-                    (ControlMode::NextNode, false) => {
-                        // The node at the far end of the segment in the direction of motion.
-                        let node = if dir >= 0 {
-                            now.start_bits(i).saturating_add(now.rise_bits(i))
-                        } else {
-                            now.start_bits(i)
-                        };
-                        positional_law_bits(c, &mut rt.st, node.saturating_sub(x), 0, 0)
-                    }
-                    (ControlMode::Feedforward | ControlMode::NextNode, true) => {
-                        positional_law_bits(c, &mut rt.st, err, 0, 0)
-                    }
-                };
-                (u, c.valve.output(CmdLsb::from_bits(u)))
-            };
-            if let Some(o) = out.dac.get_mut(i) {
-                *o = code;
-            }
-            if let Some(o) = out.cmd_lsb.get_mut(i) {
-                *o = CmdLsb::from_bits(u);
-            }
-            if let Some(o) = out.target_um.get_mut(i) {
-                *o = PosUm::from_bits(target);
-            }
-            if let Some(o) = out.error_um.get_mut(i) {
-                *o = PosUm::from_bits(err);
-            }
-            if let Some(o) = out.fault.get_mut(i) {
-                *o = rt.fault;
+                axis_step(&ctx, c, rt, x.to_bits(), i, out);
             }
         }
+    }
+}
+
+/// What every axis of one tick reads.
+struct TickCtx<'a, const S: usize> {
+    /// The table at the filtered master now (or the end it stopped at).
+    now: Span<'a, S>,
+    /// The table at the eq. 4 prediction (Paper axes).
+    pred: Span<'a, S>,
+    /// The feed-forward lookup.
+    ff: FfRef<'a, S>,
+    /// Direction of the master: 1, 0, −1.
+    dir: i8,
+    /// The end-of-table latch.
+    ended: bool,
+}
+
+/// One axis of one tick (steps 4–5 of [`Follower`]): the law, the output stage and the
+/// following-error check, written into `out[i]`. Kept out of line so the axis loop does
+/// not spill the shared state around every axis.
+#[inline(never)]
+fn axis_step<const S: usize>(
+    ctx: &TickCtx<'_, S>,
+    c: &AxisCoeffs,
+    rt: &mut AxisRt,
+    x: i32,
+    i: usize,
+    out: &mut FollowerOutputs<S>,
+) {
+    axis_step_inline(ctx, c, rt, x, i, out);
+}
+
+/// [`axis_step`]'s body.
+#[inline(always)]
+fn axis_step_inline<const S: usize>(
+    ctx: &TickCtx<'_, S>,
+    c: &AxisCoeffs,
+    rt: &mut AxisRt,
+    x: i32,
+    i: usize,
+    out: &mut FollowerOutputs<S>,
+) {
+    if i >= S {
+        // Never: the caller iterates 0..S (and this lets every index below go unchecked).
+        return;
+    }
+    let target = ctx.now.value_bits(i);
+    let err = target.saturating_sub(x);
+    if rt.fault.is_none() && err.saturating_abs() > c.fe_limit {
+        rt.fault = Some(AxisFault::FollowingError);
+        rt.st.reset();
+    }
+    let (u, code) = if rt.fault.is_some() {
+        (0, c.valve.null_code())
+    } else {
+        let u = match (c.mode, ctx.ended) {
+            (ControlMode::Paper, true) => paper_law_bits(c, &mut rt.st, err),
+            (ControlMode::Paper, false) => {
+                let e = ctx.pred.value_bits(i).saturating_sub(x);
+                paper_law_bits(c, &mut rt.st, e)
+            }
+            (ControlMode::Feedforward, false) => {
+                let rise = ctx.ff.span.rise_bits(i);
+                // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
+                let v = mul_shr(rise, ctx.ff.seg_v, 16);
+                let a = if c.ka != 0 {
+                    mul_shr(rise, ctx.ff.seg_a, 24)
+                } else {
+                    0
+                };
+                positional_law_bits(c, &mut rt.st, err, v, a)
+            }
+            (ControlMode::NextNode, false) => {
+                // The node at the far end of the segment in the direction of motion.
+                let node = if ctx.dir >= 0 {
+                    ctx.now.start_bits(i).saturating_add(ctx.now.rise_bits(i))
+                } else {
+                    ctx.now.start_bits(i)
+                };
+                positional_law_bits(c, &mut rt.st, node.saturating_sub(x), 0, 0)
+            }
+            (ControlMode::Feedforward | ControlMode::NextNode, true) => {
+                positional_law_bits(c, &mut rt.st, err, 0, 0)
+            }
+        };
+        (u, c.valve.output(CmdLsb::from_bits(u)))
+    };
+    if let Some(o) = out.dac.get_mut(i) {
+        *o = code;
+    }
+    if let Some(o) = out.cmd_lsb.get_mut(i) {
+        *o = CmdLsb::from_bits(u);
+    }
+    if let Some(o) = out.target_um.get_mut(i) {
+        *o = PosUm::from_bits(target);
+    }
+    if let Some(o) = out.error_um.get_mut(i) {
+        *o = PosUm::from_bits(err);
+    }
+    if let Some(o) = out.fault.get_mut(i) {
+        *o = rt.fault;
     }
 }
 
@@ -387,9 +446,22 @@ struct FfRef<'a, const S: usize> {
     seg_a: i32,
 }
 
-/// Locates θ_f(k + lead) with the feed-forward cursor.
+/// Locates θ_f(k + lead) with the feed-forward cursor (out of line: the call inside the
+/// axis loop, for an axis whose lead differs from the previous one's).
 #[inline(never)]
 fn ff_lookup<'a, const S: usize, const N: usize>(
+    filter: &MasterFilter,
+    mf: &MasterFilterCoeffs,
+    t: &'a CamTable<S, N>,
+    cursor: &mut usize,
+    lead: i32,
+) -> Option<FfRef<'a, S>> {
+    ff_lookup_inline(filter, mf, t, cursor, lead)
+}
+
+/// [`ff_lookup`]'s body (inlined for the first lead, before the loop).
+#[inline(always)]
+fn ff_lookup_inline<'a, const S: usize, const N: usize>(
     filter: &MasterFilter,
     mf: &MasterFilterCoeffs,
     t: &'a CamTable<S, N>,

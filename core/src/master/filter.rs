@@ -160,20 +160,24 @@ impl MasterFilter {
             };
             return false;
         }
-        // Predict one tick: Q32 → Q16 by >> 16.
-        let acc = i64::from(self.acc);
-        let step = self.vel.saturating_add(acc >> 1) >> 16;
-        let pp = self.pos.saturating_add(step);
-        let vp = self.vel.saturating_add(acc);
-        let r_raw = m.saturating_sub(pp);
+        // Predict one tick: step = (θ̇ + ½θ̈) >> 16 (Q32 → Q16 counts), formed exactly
+        // without a 64-bit saturation as (θ̇ >> 16) + ((θ̇ mod 2^16) + ½θ̈) >> 16: the
+        // first term is below 2^47, the second below 2^15.
+        let step = (self.vel >> 16)
+            .wrapping_add(((self.vel & 0xFFFF).wrapping_add(i64::from(self.acc >> 1))) >> 16);
+        let r_raw = m.saturating_sub(self.pos).saturating_sub(step);
         // |r| ≤ 2^30: an i32.
         let r = r_raw.clamp(-MAX_RESIDUAL, MAX_RESIDUAL) as i32;
         // |r| ≤ 2^30 and gains < 2^31: every product is below 2^61.
         // r (Q16) · g (Q31) >> 31 = Q16;  r (Q16) · h (Q30) >> 14 = Q32;
         // r (Q16) · 2k (Q31) >> 15 = Q32.
         let r64 = i64::from(r);
-        self.pos = pp.saturating_add(r64.wrapping_mul(i64::from(c.g_q31)) >> 31);
-        self.vel = vp.saturating_add(r64.wrapping_mul(i64::from(c.h_q30)) >> 14);
+        // θ = θ + step + g·r: the two small terms (< 2^48) added first, one saturation.
+        let dpos = step.wrapping_add(r64.wrapping_mul(i64::from(c.g_q31)) >> 31);
+        // θ̇ = θ̇ + θ̈ + h·r: both terms below 2^47.
+        let dvel = i64::from(self.acc).wrapping_add(r64.wrapping_mul(i64::from(c.h_q30)) >> 14);
+        self.pos = self.pos.saturating_add(dpos);
+        self.vel = self.vel.saturating_add(dvel);
         self.acc = self.acc.saturating_add(mul_shr(r, c.k2_q31, 15));
         i64::from(r) != r_raw
     }
