@@ -150,6 +150,9 @@ pub struct Follower<const S: usize, const N: usize> {
     any_paper: bool,
     /// The lead of the first Feedforward axis (its lookup is taken before the axis loop).
     ff_lead0: Option<i32>,
+    /// Whether the Feedforward axes have different leads (only then does the axis loop
+    /// check for another lookup).
+    ff_leads_differ: bool,
     rt: [AxisRt; S],
     ended: bool,
     /// Which end `ended` latched at (true: the last node): fixed while ended, so a master
@@ -173,6 +176,10 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 .build(cfg.period_us)
                 .map_err(|error| FollowerError::Axis { axis, error })?;
         }
+        let ff_lead0 = axes
+            .iter()
+            .find(|a| a.mode == ControlMode::Feedforward)
+            .map(|a| a.lead_q16);
         Ok(Self {
             axes,
             mf,
@@ -183,10 +190,11 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             cur_pred: 0,
             cur_ff: 0,
             any_paper: cfg.axes.iter().any(|a| a.mode == ControlMode::Paper),
-            ff_lead0: axes
+            ff_leads_differ: axes
                 .iter()
-                .find(|a| a.mode == ControlMode::Feedforward)
-                .map(|a| a.lead_q16),
+                .filter(|a| a.mode == ControlMode::Feedforward)
+                .any(|a| Some(a.lead_q16) != ff_lead0),
+            ff_lead0,
             rt: [AxisRt::default(); S],
             ended: false,
             end_high: true,
@@ -316,7 +324,11 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             else {
                 continue;
             };
-            if c.mode == ControlMode::Feedforward && !ctx.ended && c.lead_q16 != ctx.ff.lead {
+            if self.ff_leads_differ
+                && c.mode == ControlMode::Feedforward
+                && !ctx.ended
+                && c.lead_q16 != ctx.ff.lead
+            {
                 if let Some(f) = ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, c.lead_q16)
                 {
                     ctx.ff = f;

@@ -169,15 +169,23 @@ impl ValveCoeffs {
     }
 
     /// The DAC code for a controller command `u` (rounded to the nearest LSB).
-    #[inline]
+    #[inline(always)]
     pub fn output(&self, u: CmdLsb) -> DacCode {
         if self.identity {
             // Fast path (no overlap, unit gains, no inversion, zero null): the code is
             // round(clamp(u)). |y| ≤ clamp ≤ 2047·2^16, so y + 2^15 cannot overflow and
             // the rounded code of a value within ±clamp (whole LSB) stays within ±clamp.
             let y = clamp_sym(u.to_bits(), self.clamp);
-            return DacCode::from_in_range(y.wrapping_add(1 << 15) >> 16);
+            DacCode::from_in_range(y.wrapping_add(1 << 15) >> 16)
+        } else {
+            self.output_calibrated(u)
         }
+    }
+
+    /// [`ValveCoeffs::output`] through the full calibration (out of line: the identity
+    /// fast path is the one inlined into the loop).
+    #[inline(never)]
+    fn output_calibrated(&self, u: CmdLsb) -> DacCode {
         let y = self.compensate(u).to_bits();
         // Round to nearest: (y + 0.5) >> 16; y is within ±2047·2^16, no overflow.
         DacCode::new_clamped(y.saturating_add(1 << 15) >> 16)
