@@ -106,6 +106,14 @@ pub fn position_law(c: &AxisCoeffs, st: &mut PosState, r: &PosRef, x: PosUm) -> 
     CmdLsb::from_bits(u)
 }
 
+/// The integrator step Ki·T·e, `I16F16` LSB, for |e| ≤ m (inside the integration zone):
+/// e (Q8) · Ki·T (Q24) = Q32 → >> 16. [`super::AxisConfig::build`] bounds m·Ki·T below
+/// 2^47 (Q32), so the step is below 2^31 and needs no saturation.
+#[inline(always)]
+fn integ_step(c: &AxisCoeffs, e: i32) -> i32 {
+    (i64::from(e).wrapping_mul(i64::from(c.ki_tick)) >> 16) as i32
+}
+
 /// The Paper law (eq. 6–9) on raw values: error `e` (`I24F8` µm) → U (`I16F16` LSB,
 /// within ±clamp).
 #[inline(always)]
@@ -117,7 +125,7 @@ pub(crate) fn paper_law_bits(c: &AxisCoeffs, st: &mut PosState, e: i32) -> i32 {
     let dde = de.saturating_sub(e1.saturating_sub(e2));
     let mut du = mul_shr(de, c.kp, 8).saturating_add(mul_shr(dde, c.kd_tick, 8));
     if e.saturating_abs() <= c.i_zone {
-        du = du.saturating_add(mul_shr(e, c.ki_tick, 16));
+        du = du.saturating_add(integ_step(c, e));
     }
     st.u_paper = clamp_sym(st.u_paper.saturating_add(du), clamp);
     st.push(e, e1);
@@ -151,10 +159,7 @@ pub(crate) fn positional_law_bits(
     // (`qadd`): cheaper on the Cortex-M4 than a 64-bit sum and a 64-bit clamp.
     let base = sat_i32(pd24 >> 8).saturating_add(sat_i32(ff32 >> 16));
     if e.saturating_abs() <= c.i_zone {
-        let cand = clamp_sym(
-            st.integ.saturating_add(mul_shr(e, c.ki_tick, 16)),
-            c.i_limit,
-        );
+        let cand = clamp_sym(st.integ.saturating_add(integ_step(c, e)), c.i_limit);
         let u_try = base.saturating_add(cand);
         // Anti-windup: never integrate further into a saturated output.
         let winding =
