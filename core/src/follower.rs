@@ -16,7 +16,7 @@
 //!    - `Paper`: x_ref = X(θ̂(k+1)), the table at the eq. 4 prediction (eq. 5–6).
 //!    - `NextNode`: x_ref = the node at the far end of the current segment in the
 //!      direction of master motion.
-//! 4. The axis law ([`position_law`]) and the valve output stage give the DAC code.
+//! 4. The axis law ([`crate::axis::position_law`]) and the valve output stage give the DAC code.
 //! 5. Following error e = X(θ_f(k)) − x(k) beyond the axis limit latches that axis'
 //!    fault: its valve goes to null, its controller state is cleared, until
 //!    [`Follower::clear_faults`].
