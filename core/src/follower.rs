@@ -16,23 +16,22 @@
 //!    - `Paper`: x_ref = X(θ̂(k+1)), the table at the eq. 4 prediction (eq. 5–6).
 //!    - `NextNode`: x_ref = the node at the far end of the current segment in the
 //!      direction of master motion.
-//! 4. The axis law ([`position_law`]) and the valve output stage give the DAC code.
+//! 4. The axis law ([`crate::axis::position_law`]) and the valve output stage give the DAC code.
 //! 5. Following error e = X(θ_f(k)) − x(k) beyond the axis limit latches that axis'
 //!    fault: its valve goes to null, its controller state is cleared, until
 //!    [`Follower::clear_faults`].
 //!
 //! Every table lookup starts from its own cursor, so the search is O(1) amortised.
 
-use crate::axis::{
-    position_law, AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosRef, PosState,
-};
+use crate::axis::position::{paper_law_bits, positional_law_bits};
+use crate::axis::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosState};
 use crate::master::{
     MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig, MasterFilterError,
 };
 use crate::master::{Predictor, PredictorKind};
 use crate::q::mul_shr;
-use crate::table::{CamTable, Lookup};
-use crate::units::{AccUmPerS2, CmdLsb, DacCode, Master, PosUm, VelUmPerS};
+use crate::table::{CamTable, Span};
+use crate::units::{CmdLsb, DacCode, Master, PosUm};
 
 /// Follower configuration in engineering units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -149,6 +148,11 @@ pub struct Follower<const S: usize, const N: usize> {
     cur_ff: usize,
     /// Whether any axis runs the Paper law (only then is the prediction looked up).
     any_paper: bool,
+    /// The lead of the first Feedforward axis (its lookup is taken before the axis loop).
+    ff_lead0: Option<i32>,
+    /// Whether the Feedforward axes have different leads (only then does the axis loop
+    /// check for another lookup).
+    ff_leads_differ: bool,
     rt: [AxisRt; S],
     ended: bool,
     /// Which end `ended` latched at (true: the last node): fixed while ended, so a master
@@ -172,6 +176,10 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 .build(cfg.period_us)
                 .map_err(|error| FollowerError::Axis { axis, error })?;
         }
+        let ff_lead0 = axes
+            .iter()
+            .find(|a| a.mode == ControlMode::Feedforward)
+            .map(|a| a.lead_q16);
         Ok(Self {
             axes,
             mf,
@@ -182,6 +190,11 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             cur_pred: 0,
             cur_ff: 0,
             any_paper: cfg.axes.iter().any(|a| a.mode == ControlMode::Paper),
+            ff_leads_differ: axes
+                .iter()
+                .filter(|a| a.mode == ControlMode::Feedforward)
+                .any(|a| Some(a.lead_q16) != ff_lead0),
+            ff_lead0,
             rt: [AxisRt::default(); S],
             ended: false,
             end_high: true,
@@ -272,84 +285,209 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         };
         out.end_of_table = self.ended;
         out.master_jump = master_jump;
-        out.master = self.filter.estimate(&self.mf, 0);
-        // Feed-forward lookup, shared by the axes with the same lead:
-        // (lead, lookup, segments/s Q16, segments/s² Q16).
-        let mut ff: Option<(i32, Lookup, i32, i32)> = None;
-        for (i, (c, rt)) in self.axes.iter().zip(self.rt.iter_mut()).enumerate() {
-            let x = inp.pos_um.get(i).copied().unwrap_or(PosUm::ZERO);
-            let target = t.value(&lk_now, i);
-            let err = PosUm::from_bits(target.to_bits().saturating_sub(x.to_bits()));
-            let mut r = PosRef {
-                x_ref_um: target,
-                ..PosRef::default()
+        out.master = self.filter.estimate_now(&self.mf);
+        let (Some(now), Some(pred)) = (t.span(&lk_now), t.span(&lk_pred)) else {
+            // Unreachable: `locate` only returns segments of this table.
+            out.dac = self.safe_outputs();
+            return;
+        };
+        // Feed-forward lookup, shared by the axes with the same lead (taken here for the
+        // first Feedforward axis' lead, again only for an axis with another lead).
+        let ff = match (self.ff_lead0, self.ended) {
+            (Some(lead), false) => {
+                ff_lookup_inline(&self.filter, &self.mf, t, &mut self.cur_ff, lead).unwrap_or(
+                    FfRef {
+                        lead,
+                        span: now,
+                        seg_v: 0,
+                        seg_a: 0,
+                    },
+                )
+            }
+            _ => FfRef {
+                lead: -1,
+                span: now,
+                seg_v: 0,
+                seg_a: 0,
+            },
+        };
+        let mut ctx = TickCtx {
+            now,
+            pred,
+            ff,
+            dir,
+            ended: self.ended,
+        };
+        for i in 0..S {
+            let (Some(c), Some(rt), Some(x)) =
+                (self.axes.get(i), self.rt.get_mut(i), inp.pos_um.get(i))
+            else {
+                continue;
             };
-            if !self.ended {
-                match c.mode {
-                    ControlMode::Feedforward => {
-                        let (_, lk, seg_v, seg_a) = match ff {
-                            Some(f) if f.0 == c.lead_q16 => f,
-                            _ => {
-                                let ahead = self.filter.ahead(&self.mf, c.lead_q16);
-                                let lk = t.locate(&mut self.cur_ff, ahead.pos);
-                                let f = (
-                                    c.lead_q16,
-                                    lk,
-                                    t.seg_rate_q16(&lk, ahead.rate_q8),
-                                    t.seg_rate_q16(&lk, ahead.acc_q8),
-                                );
-                                ff = Some(f);
-                                f
-                            }
-                        };
-                        let rise = t.rise(&lk, i).to_bits();
-                        // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
-                        r.v_ff_um_per_s = VelUmPerS::from_bits(mul_shr(rise, seg_v, 16));
-                        if c.ka != 0 {
-                            r.a_ff_um_per_s2 = AccUmPerS2::from_bits(mul_shr(rise, seg_a, 24));
-                        }
-                    }
-                    ControlMode::Paper => r.x_ref_um = t.value(&lk_pred, i),
-                    ControlMode::NextNode => {
-                        let node = if dir >= 0 {
-                            lk_now.seg.saturating_add(1)
-                        } else {
-                            lk_now.seg
-                        };
-                        if let Some(x_node) = t.node(node).and_then(|n| n.slave_um.get(i).copied())
-                        {
-                            r.x_ref_um = x_node;
-                        }
-                    }
+            if self.ff_leads_differ
+                && c.mode == ControlMode::Feedforward
+                && !ctx.ended
+                && c.lead_q16 != ctx.ff.lead
+            {
+                if let Some(f) = ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, c.lead_q16)
+                {
+                    ctx.ff = f;
                 }
             }
-            if rt.fault.is_none() && err.to_bits().saturating_abs() > c.fe_limit {
-                rt.fault = Some(AxisFault::FollowingError);
-                rt.st.reset();
-            }
-            let (u, code) = if rt.fault.is_some() {
-                (CmdLsb::ZERO, c.valve.null_code())
+            if S == 1 {
+                // One axis: no loop to keep registers for, so no call.
+                axis_step_inline(&ctx, c, rt, x.to_bits(), i, out);
             } else {
-                let u = position_law(c, &mut rt.st, &r, x);
-                (u, c.valve.output(u))
-            };
-            if let Some(o) = out.dac.get_mut(i) {
-                *o = code;
-            }
-            if let Some(o) = out.cmd_lsb.get_mut(i) {
-                *o = u;
-            }
-            if let Some(o) = out.target_um.get_mut(i) {
-                *o = target;
-            }
-            if let Some(o) = out.error_um.get_mut(i) {
-                *o = err;
-            }
-            if let Some(o) = out.fault.get_mut(i) {
-                *o = rt.fault;
+                axis_step(&ctx, c, rt, x.to_bits(), i, out);
             }
         }
     }
+}
+
+/// What every axis of one tick reads.
+struct TickCtx<'a, const S: usize> {
+    /// The table at the filtered master now (or the end it stopped at).
+    now: Span<'a, S>,
+    /// The table at the eq. 4 prediction (Paper axes).
+    pred: Span<'a, S>,
+    /// The feed-forward lookup.
+    ff: FfRef<'a, S>,
+    /// Direction of the master: 1, 0, −1.
+    dir: i8,
+    /// The end-of-table latch.
+    ended: bool,
+}
+
+/// One axis of one tick (steps 4–5 of [`Follower`]): the law, the output stage and the
+/// following-error check, written into `out[i]`. Kept out of line so the axis loop does
+/// not spill the shared state around every axis.
+#[inline(never)]
+fn axis_step<const S: usize>(
+    ctx: &TickCtx<'_, S>,
+    c: &AxisCoeffs,
+    rt: &mut AxisRt,
+    x: i32,
+    i: usize,
+    out: &mut FollowerOutputs<S>,
+) {
+    axis_step_inline(ctx, c, rt, x, i, out);
+}
+
+/// [`axis_step`]'s body.
+#[inline(always)]
+fn axis_step_inline<const S: usize>(
+    ctx: &TickCtx<'_, S>,
+    c: &AxisCoeffs,
+    rt: &mut AxisRt,
+    x: i32,
+    i: usize,
+    out: &mut FollowerOutputs<S>,
+) {
+    if i >= S {
+        // Never: the caller iterates 0..S (and this lets every index below go unchecked).
+        return;
+    }
+    let target = ctx.now.value_bits(i);
+    let err = target.saturating_sub(x);
+    if rt.fault.is_none() && err.saturating_abs() > c.fe_limit {
+        rt.fault = Some(AxisFault::FollowingError);
+        rt.st.reset();
+    }
+    let (u, code) = if rt.fault.is_some() {
+        (0, c.valve.null_code())
+    } else {
+        let u = match (c.mode, ctx.ended) {
+            (ControlMode::Paper, true) => paper_law_bits(c, &mut rt.st, err),
+            (ControlMode::Paper, false) => {
+                let e = ctx.pred.value_bits(i).saturating_sub(x);
+                paper_law_bits(c, &mut rt.st, e)
+            }
+            (ControlMode::Feedforward, false) => {
+                let rise = ctx.ff.span.rise_bits(i);
+                // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
+                let v = mul_shr(rise, ctx.ff.seg_v, 16);
+                let a = if c.ka != 0 {
+                    mul_shr(rise, ctx.ff.seg_a, 24)
+                } else {
+                    0
+                };
+                positional_law_bits(c, &mut rt.st, err, v, a)
+            }
+            (ControlMode::NextNode, false) => {
+                // The node at the far end of the segment in the direction of motion.
+                let node = if ctx.dir >= 0 {
+                    ctx.now.start_bits(i).saturating_add(ctx.now.rise_bits(i))
+                } else {
+                    ctx.now.start_bits(i)
+                };
+                positional_law_bits(c, &mut rt.st, node.saturating_sub(x), 0, 0)
+            }
+            (ControlMode::Feedforward | ControlMode::NextNode, true) => {
+                positional_law_bits(c, &mut rt.st, err, 0, 0)
+            }
+        };
+        (u, c.valve.output(CmdLsb::from_bits(u)))
+    };
+    if let Some(o) = out.dac.get_mut(i) {
+        *o = code;
+    }
+    if let Some(o) = out.cmd_lsb.get_mut(i) {
+        *o = CmdLsb::from_bits(u);
+    }
+    if let Some(o) = out.target_um.get_mut(i) {
+        *o = PosUm::from_bits(target);
+    }
+    if let Some(o) = out.error_um.get_mut(i) {
+        *o = PosUm::from_bits(err);
+    }
+    if let Some(o) = out.fault.get_mut(i) {
+        *o = rt.fault;
+    }
+}
+
+/// The feed-forward's view of the table for one lead.
+#[derive(Clone, Copy)]
+struct FfRef<'a, const S: usize> {
+    /// The lead it was taken for, ticks Q16 (−1: none).
+    lead: i32,
+    /// The segment at θ_f(k + lead).
+    span: Span<'a, S>,
+    /// Master speed there in segments/s, Q16 (0 beyond the ends).
+    seg_v: i32,
+    /// Master acceleration in segments/s², Q16 (0 beyond the ends).
+    seg_a: i32,
+}
+
+/// Locates θ_f(k + lead) with the feed-forward cursor (out of line: the call inside the
+/// axis loop, for an axis whose lead differs from the previous one's).
+#[inline(never)]
+fn ff_lookup<'a, const S: usize, const N: usize>(
+    filter: &MasterFilter,
+    mf: &MasterFilterCoeffs,
+    t: &'a CamTable<S, N>,
+    cursor: &mut usize,
+    lead: i32,
+) -> Option<FfRef<'a, S>> {
+    ff_lookup_inline(filter, mf, t, cursor, lead)
+}
+
+/// [`ff_lookup`]'s body (inlined for the first lead, before the loop).
+#[inline(always)]
+fn ff_lookup_inline<'a, const S: usize, const N: usize>(
+    filter: &MasterFilter,
+    mf: &MasterFilterCoeffs,
+    t: &'a CamTable<S, N>,
+    cursor: &mut usize,
+    lead: i32,
+) -> Option<FfRef<'a, S>> {
+    let ahead = filter.ahead(mf, lead);
+    let lk = t.locate(cursor, ahead.pos);
+    Some(FfRef {
+        lead,
+        span: t.span(&lk)?,
+        seg_v: t.seg_rate_q16(&lk, ahead.rate_q8),
+        seg_a: t.seg_rate_q16(&lk, ahead.acc_q8),
+    })
 }
 
 #[cfg(test)]

@@ -126,12 +126,14 @@ impl std::error::Error for TableError {}
 struct Segment<const S: usize> {
     /// θ_j, raw `I48F16`.
     m0: i64,
+    /// len_j = θ_{j+1} − θ_j, raw `I48F16` bits (2 … 2^32 − 2^16).
+    len: u32,
     /// ⌈2^64 / len_j⌉, len_j in raw bits (≥ 2).
     recip: u64,
     /// 2^24 / len_j ≈ recip_m · 2^-recip_s with recip_m ∈ [2^31, 2^32) (a 32-bit
     /// floating reciprocal for rates: master speed / segment length).
     recip_m: u32,
-    /// See `recip_m` (8 … 40).
+    /// See `recip_m` (8 … 40; 32 and more for segments of 256 counts and longer).
     recip_s: u32,
     /// x_j, raw `I24F8` µm.
     x0: [i32; S],
@@ -244,6 +246,7 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
                 let (recip_m, recip_s) = float_recip(len_u);
                 segs.push(Segment {
                     m0: p.master.to_bits(),
+                    len: u32::try_from(len_u).map_err(|_| TableError::SegmentLength { row })?,
                     recip,
                     recip_m,
                     recip_s,
@@ -300,9 +303,30 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     }
 
     /// Locates `m`, starting the search at `*cursor` and leaving the found segment there.
+    ///
+    /// Fast path: the master is still in the cursor's segment, 0 ≤ θ − θ_j < len_j (one
+    /// 64-bit subtraction and compare); otherwise the walk below.
     #[inline]
     pub fn locate(&self, cursor: &mut usize, m: Master) -> Lookup {
         let m = m.to_bits();
+        if let Some(s) = self.segs.get(*cursor) {
+            if let Some(d) = m.checked_sub(s.m0) {
+                if (d as u64) < u64::from(s.len) {
+                    return Lookup {
+                        seg: *cursor,
+                        frac_q32: frac_q32(d as u32, s.recip),
+                        beyond: Beyond::Inside,
+                    };
+                }
+            }
+        }
+        self.locate_walk(cursor, m)
+    }
+
+    /// The segment search of [`CamTable::locate`] when the master has left the cursor's
+    /// segment (every ~160 ticks on the reference machine).
+    #[inline(never)]
+    fn locate_walk(&self, cursor: &mut usize, m: i64) -> Lookup {
         let last_seg = self.segs.len().saturating_sub(1);
         let mut j = (*cursor).min(last_seg);
         // Walk down while θ < θ_j, up while θ ≥ θ_{j+1}.
@@ -335,16 +359,11 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
                 beyond: Beyond::High,
             };
         }
-        // 0 ≤ d ≤ len − 1 < 2^32 and recip < 2^64/len + 1, so
-        // d·recip < 2^64 − 2^64/len + len < 2^64 (2^64/len > 2^32 > len), and
-        // (d·recip) >> 32 = d·r_hi + (d·r_lo >> 32) < 2^32 (two u32×u32 products).
+        // 0 ≤ d ≤ len − 1 < 2^32.
         let d = m.wrapping_sub(s.m0) as u64 & 0xFFFF_FFFF;
-        let lo = d.wrapping_mul(s.recip & 0xFFFF_FFFF) >> 32;
-        let hi = d.wrapping_mul(s.recip >> 32);
-        let frac = hi.wrapping_add(lo);
         Lookup {
             seg: j,
-            frac_q32: u32::try_from(frac).unwrap_or(u32::MAX),
+            frac_q32: frac_q32(d as u32, s.recip),
             beyond: Beyond::Inside,
         }
     }
@@ -397,8 +416,80 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         };
         // rate[Q8]·2^24/len[Q16] = rate/len·2^16; |rate|·recip_m < 2^63.
         let p = i64::from(rate_q8).wrapping_mul(i64::from(s.recip_m));
-        sat_i32(p.wrapping_shr(s.recip_s))
+        if s.recip_s >= 32 {
+            // Segments of 2^24 raw bits (256 counts) and longer: the high word shifted
+            // by 0 … 7 (a 32-bit shift, and the result cannot overflow).
+            ((p >> 32) as i32).wrapping_shr(s.recip_s.wrapping_sub(32))
+        } else {
+            sat_i32(p.wrapping_shr(s.recip_s))
+        }
     }
+}
+
+/// A located segment as the follower's axis loop reads it: the segment's start values
+/// x_j and rises Δx_j (raw `I24F8` µm, one per slave) and the fraction through it.
+///
+/// Beyond an end the lookup already points at an end segment with the fraction clamped
+/// (below the first node: segment 0, fraction 0; at or above the last: the last segment,
+/// fraction 2^32 − 1), and [`Span::value_bits`] then gives that end's node value exactly:
+/// x_j + round(Δx_j·(2^32 − 1)/2^32) = x_j + Δx_j for |Δx_j| < 2^31, because
+/// Δx·(2^32 − 1) + 2^31 = Δx·2^32 + (2^31 − Δx) with 0 < 2^31 − Δx < 2^32. So the loop needs
+/// no per-axis test of the ends (the feed-forward is zero there through
+/// [`CamTable::seg_rate_q16`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Span<'a, const S: usize> {
+    x0: &'a [i32; S],
+    dx: &'a [i32; S],
+    frac_q32: u32,
+}
+
+impl<const S: usize> Span<'_, S> {
+    /// x*(θ) = x_j + round(Δx_j·frac / 2^32), raw `I24F8` µm (0 for a column beyond `S`).
+    #[inline(always)]
+    pub(crate) fn value_bits(&self, axis: usize) -> i32 {
+        let x0 = self.x0.get(axis).copied().unwrap_or(0);
+        let dx = self.dx.get(axis).copied().unwrap_or(0);
+        // |dx|·2^32 < 2^63; rounded to nearest; between x_j and x_{j+1}.
+        let p = i64::from(dx).wrapping_mul(i64::from(self.frac_q32));
+        x0.saturating_add((p.wrapping_add(1 << 31) >> 32) as i32)
+    }
+
+    /// x_j, raw `I24F8` µm.
+    #[inline(always)]
+    pub(crate) fn start_bits(&self, axis: usize) -> i32 {
+        self.x0.get(axis).copied().unwrap_or(0)
+    }
+
+    /// Δx_j, raw `I24F8` µm.
+    #[inline(always)]
+    pub(crate) fn rise_bits(&self, axis: usize) -> i32 {
+        self.dx.get(axis).copied().unwrap_or(0)
+    }
+}
+
+impl<const S: usize, const N: usize> CamTable<S, N> {
+    /// The segment of a lookup from [`CamTable::locate`] (`None` only for a lookup that
+    /// did not come from this table).
+    #[inline(always)]
+    pub(crate) fn span(&self, lk: &Lookup) -> Option<Span<'_, S>> {
+        self.segs.get(lk.seg).map(|s| Span {
+            x0: &s.x0,
+            dx: &s.dx,
+            frac_q32: lk.frac_q32,
+        })
+    }
+}
+
+/// The fraction d/len, Q0.32, for 0 ≤ d ≤ len − 1 and recip = ⌈2^64/len⌉.
+///
+/// recip < 2^64/len + 1, so d·recip < 2^64 − 2^64/len + len < 2^64 (2^64/len > 2^32 >
+/// len), and (d·recip) >> 32 = d·r_hi + (d·r_lo >> 32) < 2^32 (two u32×u32 products).
+#[inline(always)]
+fn frac_q32(d: u32, recip: u64) -> u32 {
+    let d = u64::from(d);
+    let lo = d.wrapping_mul(recip & 0xFFFF_FFFF) >> 32;
+    let hi = d.wrapping_mul(recip >> 32);
+    u32::try_from(hi.wrapping_add(lo)).unwrap_or(u32::MAX)
 }
 
 /// (m, s) with m = ⌈2^(24+s) / len⌉ ∈ [2^31, 2^32), for 2 ≤ len < 2^32 (table build only).
@@ -575,6 +666,46 @@ mod tests {
                     let want = x0 + (x1 - x0) * (mf - m0) / (m1 - m0);
                     prop_assert!((got - want).abs() <= 2.0 / 256.0, "got {} want {}", got, want);
                     prop_assert!(got >= x0.min(x1) && got <= x0.max(x1));
+                }
+            }
+        }
+
+        /// The segment rate equals rate/len within 1e-9 relative + 1 LSB, for segment
+        /// lengths on both sides of the 256-count split of its two shift paths.
+        #[test]
+        fn segment_rate_matches_f64(len_raw in 2i64..(1i64 << 32) - (1 << 16), rate in -(1i32 << 30)..(1i32 << 30)) {
+            let t: CamTable<1, 4> = CamTable::try_from_nodes(
+                &[Node { master: Master::ZERO, slave_um: [PosUm::ZERO] },
+                  Node { master: Master::from_bits(len_raw), slave_um: [PosUm::ZERO] }], &lim()).unwrap();
+            let mut c = 0;
+            let lk = t.locate(&mut c, Master::ZERO);
+            let got = f64::from(t.seg_rate_q16(&lk, rate));
+            let want = (f64::from(rate) / 256.0 / (len_raw as f64 / 65536.0) * 65536.0)
+                .clamp(f64::from(i32::MIN), f64::from(i32::MAX));
+            prop_assert!((got - want).abs() <= want.abs() * 1e-9 + 1.0, "got {} want {}", got, want);
+        }
+
+        /// The follower's span reads the same values as [`CamTable::value`], beyond the
+        /// ends too.
+        #[test]
+        fn span_matches_value(steps in table_strategy(), probes in proptest::collection::vec(-0.2f64..1.2, 1..40)) {
+            let mut nodes = std::vec::Vec::new();
+            let mut m = -10_000.0;
+            for (dm, x, y) in &steps {
+                m += dm.round().max(1.0);
+                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
+            }
+            let mut l = lim::<2>();
+            l.master_speed_per_s = MasterRate::from_num(1);
+            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &l).unwrap();
+            let lo = nodes[0].master.to_num::<f64>();
+            let hi = nodes[nodes.len() - 1].master.to_num::<f64>();
+            let mut c = 0;
+            for p in probes {
+                let lk = t.locate(&mut c, Master::from_num(lo + p * (hi - lo)));
+                let sp = t.span(&lk).unwrap();
+                for axis in 0..2 {
+                    prop_assert_eq!(sp.value_bits(axis), t.value(&lk, axis).to_bits());
                 }
             }
         }

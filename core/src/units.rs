@@ -11,7 +11,9 @@
 //! | slave acceleration | [`AccUmPerS2`] = `I32F0` | µm/s² | 1 µm/s² | ±2147 m/s² | product saturates |
 //! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; saturating adds |
 //! | master speed | [`MasterRate`] = `I48F16` | counts/s | 1.5e-5 counts/s | ±1.4e14 | derived from the filter state by one shift |
-//! | master-filter state (velocity, acceleration per tick) | `I32F32` | counts/tick, counts/tick² | 2.3e-10 | ±2^31 | residual clamped to ±2^14 counts before the gain product |
+//! | master-filter velocity per tick | `I32F32` (`i64`) | counts/tick | 2.3e-10 | ±2^31 | residual clamped to ±2^14 counts before the gain product; saturating adds |
+//! | master-filter acceleration per tick | `I0F32` (`i32`) | counts/tick² | 2.3e-10 | ±0.5 (±5·10⁵ counts/s² at 1 kHz) | saturating add |
+//! | master-filter gains g, 2k / h | `i32` Q1.31 / Q2.30 | 1 | 4.7e-10 / 9.3e-10 | (0, 1) / (0, 1.5) | validated; products with the `i32` residual < 2^61 |
 //! | segment fraction | `u32` Q0.32 | 1 | 2.3e-10 | [0, 1) | product < 2^64 by construction (see [`crate::table`]) |
 //! | segment rate (master speed / segment length) | `i32` Q16.16 | segments/s | 1.5e-5 | ±32768 | saturated |
 //! | valve command before the DAC | [`CmdLsb`] = `I16F16` | DAC LSB | 1.5e-5 LSB | ±32768 LSB | every term saturates; clamped to ±2047 before output |
@@ -81,6 +83,15 @@ impl DacCode {
         };
         // In range of i16 after the clamp.
         DacCode(c as i16)
+    }
+
+    /// A code the caller has already limited to ±[`DacCode::MAX`] (the valve output
+    /// stage's fast path, which clamps to its own `clamp_lsb` ≤ 2047 first): no second
+    /// clamp. Crate-private, since the range is the caller's proof.
+    #[inline(always)]
+    pub(crate) const fn from_in_range(code: i32) -> Self {
+        debug_assert!(code.unsigned_abs() <= DacCode::MAX as u32);
+        DacCode(code as i16)
     }
 
     /// The signed code.

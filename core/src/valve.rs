@@ -86,6 +86,8 @@ pub struct ValveCoeffs {
     clamp: i32, // LSB, Q16.16 raw
     /// No overlap and unit gains: the compensation is the identity (a fast path).
     linear: bool,
+    /// `linear`, no inversion and a zero null: the code is the rounded command.
+    identity: bool,
 }
 
 fn in_range(x: f32, lo: f32, hi: f32) -> bool {
@@ -136,6 +138,12 @@ impl ValveCal {
                 && self.overlap_neg_lsb == 0.0
                 && self.gain_pos == 1.0
                 && self.gain_neg == 1.0,
+            identity: self.overlap_pos_lsb == 0.0
+                && self.overlap_neg_lsb == 0.0
+                && self.gain_pos == 1.0
+                && self.gain_neg == 1.0
+                && !self.invert
+                && q16(self.null_lsb) == 0,
         })
     }
 }
@@ -161,8 +169,23 @@ impl ValveCoeffs {
     }
 
     /// The DAC code for a controller command `u` (rounded to the nearest LSB).
-    #[inline]
+    #[inline(always)]
     pub fn output(&self, u: CmdLsb) -> DacCode {
+        if self.identity {
+            // Fast path (no overlap, unit gains, no inversion, zero null): the code is
+            // round(clamp(u)). |y| ≤ clamp ≤ 2047·2^16, so y + 2^15 cannot overflow and
+            // the rounded code of a value within ±clamp (whole LSB) stays within ±clamp.
+            let y = clamp_sym(u.to_bits(), self.clamp);
+            DacCode::from_in_range(y.wrapping_add(1 << 15) >> 16)
+        } else {
+            self.output_calibrated(u)
+        }
+    }
+
+    /// [`ValveCoeffs::output`] through the full calibration (out of line: the identity
+    /// fast path is the one inlined into the loop).
+    #[inline(never)]
+    fn output_calibrated(&self, u: CmdLsb) -> DacCode {
         let y = self.compensate(u).to_bits();
         // Round to nearest: (y + 0.5) >> 16; y is within ±2047·2^16, no overflow.
         DacCode::new_clamped(y.saturating_add(1 << 15) >> 16)
@@ -245,6 +268,16 @@ mod tests {
     }
 
     proptest! {
+        /// The identity fast path gives the general path's code for every command.
+        #[test]
+        fn identity_fast_path_matches_general_path(u in any::<i32>(), clamp in 1u16..=2047) {
+            let c = ValveCal { clamp_lsb: clamp, ..ValveCal::default() }.build().unwrap();
+            prop_assert!(c.identity);
+            let general = ValveCoeffs { identity: false, ..c };
+            let u = CmdLsb::from_bits(u);
+            prop_assert_eq!(c.output(u), general.output(u));
+        }
+
         #[test]
         fn output_always_within_clamp(u in any::<i32>(), clamp in 1u16..=2047, ov in 0.0f32..1000.0,
                                       null in -500.0f32..500.0, inv: bool) {

@@ -82,7 +82,8 @@ impl Default for AxisConfig {
 pub enum AxisConfigError {
     /// `kp_lsb_per_um`.
     Kp,
-    /// `ki_lsb_per_um_s` (or Ki·T too large for its format).
+    /// `ki_lsb_per_um_s` (or Ki·T too large for its format, or the largest integrator
+    /// step Ki·T·m above 32 768 LSB per tick).
     Ki,
     /// `kd_lsb_s_per_um` (or Kd/T too large for its format).
     Kd,
@@ -176,12 +177,20 @@ impl AxisConfig {
         if lead_ticks >= 32_767.0 {
             return Err(E::ValveLag);
         }
+        let ki_tick = fit::<I8F24>(ki * t, E::Ki)?.to_bits();
+        let i_zone = fit::<PosUm>(zone, E::IZone)?.to_bits();
+        // The largest integrator step, Ki·T·m, must stay below 2^15 LSB per tick
+        // (e·Ki·T < 2^47 in Q32), so the laws form it without a saturation. 32 768 LSB
+        // per tick is 16 times the whole valve range: no working tuning comes near it.
+        if i64::from(i_zone).saturating_mul(i64::from(ki_tick)) >= 1 << 47 {
+            return Err(E::Ki);
+        }
         Ok(AxisCoeffs {
             mode: self.mode,
             kp: fit::<I16F16>(kp, E::Kp)?.to_bits(),
-            ki_tick: fit::<I8F24>(ki * t, E::Ki)?.to_bits(),
+            ki_tick,
             kd_tick: fit::<I16F16>(kd / t, E::Kd)?.to_bits(),
-            i_zone: fit::<PosUm>(zone, E::IZone)?.to_bits(),
+            i_zone,
             i_limit: fit::<CmdLsb>(ilim, E::ILimit)?.to_bits(),
             kv_pos: fit::<I8F24>(kvp, E::Kv)?.to_bits(),
             kv_neg: fit::<I8F24>(kvn, E::Kv)?.to_bits(),
@@ -227,6 +236,14 @@ mod tests {
             Err(AxisConfigError::Ki)
         );
         assert_eq!(bad(|c| c.kd_lsb_s_per_um = 20.0), Err(AxisConfigError::Kd));
+        // Ki·T·m = 1e5·1e-3·1e6 = 1e8 LSB per tick
+        assert_eq!(
+            bad(|c| {
+                c.ki_lsb_per_um_s = 1e5;
+                c.i_zone_um = 1e6;
+            }),
+            Err(AxisConfigError::Ki)
+        );
         assert_eq!(bad(|c| c.i_zone_um = 0.0), Err(AxisConfigError::IZone));
         assert_eq!(
             bad(|c| c.i_limit_lsb = 3000.0),

@@ -48,8 +48,9 @@ pub struct PosState {
     integ: i32,
     /// U(k) of the incremental law (Paper), `I16F16` raw LSB.
     u_paper: i32,
-    /// Whether e1/e2 hold real samples (0, 1 or 2).
-    primed: u8,
+    /// Whether e1/e2 hold real samples. After the first tick e1 = e2 = e(0), so one flag
+    /// gives the same history as counting to two.
+    primed: bool,
 }
 
 impl PosState {
@@ -68,65 +69,107 @@ impl PosState {
         self.integ = u.to_bits();
         self.u_paper = u.to_bits();
     }
+
+    /// (e(k−1), e(k−2)) for the error `e` of this tick (both `e` on the first tick).
+    #[inline(always)]
+    fn history(&self, e: i32) -> (i32, i32) {
+        if self.primed {
+            (self.e1, self.e2)
+        } else {
+            (e, e)
+        }
+    }
+
+    /// Shifts `e` into the history.
+    #[inline(always)]
+    fn push(&mut self, e: i32, e1: i32) {
+        self.e2 = e1;
+        self.e1 = e;
+        self.primed = true;
+    }
 }
 
 /// One tick of the position law: returns the command before the output stage.
 #[inline]
 pub fn position_law(c: &AxisCoeffs, st: &mut PosState, r: &PosRef, x: PosUm) -> CmdLsb {
     let e = r.x_ref_um.to_bits().saturating_sub(x.to_bits());
-    let (e1, e2) = match st.primed {
-        0 => (e, e),
-        1 => (st.e1, st.e1),
-        _ => (st.e1, st.e2),
-    };
-    let clamp = c.valve.clamp_lsb().to_bits();
-    let in_zone = e.saturating_abs() <= c.i_zone;
-    // e (Q8) · gain (Q16) = Q24 → >> 8 = Q16;  e (Q8) · gain (Q24) = Q32 → >> 16 = Q16.
     let u = match c.mode {
-        ControlMode::Paper => {
-            let de = e.saturating_sub(e1);
-            let dde = de.saturating_sub(e1.saturating_sub(e2));
-            let mut du = mul_shr(de, c.kp, 8).saturating_add(mul_shr(dde, c.kd_tick, 8));
-            if in_zone {
-                du = du.saturating_add(mul_shr(e, c.ki_tick, 16));
-            }
-            st.u_paper = clamp_sym(st.u_paper.saturating_add(du), clamp);
-            st.u_paper
-        }
-        ControlMode::Feedforward | ControlMode::NextNode => {
-            let v = r.v_ff_um_per_s.to_bits();
-            let kv = if v >= 0 { c.kv_pos } else { c.kv_neg };
-            // Validated gains are non-negative and below 2^31 (kp < 2^26), so each
-            // product is below 2^62 and each pair's sum below 2^63: no overflow.
-            // P + D in Q24 (e Q8 · gain Q16); velocity + acceleration in Q32.
-            let pd24 = i64::from(e)
-                .wrapping_mul(i64::from(c.kp))
-                .wrapping_add(i64::from(e.saturating_sub(e1)).wrapping_mul(i64::from(c.kd_tick)));
-            let ff32 = i64::from(v)
-                .wrapping_mul(i64::from(kv))
-                .wrapping_add(i64::from(r.a_ff_um_per_s2.to_bits()).wrapping_mul(i64::from(c.ka)));
-            // Both shifted to Q16 (< 2^55 and < 2^47): one saturation for the sum.
-            let base = sat_i32((pd24 >> 8).wrapping_add(ff32 >> 16));
-            if in_zone {
-                let cand = clamp_sym(
-                    st.integ.saturating_add(mul_shr(e, c.ki_tick, 16)),
-                    c.i_limit,
-                );
-                let u_try = base.saturating_add(cand);
-                // Anti-windup: never integrate further into a saturated output.
-                let winding = (u_try > clamp && cand > st.integ)
-                    || (u_try < clamp.wrapping_neg() && cand < st.integ);
-                if !winding {
-                    st.integ = cand;
-                }
-            }
-            base.saturating_add(st.integ)
-        }
+        ControlMode::Paper => paper_law_bits(c, st, e),
+        ControlMode::Feedforward | ControlMode::NextNode => positional_law_bits(
+            c,
+            st,
+            e,
+            r.v_ff_um_per_s.to_bits(),
+            r.a_ff_um_per_s2.to_bits(),
+        ),
     };
-    st.e2 = e1;
-    st.e1 = e;
-    st.primed = st.primed.saturating_add(1).min(2);
-    CmdLsb::from_bits(clamp_sym(u, clamp))
+    CmdLsb::from_bits(u)
+}
+
+/// The integrator step Ki·T·e, `I16F16` LSB, for |e| ≤ m (inside the integration zone):
+/// e (Q8) · Ki·T (Q24) = Q32 → >> 16. [`super::AxisConfig::build`] bounds m·Ki·T below
+/// 2^47 (Q32), so the step is below 2^31 and needs no saturation.
+#[inline(always)]
+fn integ_step(c: &AxisCoeffs, e: i32) -> i32 {
+    (i64::from(e).wrapping_mul(i64::from(c.ki_tick)) >> 16) as i32
+}
+
+/// The Paper law (eq. 6–9) on raw values: error `e` (`I24F8` µm) → U (`I16F16` LSB,
+/// within ±clamp).
+#[inline(always)]
+pub(crate) fn paper_law_bits(c: &AxisCoeffs, st: &mut PosState, e: i32) -> i32 {
+    let (e1, e2) = st.history(e);
+    let clamp = c.valve.clamp_lsb().to_bits();
+    // e (Q8) · gain (Q16) = Q24 → >> 8 = Q16;  e (Q8) · gain (Q24) = Q32 → >> 16 = Q16.
+    let de = e.saturating_sub(e1);
+    let dde = de.saturating_sub(e1.saturating_sub(e2));
+    let mut du = mul_shr(de, c.kp, 8).saturating_add(mul_shr(dde, c.kd_tick, 8));
+    if e.saturating_abs() <= c.i_zone {
+        du = du.saturating_add(integ_step(c, e));
+    }
+    st.u_paper = clamp_sym(st.u_paper.saturating_add(du), clamp);
+    st.push(e, e1);
+    st.u_paper
+}
+
+/// The positional law (Feedforward, NextNode) on raw values: error `e` (`I24F8` µm),
+/// target speed `v` (`I24F8` µm/s), target acceleration `a` (µm/s²) → u (`I16F16` LSB,
+/// within ±clamp).
+#[inline(always)]
+pub(crate) fn positional_law_bits(
+    c: &AxisCoeffs,
+    st: &mut PosState,
+    e: i32,
+    v: i32,
+    a: i32,
+) -> i32 {
+    let (e1, _) = st.history(e);
+    let clamp = c.valve.clamp_lsb().to_bits();
+    let kv = if v >= 0 { c.kv_pos } else { c.kv_neg };
+    // Validated gains are non-negative and below 2^31 (kp < 2^26), so each
+    // product is below 2^62 and each pair's sum below 2^63: no overflow.
+    // P + D in Q24 (e Q8 · gain Q16); velocity + acceleration in Q32.
+    let pd24 = i64::from(e)
+        .wrapping_mul(i64::from(c.kp))
+        .wrapping_add(i64::from(e.saturating_sub(e1)).wrapping_mul(i64::from(c.kd_tick)));
+    let ff32 = i64::from(v)
+        .wrapping_mul(i64::from(kv))
+        .wrapping_add(i64::from(a).wrapping_mul(i64::from(c.ka)));
+    // Each shifted to Q16 and saturated to 32 bits, then one saturating 32-bit add
+    // (`qadd`): cheaper on the Cortex-M4 than a 64-bit sum and a 64-bit clamp.
+    let base = sat_i32(pd24 >> 8).saturating_add(sat_i32(ff32 >> 16));
+    if e.saturating_abs() <= c.i_zone {
+        let cand = clamp_sym(st.integ.saturating_add(integ_step(c, e)), c.i_limit);
+        let u_try = base.saturating_add(cand);
+        // Anti-windup: never integrate further into a saturated output.
+        let winding =
+            (u_try > clamp && cand > st.integ) || (u_try < clamp.wrapping_neg() && cand < st.integ);
+        if !winding {
+            st.integ = cand;
+        }
+    }
+    st.push(e, e1);
+    clamp_sym(base.saturating_add(st.integ), clamp)
 }
 
 /// The valve code for a command (the axis' output stage).

@@ -14,14 +14,16 @@
 //! constant acceleration with zero steady-state error, so it adds no lag to a smoothly
 //! moving master, and its −3 dB bandwidth is about f_b.
 //!
-//! Formats: position `I48F16` master counts; velocity and acceleration per tick as
-//! `I32F32` raw `i64` (counts/tick, counts/tick²: resolution 2.3e-10); gains `U0.32`
-//! (`h` ≤ 1.5 as Q32 in an `i64`); speed and acceleration handed to the loop in Q24.8
-//! counts/s and counts/s² ([`MasterAhead`]). The residual is clamped to ±2^14 counts before the
-//! gain products, so every product is below 2^63; a clamped residual is reported as a
-//! master jump.
+//! Formats: position `I48F16` master counts (`i64`); velocity `I32F32` counts/tick (`i64`,
+//! resolution 2.3e-10 counts/tick); acceleration `I0F32` counts/tick² in an `i32`
+//! (resolution 2.3e-10, range ±0.5 counts/tick² = ±5·10⁵ counts/s² at 1 kHz, saturated);
+//! gains `g` and `2k` as Q1.31 and `h` (≤ 1.5) as Q2.30 in `i32`, so every gain product is
+//! one 32×32→64-bit multiply of the residual (an `i32` after its clamp); speed and
+//! acceleration handed to the loop in Q24.8 counts/s and counts/s² ([`MasterAhead`]). The
+//! residual is clamped to ±2^14 counts (±2^30 raw) before the gain products, so every
+//! product is below 2^62; a clamped residual is reported as a master jump.
 
-use crate::q::sat_i32;
+use crate::q::{mul_shr, sat_i32};
 use crate::units::{Master, MasterRate};
 
 /// Filter configuration in engineering units.
@@ -52,11 +54,14 @@ pub enum MasterFilterError {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MasterFilterCoeffs {
-    g_q32: i64,
-    h_q32: i64,
-    k2_q32: i64,
+    /// g = 1 − ξ³, Q1.31 (0 < g < 1).
+    g_q31: i32,
+    /// h = 1.5·(1 − ξ)²·(1 + ξ), Q2.30 (0 < h < 1.5).
+    h_q30: i32,
+    /// 2k = (1 − ξ)³, Q1.31 (0 < 2k < 1).
+    k2_q31: i32,
     /// Ticks per second, Q16 (1e6 / period_us · 2^16 < 2^31 for T ≥ 50 µs).
-    tps_q16: i64,
+    tps_q16: i32,
 }
 
 /// Largest residual accepted before the clamp, raw `I48F16` bits (2^14 counts).
@@ -75,12 +80,12 @@ impl MasterFilterConfig {
         }
         let xi = libm_exp(-2.0 * core::f64::consts::PI * fb * t);
         let one = 1.0 - xi;
-        let q32 = |x: f64| (x * 4_294_967_296.0) as i64;
+        let q = |x: f64, frac_bits: u32| (x * (1u64 << frac_bits) as f64) as i32;
         Ok(MasterFilterCoeffs {
-            g_q32: q32(1.0 - xi * xi * xi),
-            h_q32: q32(1.5 * one * one * (1.0 + xi)),
-            k2_q32: q32(one * one * one),
-            tps_q16: (65_536.0e6 / f64::from(period_us)) as i64,
+            g_q31: q(1.0 - xi * xi * xi, 31),
+            h_q30: q(1.5 * one * one * (1.0 + xi), 30),
+            k2_q31: q(one * one * one, 31),
+            tps_q16: (65_536.0e6 / f64::from(period_us)) as i32,
         })
     }
 }
@@ -124,7 +129,7 @@ pub struct MasterEstimate {
 pub struct MasterFilter {
     pos: i64, // I48F16 counts
     vel: i64, // Q32 counts/tick
-    acc: i64, // Q32 counts/tick²
+    acc: i32, // Q32 counts/tick² (±0.5, saturated)
     started: bool,
 }
 
@@ -155,17 +160,26 @@ impl MasterFilter {
             };
             return false;
         }
-        // Predict one tick: Q32 → Q16 by >> 16.
-        let step = self.vel.saturating_add(self.acc >> 1) >> 16;
-        let pp = self.pos.saturating_add(step);
-        let vp = self.vel.saturating_add(self.acc);
-        let r_raw = m.saturating_sub(pp);
-        let r = r_raw.clamp(-MAX_RESIDUAL, MAX_RESIDUAL);
-        // |r| ≤ 2^30 and gains ≤ 1.5·2^32: products < 2^63.
-        self.pos = pp.saturating_add(r.wrapping_mul(c.g_q32) >> 32);
-        self.vel = vp.saturating_add(r.wrapping_mul(c.h_q32) >> 16);
-        self.acc = self.acc.saturating_add(r.wrapping_mul(c.k2_q32) >> 16);
-        r != r_raw
+        // Predict one tick: step = (θ̇ + ½θ̈) >> 16 (Q32 → Q16 counts), formed exactly
+        // without a 64-bit saturation as (θ̇ >> 16) + ((θ̇ mod 2^16) + ½θ̈) >> 16: the
+        // first term is below 2^47, the second below 2^15.
+        let step = (self.vel >> 16)
+            .wrapping_add(((self.vel & 0xFFFF).wrapping_add(i64::from(self.acc >> 1))) >> 16);
+        let r_raw = m.saturating_sub(self.pos).saturating_sub(step);
+        // |r| ≤ 2^30: an i32.
+        let r = r_raw.clamp(-MAX_RESIDUAL, MAX_RESIDUAL) as i32;
+        // |r| ≤ 2^30 and gains < 2^31: every product is below 2^61.
+        // r (Q16) · g (Q31) >> 31 = Q16;  r (Q16) · h (Q30) >> 14 = Q32;
+        // r (Q16) · 2k (Q31) >> 15 = Q32.
+        let r64 = i64::from(r);
+        // θ = θ + step + g·r: the two small terms (< 2^48) added first, one saturation.
+        let dpos = step.wrapping_add(r64.wrapping_mul(i64::from(c.g_q31)) >> 31);
+        // θ̇ = θ̇ + θ̈ + h·r: both terms below 2^47.
+        let dvel = i64::from(self.acc).wrapping_add(r64.wrapping_mul(i64::from(c.h_q30)) >> 14);
+        self.pos = self.pos.saturating_add(dpos);
+        self.vel = self.vel.saturating_add(dvel);
+        self.acc = self.acc.saturating_add(mul_shr(r, c.k2_q31, 15));
+        i64::from(r) != r_raw
     }
 
     /// The estimate `lead_q16 / 2^16` ticks after the last measurement, in the loop's
@@ -176,32 +190,41 @@ impl MasterFilter {
     /// ```
     ///
     /// Every product is 32×32→64 bits: the velocity enters as Q16 counts/tick (|θ̇| <
-    /// 32 768 counts/tick), the acceleration as Q32 counts/tick² clamped to ±0.5, the lead
+    /// 32 768 counts/tick, saturated), the acceleration as Q32 counts/tick² (±0.5), the lead
     /// as Q16 ticks (0 … 32 767), ticks/s as Q16 (≤ 20 kHz).
     #[inline]
     pub fn ahead(&self, c: &MasterFilterCoeffs, lead_q16: i32) -> MasterAhead {
         let n = i64::from(lead_q16.max(0));
         let v16 = i64::from(sat_i32(self.vel >> 16));
-        let a32 = i64::from(sat_i32(self.acc));
-        // acc·n: Q32·Q16 = Q48 → Q32 (< 2^47).
-        let acc_n = a32.wrapping_mul(n) >> 16;
-        // ½acc·n²: (acc·n as Q16)·n = Q32 → >> 17 = Q16 with the ½ (< 2^62).
-        let half_acc_n2 = (acc_n >> 16).wrapping_mul(n) >> 17;
+        // acc·n: Q32·Q16 = Q48 → Q32 (|·| < 2^46).
+        let acc_n = i64::from(self.acc).wrapping_mul(n) >> 16;
+        // ½acc·n²: (acc·n as Q16, |·| < 2^30) · n = Q32 → >> 17 = Q16 with the ½ (< 2^61).
+        let half_acc_n2 = i64::from((acc_n >> 16) as i32).wrapping_mul(n) >> 17;
+        // θ̇·n: Q16·Q16 >> 16 = Q16 (< 2^46); the sum of the two terms < 2^47.
         let pos = self
             .pos
-            .saturating_add(v16.wrapping_mul(n) >> 16)
-            .saturating_add(half_acc_n2);
-        let v_ahead = i64::from(sat_i32(self.vel.saturating_add(acc_n) >> 16));
-        // counts/tick (Q16) · ticks/s (Q16) = Q32 → >> 24 = counts/s Q8.
-        let rate_q8 = sat_i32(v_ahead.wrapping_mul(c.tps_q16) >> 24);
-        // counts/tick² (Q32) · ticks/s (Q16) >> 32 = Q16; · ticks/s (Q16) >> 24 = Q8.
-        let a1 = a32.wrapping_mul(c.tps_q16) >> 32;
-        let acc_q8 = sat_i32(a1.wrapping_mul(c.tps_q16) >> 24);
+            .saturating_add((v16.wrapping_mul(n) >> 16).wrapping_add(half_acc_n2));
+        let v_ahead = sat_i32(self.vel.saturating_add(acc_n) >> 16);
         MasterAhead {
             pos: Master::from_bits(pos),
-            rate_q8,
-            acc_q8,
+            rate_q8: self.rate_q8(c, v_ahead),
+            acc_q8: self.acc_q8(c),
         }
+    }
+
+    /// A speed in counts/tick (Q16) in counts/s, Q24.8 (saturated):
+    /// counts/tick (Q16) · ticks/s (Q16) = Q32 → >> 24 = Q8.
+    #[inline(always)]
+    fn rate_q8(&self, c: &MasterFilterCoeffs, v_q16: i32) -> i32 {
+        mul_shr(v_q16, c.tps_q16, 24)
+    }
+
+    /// The acceleration in counts/s², Q24.8 (saturated): counts/tick² (Q32) · ticks/s (Q16)
+    /// >> 32 = Q16 (|·| < 2^30); · ticks/s (Q16) >> 24 = Q8.
+    #[inline(always)]
+    fn acc_q8(&self, c: &MasterFilterCoeffs) -> i32 {
+        let a1 = ((i64::from(self.acc).wrapping_mul(i64::from(c.tps_q16))) >> 32) as i32;
+        mul_shr(a1, c.tps_q16, 24)
     }
 
     /// The same estimate in the public formats (`I48F16` for all three quantities).
@@ -211,6 +234,18 @@ impl MasterFilter {
             pos: a.pos,
             rate_per_s: MasterRate::from_bits(i64::from(a.rate_q8) << 8),
             acc_per_s2: MasterRate::from_bits(i64::from(a.acc_q8) << 8),
+        }
+    }
+
+    /// [`MasterFilter::estimate`] at a lead of 0 (the estimate now), without the
+    /// extrapolation's products.
+    #[inline]
+    pub fn estimate_now(&self, c: &MasterFilterCoeffs) -> MasterEstimate {
+        let rate_q8 = self.rate_q8(c, sat_i32(self.vel >> 16));
+        MasterEstimate {
+            pos: Master::from_bits(self.pos),
+            rate_per_s: MasterRate::from_bits(i64::from(rate_q8) << 8),
+            acc_per_s2: MasterRate::from_bits(i64::from(self.acc_q8(c)) << 8),
         }
     }
 
@@ -322,7 +357,11 @@ mod tests {
                         lead in any::<i32>()) {
             let c = MasterFilterConfig { bandwidth_hz: fb }.build(1000).unwrap();
             let mut f = MasterFilter::default();
-            for x in xs { f.update(&c, Master::from_bits(x)); let _ = f.estimate(&c, lead); }
+            for x in xs {
+                f.update(&c, Master::from_bits(x));
+                let _ = f.estimate(&c, lead);
+                prop_assert_eq!(f.estimate_now(&c), f.estimate(&c, 0));
+            }
         }
     }
 }
