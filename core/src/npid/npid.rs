@@ -14,14 +14,21 @@
 //! For the contour loop ([`super::ccc`]) the same law runs on an error signal: TD-I
 //! tracks ε(k) (`e1 = z11`, `e2 = z12`) and TD-II is not used ([`Npid::regulate`]).
 //!
-//! Formats: TD states µm and µm/s in Q16 (`i64`), `e0` µm·s in Q32 (`i64`), β in Q24,
-//! the output [`CmdLsb`].
+//! Formats: TD states µm and µm/s in Q16 (`i64`, |z1| ≤ 2⁴¹, |z2| ≤ 2³⁹), `e0` µm·s in
+//! Q32 (`i64`, ≤ 10⁶·2³² < 2⁵²), β in Q24 (≤ 10⁶·2²⁴ < 2⁴⁴), the output [`CmdLsb`].
+//!
+//! **Cost.** Every product is an `i64` product bounded below 2⁶³ (no `i128` routine on
+//! the Cortex-M4): `e1·h` by the TD clamps, `β·fal` by clamping each `fal` value to
+//! `|fal| ≤ 2⁶⁰/β_q24` first, i.e. each term to ±2²⁰ LSB. That clamp only acts when a
+//! single term alone exceeds 2²⁰ LSB (500 × the DAC range), where the old `i128` form
+//! would have given the same clamped output unless the other terms cancelled more than
+//! 10⁶ LSB of it.
 
 use super::fal::{fal, FalCoeffs, FalConfig};
 use super::fhan::FhanConfig;
-use super::fxmath::{mul_shr, sign};
+use super::fxmath::{mul_bounded_shr, sign};
 use super::td::{Td, TdCoeffs, TdConfig};
-use super::{cmd_from_q16, q16_from_pos, ErrorLaw, NpidError};
+use super::{q16_from_pos, ErrorLaw, NpidError};
 use crate::units::{CmdLsb, PosUm};
 
 /// Nonlinear PID parameters in engineering units (validated by [`NpidConfig::build`]).
@@ -60,6 +67,9 @@ pub struct NpidCoeffs {
     td_meas: TdCoeffs,
     /// β0, β1, β2 in Q24.
     beta_q24: [i64; 3],
+    /// Clamp of each `fal` value before its product, Q16: `2⁶⁰/β_q24` (`i64::MAX` for
+    /// β = 0), so `|β·fal|` ≤ 2⁶⁰ in Q40.
+    fal_max_q16: [i64; 3],
     fal: [FalCoeffs; 3],
     /// e0 clamp, µm·s Q32.
     e0_max_q32: i64,
@@ -108,10 +118,13 @@ impl NpidConfig {
         if !(ol.is_finite() && (1.0..=2047.0).contains(&ol)) {
             return Err(NpidError::OutputLimit);
         }
+        let fal_max = |b: i64| (1i64 << 60).checked_div(b).unwrap_or(i64::MAX);
+        let [b0, b1, b2] = beta_q24;
         Ok(NpidCoeffs {
             td_ref,
             td_meas,
             beta_q24,
+            fal_max_q16: [fal_max(b0), fal_max(b1), fal_max(b2)],
             fal,
             e0_max_q32: (il * 4_294_967_296.0) as i64,
             u_max_q16: (ol * 65536.0) as i64,
@@ -153,29 +166,41 @@ impl Npid {
         &self.td_meas
     }
 
-    /// `u` from `e1` (µm Q16) and `e2` (µm/s Q16), integrating `e0` first.
-    #[inline]
+    /// `u` from `e1` (µm Q16, |e1| ≤ 2⁴²) and `e2` (µm/s Q16, |e2| ≤ 2⁴⁰), integrating
+    /// `e0` first.
+    #[inline(always)]
     fn law(&mut self, c: &NpidCoeffs, e1: i64, e2: i64) -> CmdLsb {
         let [f0, f1, f2] = &c.fal;
         let [b0, b1, b2] = c.beta_q24;
+        let [m0, m1, m2] = c.fal_max_q16;
         if self.sat == 0 || sign(e1) != self.sat {
-            let de0 = mul_shr(e1, c.td_ref.h_q24(), 8); // Q16·Q24 >> 8 = Q32
+            // Q16·Q24 >> 8 = Q32; |e1·h_q24| ≤ 2^42·2^18 = 2^60.
+            let de0 = mul_bounded_shr(e1, c.td_ref.h_q24(), 8);
+            // |e0| ≤ 2^52 before the add: no overflow.
             self.e0_q32 = self
                 .e0_q32
-                .saturating_add(de0)
+                .wrapping_add(de0)
                 .clamp(c.e0_max_q32.wrapping_neg(), c.e0_max_q32);
         }
-        let u = mul_shr(fal(f0, self.e0_q32.wrapping_shr(16)), b0, 24)
-            .saturating_add(mul_shr(fal(f1, e1), b1, 24))
-            .saturating_add(mul_shr(fal(f2, e2), b2, 24));
-        self.sat = if u > c.u_max_q16 {
-            1
-        } else if u < c.u_max_q16.wrapping_neg() {
-            -1
-        } else {
-            0
+        // β·fal with |fal| ≤ 2^60/β: each product ≤ 2^60, each term ≤ 2^36 (Q16), the
+        // sum ≤ 3·2^36.
+        let term = |f: &FalCoeffs, e: i64, b: i64, m: i64| {
+            mul_bounded_shr(fal(f, e).clamp(m.wrapping_neg(), m), b, 24)
         };
-        cmd_from_q16(u.clamp(c.u_max_q16.wrapping_neg(), c.u_max_q16))
+        let u = term(f0, self.e0_q32.wrapping_shr(16), b0, m0)
+            .wrapping_add(term(f1, e1, b1, m1))
+            .wrapping_add(term(f2, e2, b2, m2));
+        let lim = c.u_max_q16;
+        let (u, sat) = if u > lim {
+            (lim, 1)
+        } else if u < lim.wrapping_neg() {
+            (lim.wrapping_neg(), -1)
+        } else {
+            (u, 0)
+        };
+        self.sat = sat;
+        // |u| ≤ 2047·2^16 < 2^31.
+        CmdLsb::from_bits(u as i32)
     }
 }
 
@@ -185,23 +210,24 @@ impl ErrorLaw for Npid {
     /// One period of the axis law: TD-I on the reference, TD-II on the measurement.
     #[inline]
     fn track(&mut self, c: &NpidCoeffs, reference_um: PosUm, measured_um: PosUm) -> CmdLsb {
-        self.td_ref.step(&c.td_ref, q16_from_pos(reference_um));
-        self.td_meas.step(&c.td_meas, q16_from_pos(measured_um));
+        self.td_ref.step_pos(&c.td_ref, reference_um);
+        self.td_meas.step_pos(&c.td_meas, measured_um);
+        // |z1| ≤ 2^41, |z2| ≤ 2^39 (TD clamps): the differences cannot overflow.
         let e1 = self
             .td_ref
             .position_um_q16()
-            .saturating_sub(self.td_meas.position_um_q16());
+            .wrapping_sub(self.td_meas.position_um_q16());
         let e2 = self
             .td_ref
             .velocity_um_per_s_q16()
-            .saturating_sub(self.td_meas.velocity_um_per_s_q16());
+            .wrapping_sub(self.td_meas.velocity_um_per_s_q16());
         self.law(c, e1, e2)
     }
 
     /// One period of the law on an error signal (TD-I only).
     #[inline]
     fn regulate(&mut self, c: &NpidCoeffs, error_um: PosUm) -> CmdLsb {
-        self.td_ref.step(&c.td_ref, q16_from_pos(error_um));
+        self.td_ref.step_pos(&c.td_ref, error_um);
         let e1 = self.td_ref.position_um_q16();
         let e2 = self.td_ref.velocity_um_per_s_q16();
         self.law(c, e1, e2)

@@ -15,12 +15,18 @@
 //! i.e. `z1 − v = −2·h0·z2`): the nonlinear PID runs the same TD on reference and
 //! measurement so the lags cancel in `e1 = z11 − z21`.
 //!
-//! Formats: `z1` µm Q16 (`i64`), `z2` µm/s Q16 clamped to ±[`super::V_MAX_UM_PER_S`],
-//! `h` a Q24 number of seconds.
+//! Formats: `z1` µm Q16 (`i64`) clamped to ±2⁴¹ (±2²⁵ µm ≈ 33.5 m, four times the
+//! ±8.4 m of [`crate::units::PosUm`]), `z2` µm/s Q16 clamped to
+//! ±[`super::V_MAX_UM_PER_S`], `h` a Q24 number of seconds. With these clamps every
+//! product of a step is an `i64` product bounded below 2⁶³ (stated at each line): no
+//! `i128` routine on a 32-bit CPU.
 
-use super::fhan::{fhan, FhanCoeffs, FhanConfig, V_MAX_Q16};
-use super::fxmath::mul_shr;
+use super::fhan::{fhan_bounded, FhanCoeffs, FhanConfig, V_MAX_Q16};
+use super::fxmath::mul_bounded_shr;
 use super::TdError;
+
+/// Largest |z1| and |v| of a step, µm Q16 (2⁴¹).
+const Z1_MAX_Q16: i64 = 1 << 41;
 
 /// TD parameters in engineering units (validated by [`TdConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -89,29 +95,46 @@ pub struct Td {
 }
 
 impl Td {
-    /// A TD at rest at `z1_um_q16` (µm, Q16).
+    /// A TD at rest at `z1_um_q16` (µm, Q16; clamped to ±2⁴¹, ±33.5 m).
     pub const fn at_rest(z1_um_q16: i64) -> Self {
+        let z1 = if z1_um_q16 > Z1_MAX_Q16 {
+            Z1_MAX_Q16
+        } else if z1_um_q16 < -Z1_MAX_Q16 {
+            -Z1_MAX_Q16
+        } else {
+            z1_um_q16
+        };
         Self {
-            z1_um_q16,
+            z1_um_q16: z1,
             z2_um_per_s_q16: 0,
         }
     }
 
-    /// One step toward `v_um_q16` (µm, Q16). Never fails.
+    /// One step toward `v_um_q16` (µm, Q16; clamped to ±2⁴¹). Never fails.
     #[inline]
     pub fn step(&mut self, c: &TdCoeffs, v_um_q16: i64) {
-        let f = fhan(
-            &c.fhan,
-            self.z1_um_q16.saturating_sub(v_um_q16),
-            self.z2_um_per_s_q16,
-        );
-        self.z1_um_q16 = self
-            .z1_um_q16
-            .saturating_add(mul_shr(self.z2_um_per_s_q16, c.h_q24, 24));
-        self.z2_um_per_s_q16 = self
-            .z2_um_per_s_q16
-            .saturating_add(mul_shr(f, c.h_q24, 24))
-            .clamp(-V_MAX_Q16, V_MAX_Q16);
+        self.step_bounded(c, v_um_q16.clamp(-Z1_MAX_Q16, Z1_MAX_Q16));
+    }
+
+    /// One step toward a position from [`crate::units::PosUm`] (|v| < 2²³ µm ≤ 2³⁹ in
+    /// Q16): no clamp needed on the input.
+    #[inline(always)]
+    pub(crate) fn step_pos(&mut self, c: &TdCoeffs, v: crate::units::PosUm) {
+        self.step_bounded(c, super::q16_from_pos(v));
+    }
+
+    /// The step for `|v| ≤ 2⁴¹` (µm Q16).
+    #[inline(always)]
+    fn step_bounded(&mut self, c: &TdCoeffs, v: i64) {
+        let (z1, z2) = (self.z1_um_q16, self.z2_um_per_s_q16);
+        // |z1|, |v| ≤ 2^41: |x1| ≤ 2^42 = fhan_bounded's range; |z2| ≤ V_MAX_Q16.
+        let f = fhan_bounded(&c.fhan, z1.wrapping_sub(v), z2);
+        // |z2·h_q24| ≤ 2^39·2^18 = 2^57 (h ≤ 10 ms < 2^18 in Q24).
+        let z1 = z1.wrapping_add(mul_bounded_shr(z2, c.h_q24, 24));
+        // |f·h| ≤ r·h ≤ r·h0 = d ≤ 2^22 µm/s (validated): |f_q16·h_q24| ≤ 2^62.
+        let z2 = z2.wrapping_add(mul_bounded_shr(f, c.h_q24, 24));
+        self.z1_um_q16 = z1.clamp(-Z1_MAX_Q16, Z1_MAX_Q16);
+        self.z2_um_per_s_q16 = z2.clamp(-V_MAX_Q16, V_MAX_Q16);
     }
 
     /// Tracked position z1, µm Q16.
