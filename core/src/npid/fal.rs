@@ -104,7 +104,8 @@ pub fn fal(c: &FalCoeffs, e_q16: i64) -> i64 {
     if c.alpha_q16 == 1 << 16 {
         // α = 1: fal(e) = e in both branches, exactly.
         e_q16
-    } else if e_q16.unsigned_abs() > c.delta_q16.unsigned_abs() {
+    } else if e_q16.unsigned_abs() > c.delta_q16 as u64 {
+        // δ > 0 (validated).
         let p = pow_q16(e_q16.unsigned_abs(), c.alpha_q16);
         if e_q16 < 0 {
             p.wrapping_neg()

@@ -116,6 +116,18 @@ impl FhanCoeffs {
     pub fn h0_s(&self) -> f64 {
         self.h0_q24 as f64 / 16_777_216.0
     }
+    /// d = r·h0 in Q16 µm/s (> 0).
+    pub(crate) fn d_q16(&self) -> i64 {
+        self.d_q16
+    }
+    /// h0 in Q24 s.
+    pub(crate) fn h0_q24(&self) -> i64 {
+        self.h0_q24
+    }
+    /// r in Q16 µm/s².
+    pub(crate) fn r_q16_raw(&self) -> i64 {
+        self.r_q16
+    }
     /// r in Q16 µm/s².
     #[cfg(test)]
     pub(crate) fn r_q16(&self) -> i64 {
@@ -137,11 +149,27 @@ pub fn fhan(c: &FhanCoeffs, x1_um_q16: i64, x2_um_per_s_q16: i64) -> i64 {
 /// [`fhan`] for `|x1| ≤ 2⁴²` (µm Q16, [`X1_MAX_Q16`]) and `|x2| ≤` [`V_MAX_Q16`]: the
 /// bounds below hold only then (larger inputs wrap, they never panic).
 #[inline(always)]
-pub(crate) fn fhan_bounded(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
+fn fhan_bounded(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
+    let a = fhan_a(c, x1, x2);
+    if a > c.d_q16 {
+        c.r_q16.wrapping_neg()
+    } else if a < c.d_q16.wrapping_neg() {
+        c.r_q16
+    } else {
+        // |a| ≤ d = r·h0: |a_q16·inv_h0_q16| ≤ r·2^32 < 2^62.
+        mul_bounded_shr(a, c.inv_h0_q16, 16).wrapping_neg()
+    }
+}
+
+/// The switching variable `a` of `fhan` (µm/s Q16) for the ranges of [`fhan_bounded`]:
+/// `fhan = −r·sign(a)` if `|a| > d`, else `−a/h0` (the TD scales that by `h` itself).
+#[inline(always)]
+pub(crate) fn fhan_a(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
     // |x2·h0_q24| ≤ 2^39·0.1·2^24 < 2^60; |y| ≤ 2^42 + 2^36 < 2^43.
     let y = x1.wrapping_add(mul_bounded_shr(x2, c.h0_q24, 24));
     let ay = y.unsigned_abs();
-    let a = if ay > c.d0_q16.unsigned_abs() {
+    // d0 > 0 (validated).
+    if ay > c.d0_q16 as u64 {
         // Q2 (µm/s)²: d² + 8·r·|y| = d² + r·|y_q16| >> 11, split at bit 16 of |y| so
         // both products stay in 64 bits: r < 2^30, |y| >> 16 < 2^27 → (·) << 5 < 2^62;
         // (|y| & 0xFFFF)·r < 2^46. Sum < 2^63.
@@ -162,14 +190,6 @@ pub(crate) fn fhan_bounded(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
     } else {
         // |y| ≤ d0 and d0·(1/h0) = d ≤ 2^22 µm/s: |y_q16·inv_h0_q16| ≤ 2^54.
         x2.wrapping_add(mul_bounded_shr(y, c.inv_h0_q16, 16))
-    };
-    if a > c.d_q16 {
-        c.r_q16.wrapping_neg()
-    } else if a < c.d_q16.wrapping_neg() {
-        c.r_q16
-    } else {
-        // |a| ≤ d = r·h0: |a_q16·inv_h0_q16| ≤ r·2^32 < 2^62.
-        mul_bounded_shr(a, c.inv_h0_q16, 16).wrapping_neg()
     }
 }
 

@@ -19,14 +19,16 @@
 //!
 //! **Cost.** Every product is an `i64` product bounded below 2⁶³ (no `i128` routine on
 //! the Cortex-M4): `e1·h` by the TD clamps, `β·fal` by clamping each `fal` value to
-//! `|fal| ≤ 2⁶⁰/β_q24` first, i.e. each term to ±2²⁰ LSB. That clamp only acts when a
-//! single term alone exceeds 2²⁰ LSB (500 × the DAC range), where the old `i128` form
+//! `|fal| ≤ 2⁶²/β_q24` first, i.e. each term to ±2²² LSB. That clamp only acts when a
+//! single term alone exceeds 2²² LSB (2000 × the DAC range), where the old `i128` form
 //! would have given the same clamped output unless the other terms cancelled more than
-//! 10⁶ LSB of it.
+//! 4·10⁶ LSB of it. The build decides per term ([`TermMode`]): a term with β = 0 is
+//! skipped, and the clamp is left out where `|fal|` over the term's whole input range
+//! (`|e0| ≤` integral limit, `|e1| ≤ 2⁴²`, `|e2| ≤ 2⁴⁰` in Q16) cannot reach it.
 
 use super::fal::{fal, FalCoeffs, FalConfig};
 use super::fhan::FhanConfig;
-use super::fxmath::{mul_bounded_shr, sign};
+use super::fxmath::mul_bounded_shr;
 use super::td::{Td, TdCoeffs, TdConfig};
 use super::{q16_from_pos, ErrorLaw, NpidError};
 use crate::units::{CmdLsb, PosUm};
@@ -67,14 +69,28 @@ pub struct NpidCoeffs {
     td_meas: TdCoeffs,
     /// β0, β1, β2 in Q24.
     beta_q24: [i64; 3],
-    /// Clamp of each `fal` value before its product, Q16: `2⁶⁰/β_q24` (`i64::MAX` for
-    /// β = 0), so `|β·fal|` ≤ 2⁶⁰ in Q40.
+    /// Clamp of each `fal` value before its product, Q16: `2⁶²/β_q24` (`i64::MAX` for
+    /// β = 0), so `|β·fal|` ≤ 2⁶² in Q40.
     fal_max_q16: [i64; 3],
+    /// How each term is evaluated.
+    mode: [TermMode; 3],
     fal: [FalCoeffs; 3],
     /// e0 clamp, µm·s Q32.
     e0_max_q32: i64,
     /// Output clamp, LSB Q16.
     u_max_q16: i64,
+}
+
+/// How a term `β·fal(e)` of the law is evaluated (chosen by [`NpidConfig::build`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+enum TermMode {
+    /// β = 0: the term is zero.
+    Off,
+    /// `|fal|` over the whole input range stays below the clamp: plain product.
+    Direct,
+    /// `fal` clamped to `±2⁶²/β_q24` before the product.
+    Clamped,
 }
 
 fn gain_q24(b: f64, term: u8) -> Result<i64, NpidError> {
@@ -118,15 +134,36 @@ impl NpidConfig {
         if !(ol.is_finite() && (1.0..=2047.0).contains(&ol)) {
             return Err(NpidError::OutputLimit);
         }
-        let fal_max = |b: i64| (1i64 << 60).checked_div(b).unwrap_or(i64::MAX);
+        let fal_max = |b: i64| (1i64 << 62).checked_div(b).unwrap_or(i64::MAX);
         let [b0, b1, b2] = beta_q24;
+        let e0_max_q32 = (il * 4_294_967_296.0) as i64;
+        // Largest |input| of each term, Q16: e0 (the integral limit), e1 (2^42: two TD
+        // positions of ±2^41), e2 (2^40: two TD velocities of ±2^39).
+        let bounds = [e0_max_q32 >> 16, 1i64 << 42, 1i64 << 40];
+        let mode = |i: usize| {
+            let b = beta_q24.get(i).copied().unwrap_or(0);
+            let (Some(f), Some(&e)) = (fal.get(i), bounds.get(i)) else {
+                return TermMode::Clamped;
+            };
+            // fal is odd and (up to 2^-12 relative, see its tests) monotone: the largest
+            // |fal| is at the bound; keep a 1/256 margin.
+            let out = super::fal::fal(f, e).unsigned_abs();
+            if b == 0 {
+                TermMode::Off
+            } else if out.saturating_add(out >> 8).saturating_add(1) <= fal_max(b) as u64 {
+                TermMode::Direct
+            } else {
+                TermMode::Clamped
+            }
+        };
         Ok(NpidCoeffs {
             td_ref,
             td_meas,
             beta_q24,
             fal_max_q16: [fal_max(b0), fal_max(b1), fal_max(b2)],
+            mode: [mode(0), mode(1), mode(2)],
             fal,
-            e0_max_q32: (il * 4_294_967_296.0) as i64,
+            e0_max_q32,
             u_max_q16: (ol * 65536.0) as i64,
         })
     }
@@ -141,7 +178,7 @@ pub struct Npid {
     /// e0, µm·s Q32.
     e0_q32: i64,
     /// −1/0/+1: the output was clamped at −limit / not clamped / +limit.
-    sat: i64,
+    sat: i8,
 }
 
 impl Npid {
@@ -173,7 +210,17 @@ impl Npid {
         let [f0, f1, f2] = &c.fal;
         let [b0, b1, b2] = c.beta_q24;
         let [m0, m1, m2] = c.fal_max_q16;
-        if self.sat == 0 || sign(e1) != self.sat {
+        let [k0, k1, k2] = c.mode;
+        // Conditional integration: not while the output is clamped and e1 pushes further
+        // into the clamp (e1 = 0 adds nothing either way).
+        let push = if self.sat > 0 {
+            e1 > 0
+        } else if self.sat < 0 {
+            e1 < 0
+        } else {
+            false
+        };
+        if !push {
             // Q16·Q24 >> 8 = Q32; |e1·h_q24| ≤ 2^42·2^18 = 2^60.
             let de0 = mul_bounded_shr(e1, c.td_ref.h_q24(), 8);
             // |e0| ≤ 2^52 before the add: no overflow.
@@ -182,14 +229,23 @@ impl Npid {
                 .wrapping_add(de0)
                 .clamp(c.e0_max_q32.wrapping_neg(), c.e0_max_q32);
         }
-        // β·fal with |fal| ≤ 2^60/β: each product ≤ 2^60, each term ≤ 2^36 (Q16), the
-        // sum ≤ 3·2^36.
-        let term = |f: &FalCoeffs, e: i64, b: i64, m: i64| {
-            mul_bounded_shr(fal(f, e).clamp(m.wrapping_neg(), m), b, 24)
+        // β·fal with |fal| ≤ 2^62/β: each product ≤ 2^62, each term ≤ 2^38 (Q16), the
+        // sum ≤ 3·2^38.
+        let term = |k: TermMode, f: &FalCoeffs, e: i64, b: i64, m: i64| {
+            if k == TermMode::Off {
+                return 0;
+            }
+            let v = fal(f, e);
+            let v = if k == TermMode::Clamped {
+                v.clamp(m.wrapping_neg(), m)
+            } else {
+                v
+            };
+            mul_bounded_shr(v, b, 24)
         };
-        let u = term(f0, self.e0_q32.wrapping_shr(16), b0, m0)
-            .wrapping_add(term(f1, e1, b1, m1))
-            .wrapping_add(term(f2, e2, b2, m2));
+        let u = term(k0, f0, self.e0_q32.wrapping_shr(16), b0, m0)
+            .wrapping_add(term(k1, f1, e1, b1, m1))
+            .wrapping_add(term(k2, f2, e2, b2, m2));
         let lim = c.u_max_q16;
         let (u, sat) = if u > lim {
             (lim, 1)
@@ -330,5 +386,39 @@ mod tests {
         // The integral stopped growing while the output was at its limit.
         assert!(n.e0_q32.abs() <= c.e0_max_q32);
         assert!(n.e0_q32 < c.e0_max_q32);
+    }
+
+    #[test]
+    fn term_modes_match_wide_reference() {
+        // β = 0 → Off; small gains → Direct; a huge β1 with α = 1 → Clamped.
+        let mut cfg = config();
+        cfg.beta2 = 0.0;
+        let c = cfg.build().unwrap();
+        assert_eq!(c.mode, [TermMode::Direct, TermMode::Direct, TermMode::Off]);
+        cfg.beta1 = 5e5;
+        cfg.fal1 = FalConfig {
+            alpha: 1.0,
+            delta: 1.0,
+        };
+        let big = cfg.build().unwrap();
+        assert_eq!(big.mode[1], TermMode::Clamped);
+        // Against an i128 evaluation of the same law: identical while the clamp is idle,
+        // and the clamped term still saturates the output with the right sign.
+        for (coeffs, errs) in [
+            (&c, [3i64 << 16, -(70 << 16), 12 << 16]),
+            (&big, [0, -(1 << 40), 1 << 20]),
+            (&big, [0, 1 << 40, -(1 << 20)]),
+        ] {
+            let mut n = Npid::at_rest(PosUm::ZERO);
+            let u = n.law(coeffs, errs[1], errs[2]);
+            let mut wide: i128 = 0;
+            for (i, e) in [n.e0_q32 >> 16, errs[1], errs[2]].into_iter().enumerate() {
+                let f = fal(&coeffs.fal[i], e);
+                wide += (i128::from(f) * i128::from(coeffs.beta_q24[i])) >> 24;
+            }
+            let lim = i128::from(coeffs.u_max_q16);
+            let want = wide.clamp(-lim, lim) as i64;
+            assert!((i64::from(u.to_bits()) - want).abs() <= 1, "{u} vs {want}");
+        }
     }
 }

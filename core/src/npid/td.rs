@@ -21,8 +21,8 @@
 //! product of a step is an `i64` product bounded below 2⁶³ (stated at each line): no
 //! `i128` routine on a 32-bit CPU.
 
-use super::fhan::{fhan_bounded, FhanCoeffs, FhanConfig, V_MAX_Q16};
-use super::fxmath::mul_bounded_shr;
+use super::fhan::{fhan_a, FhanCoeffs, FhanConfig, V_MAX_Q16};
+use super::fxmath::{mul_bounded_shr, mul_shr};
 use super::TdError;
 
 /// Largest |z1| and |v| of a step, µm Q16 (2⁴¹).
@@ -47,6 +47,10 @@ pub struct TdCoeffs {
     fhan: FhanCoeffs,
     /// h, s, Q24.
     h_q24: i64,
+    /// r·h, µm/s, Q16: the z2 step where fhan saturates (|a| > d).
+    rh_q16: i64,
+    /// h/h0, Q24 (≤ 1): the z2 step in fhan's linear zone is −a·h/h0.
+    h_over_h0_q24: i64,
 }
 
 impl TdConfig {
@@ -64,9 +68,15 @@ impl TdConfig {
         if self.h0_s < h * (1.0 - 1e-9) {
             return Err(TdError::FilterBelowStep);
         }
+        let h_q24 = (h * 16_777_216.0 + 0.5) as i64;
+        // r_q16 < 2^46, h_q24 < 2^18; h_q24 < 2^18 so h_q24·2^24 < 2^42; h0_q24 ≥ 167.
+        let rh_q16 = mul_shr(fhan.r_q16_raw(), h_q24, 24);
+        let h_over_h0_q24 = (h_q24 << 24).checked_div(fhan.h0_q24()).unwrap_or(0);
         Ok(TdCoeffs {
             fhan,
-            h_q24: (h * 16_777_216.0 + 0.5) as i64,
+            h_q24,
+            rh_q16,
+            h_over_h0_q24,
         })
     }
 }
@@ -128,11 +138,22 @@ impl Td {
     fn step_bounded(&mut self, c: &TdCoeffs, v: i64) {
         let (z1, z2) = (self.z1_um_q16, self.z2_um_per_s_q16);
         // |z1|, |v| ≤ 2^41: |x1| ≤ 2^42 = fhan_bounded's range; |z2| ≤ V_MAX_Q16.
-        let f = fhan_bounded(&c.fhan, z1.wrapping_sub(v), z2);
+        // h·fhan from fhan's switching variable a: −r·h·sign(a) if |a| > d, else
+        // −a·h/h0 (one product instead of fhan's and then h's).
+        let a = fhan_a(&c.fhan, z1.wrapping_sub(v), z2);
+        let d = c.fhan.d_q16();
+        let dz2 = if a > d {
+            c.rh_q16.wrapping_neg()
+        } else if a < d.wrapping_neg() {
+            c.rh_q16
+        } else {
+            // |a| ≤ d ≤ 2^38 (Q16), h/h0 ≤ 1 (+1 LSB): |a·h_over_h0_q24| ≤ 2^62.
+            mul_bounded_shr(a, c.h_over_h0_q24, 24).wrapping_neg()
+        };
         // |z2·h_q24| ≤ 2^39·2^18 = 2^57 (h ≤ 10 ms < 2^18 in Q24).
         let z1 = z1.wrapping_add(mul_bounded_shr(z2, c.h_q24, 24));
-        // |f·h| ≤ r·h ≤ r·h0 = d ≤ 2^22 µm/s (validated): |f_q16·h_q24| ≤ 2^62.
-        let z2 = z2.wrapping_add(mul_bounded_shr(f, c.h_q24, 24));
+        // |dz2| ≤ r·h ≤ r·h0 = d ≤ 2^22 µm/s (validated).
+        let z2 = z2.wrapping_add(dz2);
         self.z1_um_q16 = z1.clamp(-Z1_MAX_Q16, Z1_MAX_Q16);
         self.z2_um_per_s_q16 = z2.clamp(-V_MAX_Q16, V_MAX_Q16);
     }
