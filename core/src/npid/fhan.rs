@@ -120,9 +120,9 @@ impl FhanCoeffs {
     pub(crate) fn d_q16(&self) -> i64 {
         self.d_q16
     }
-    /// h0 in Q24 s.
-    pub(crate) fn h0_q24(&self) -> i64 {
-        self.h0_q24
+    /// 1/h0 in Q16 1/s.
+    pub(crate) fn inv_h0_q16_raw(&self) -> i64 {
+        self.inv_h0_q16
     }
     /// r in Q16 µm/s².
     pub(crate) fn r_q16_raw(&self) -> i64 {
@@ -173,11 +173,11 @@ pub(crate) fn fhan_a(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
         // Q2 (µm/s)²: d² + 8·r·|y| = d² + r·|y_q16| >> 11, split at bit 16 of |y| so
         // both products stay in 64 bits: r < 2^30, |y| >> 16 < 2^27 → (·) << 5 < 2^62;
         // (|y| & 0xFFFF)·r < 2^46. Sum < 2^63.
-        let r = c.r as u64;
-        let arg = c
-            .d2_q2
-            .wrapping_add(r.wrapping_mul(ay >> 16) << 5)
-            .wrapping_add(r.wrapping_mul(ay & 0xFFFF) >> 11);
+        // r < 2^30 and both halves of |y| fit a u32: two `umull`.
+        let r = c.r as u32;
+        let ry_hi = u64::from(r).wrapping_mul(u64::from((ay >> 16) as u32));
+        let ry_lo = u64::from(r).wrapping_mul(u64::from(ay as u32 & 0xFFFF));
+        let arg = c.d2_q2.wrapping_add(ry_hi << 5).wrapping_add(ry_lo >> 11);
         // √(Q2) = Q1 = s·2^(1−k); in Q16: s·2^(16−k). s ≤ 2^31: < 2^47.
         let (s, k) = sqrt_u64(arg);
         let a0_q16 = (i64::from(s) << 16).wrapping_shr(k);

@@ -22,7 +22,7 @@
 //! `|fal| ≤ 2⁶²/β_q24` first, i.e. each term to ±2²² LSB. That clamp only acts when a
 //! single term alone exceeds 2²² LSB (2000 × the DAC range), where the old `i128` form
 //! would have given the same clamped output unless the other terms cancelled more than
-//! 4·10⁶ LSB of it. The build decides per term ([`TermMode`]): a term with β = 0 is
+//! 4·10⁶ LSB of it. The build decides per term (`TermMode`): a term with β = 0 is
 //! skipped, and the clamp is left out where `|fal|` over the term's whole input range
 //! (`|e0| ≤` integral limit, `|e1| ≤ 2⁴²`, `|e2| ≤ 2⁴⁰` in Q16) cannot reach it.
 

@@ -71,7 +71,9 @@ impl TdConfig {
         let h_q24 = (h * 16_777_216.0 + 0.5) as i64;
         // r_q16 < 2^46, h_q24 < 2^18; h_q24 < 2^18 so h_q24·2^24 < 2^42; h0_q24 ≥ 167.
         let rh_q16 = mul_shr(fhan.r_q16_raw(), h_q24, 24);
-        let h_over_h0_q24 = (h_q24 << 24).checked_div(fhan.h0_q24()).unwrap_or(0);
+        // h/h0 as h·(1/h0) from fhan's own quantised 1/h0 (Q16), i.e. the same factor
+        // the step had as fhan·h; < 2^18·2^33 before the shift.
+        let h_over_h0_q24 = mul_shr(fhan.inv_h0_q16_raw(), h_q24, 16);
         Ok(TdCoeffs {
             fhan,
             h_q24,
@@ -148,7 +150,7 @@ impl Td {
             c.rh_q16
         } else {
             // |a| ≤ d ≤ 2^38 (Q16), h/h0 ≤ 1 (+1 LSB): |a·h_over_h0_q24| ≤ 2^62.
-            mul_bounded_shr(a, c.h_over_h0_q24, 24).wrapping_neg()
+            mul_bounded_shr(a.wrapping_neg(), c.h_over_h0_q24, 24)
         };
         // |z2·h_q24| ≤ 2^39·2^18 = 2^57 (h ≤ 10 ms < 2^18 in Q24).
         let z1 = z1.wrapping_add(mul_bounded_shr(z2, c.h_q24, 24));
