@@ -1,14 +1,20 @@
 //! Nonlinear PID figure (SPEC §D): one axis of the cross-coupled nonlinear PID.
 //!
 //! `npid_td_fal`: [`Npid::track`] — TD-I on the reference, TD-II on the measurement
-//! (two `fhan` evaluations with their square roots), the integral, and the three `fal`
-//! terms (|e|^α by base-2 log/exp tables outside the linear zone). Gains: the tuned axis
-//! values of host-sim's X–Y scenario (`host-sim/src/xy/gains.rs`): β = (8, 0.8·20^0.2,
-//! 0.002), α = (1, 0.8, 1), δ = (1 µm·s, 20 µm, 1 µm/s), TD r = 5·10⁷ µm/s², h0 = 2 ms,
-//! period 1 ms. The reference moves at 50 mm/s (the scenario's feed: 50 µm per period);
-//! the measurement lags it by one period with a ±3 µm ripple, so the proportional error
-//! (≈ 50 µm) is outside its linear zone and every term runs its power law or its
-//! linear zone as in tracking.
+//! (two `fhan` evaluations), the integral, and the three `β·fal` terms. Gains: the tuned
+//! axis values of host-sim's X–Y scenario (`host-sim/src/xy/gains.rs`, `axis_nonlinear`
+//! = `axis_estimated`): β = (15, 1.6·20^0.2, 0), α = (1, 0.8, 1), δ = (1 µm·s, 20 µm,
+//! 1 µm/s), TD r = 5·10⁷ µm/s², h0 = 1 ms, period 1 ms, integral limit 1000 LSB / β0,
+//! output ±2047 LSB. The reference moves at 50 mm/s (the scenario's feed: 50 µm per
+//! period); the measurement lags it by one period with a ±3 µm ripple.
+//!
+//! Branches this exercises (per call): both TDs near fhan's `|y| = d0` boundary (at 50
+//! mm/s the TD's steady lag gives |y| = h0·v = 50 µm = d0 = r·h0², so the ripple moves
+//! them between the square-root zone and the linear zone) and in its linear `|a| ≤ d`
+//! output zone; the proportional `fal` on its power law (|e1| ≈ 50 µm > δ1 = 20 µm, α1 =
+//! 0.8: log2/exp2 tables); the integral term on its α = 1 identity path, integrating
+//! until it reaches its clamp (the constant one-period lag is never removed here); the
+//! β2 = 0 derivative term skipped (`TermMode::Off`).
 
 use crate::harness::Figure;
 use core::hint::black_box;
@@ -18,12 +24,12 @@ use hydra_core::units::{CmdLsb, PosUm};
 /// Reference advance per period, raw `PosUm` (50 µm).
 const STEP_BITS: i32 = 50 << 8;
 
-/// Gains of one nonlinear PID (host-sim `xy/gains.rs`): β, α, δ per term; TD r = 5·10⁷
-/// µm/s², h0 = 2 ms; period 1 ms; |β0·e0| ≤ 1000 LSB; output ±2047 LSB.
+/// One nonlinear PID as host-sim's `xy/gains.rs` builds it: β, α, δ per term; TD r =
+/// 5·10⁷ µm/s², h0 = 1 ms; period 1 ms; |β0·e0| ≤ 1000 LSB; output ±2047 LSB.
 fn nl(beta: [f64; 3], alpha: [f64; 3], delta: [f64; 3]) -> Option<NpidCoeffs> {
     let td = FhanConfig {
         r_um_per_s2: 5e7,
-        h0_s: 2e-3,
+        h0_s: 1e-3,
     };
     let fal = |i: usize| FalConfig {
         alpha: alpha[i],
@@ -39,23 +45,35 @@ fn nl(beta: [f64; 3], alpha: [f64; 3], delta: [f64; 3]) -> Option<NpidCoeffs> {
         fal0: fal(0),
         fal1: fal(1),
         fal2: fal(2),
-        integral_limit_um_s: 1000.0 / beta[0],
+        integral_limit_um_s: if beta[0] > 0.0 {
+            (1000.0 / beta[0]).min(1e6)
+        } else {
+            0.0
+        },
         output_limit_lsb: 2047.0,
     }
     .build()
     .ok()
 }
 
-/// The tuned axis law (`axis_nonlinear`): β = (8, 0.8·20^0.2, 0.002), α = (1, 0.8, 1),
-/// δ = (1 µm·s, 20 µm, 1 µm/s).
+/// The tuned axis law (`axis_nonlinear`): small-signal kp 1.6 LSB/µm through fal, β =
+/// (15, 1.6·20^0.2, 0), α = (1, 0.8, 1), δ = (1 µm·s, 20 µm, 1 µm/s).
 pub fn axis_coeffs() -> Option<NpidCoeffs> {
-    nl([8.0, 1.456_451_4, 0.002], [1.0, 0.8, 1.0], [1.0, 20.0, 1.0])
+    nl(
+        [15.0, 2.912_902_724_841_728, 0.0],
+        [1.0, 0.8, 1.0],
+        [1.0, 20.0, 1.0],
+    )
 }
 
-/// The tuned contour law (`contour_nonlinear`): β = (40, 2·5^0.5, 0.004),
-/// α = (1, 0.5, 1), δ = (1 µm·s, 5 µm, 1 µm/s).
+/// The tuned contour law (`contour_nonlinear`): small-signal kc 0.2 LSB/µm through fal,
+/// β = (0, 0.2·5^0.5, 0), α = (1, 0.5, 1), δ = (1 µm·s, 5 µm, 1 µm/s).
 pub fn contour_coeffs() -> Option<NpidCoeffs> {
-    nl([40.0, 4.472_136, 0.004], [1.0, 0.5, 1.0], [1.0, 5.0, 1.0])
+    nl(
+        [0.0, 0.447_213_595_499_958, 0.0],
+        [1.0, 0.5, 1.0],
+        [1.0, 5.0, 1.0],
+    )
 }
 
 /// The measured call: one period of the axis law.

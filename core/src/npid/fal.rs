@@ -12,11 +12,16 @@
 //! **Approximation.** `|e|^α` comes from [`super::fxmath`] (base-2 log/exp tables,
 //! relative error ≤ 1.3·10⁻⁴). The linear zone's slope is computed at build time as
 //! `k = δ^α/δ` from the *same* fixed-point `δ^α`, so both branches meet at ±δ to within
-//! the rounding of `k` (10⁻⁸ relative): `fal` is continuous at ±δ by construction.
+//! the rounding of `k` (≤ 2⁻³⁰ relative): `fal` is continuous at ±δ by construction.
+//!
+//! **Cost.** `k` is stored as a 31-bit mantissa `k_m ∈ [2³⁰, 2³¹)` and a shift (`k =
+//! k_m·2^−k_sh`), so the linear zone is one bounded `i64` product (`|e| ≤ δ < 2³²` in
+//! Q16, `k_m < 2³¹`); α = 1 returns `e` without any arithmetic; the power runs on 32-bit
+//! table interpolations ([`super::fxmath`]).
 //!
 //! Ranges: 0 ≤ α ≤ 2, 2⁻¹⁰ ≤ δ ≤ 2¹⁵ (in the unit of `e`).
 
-use super::fxmath::{mul_shr, pow_q16};
+use super::fxmath::{mul_bounded_shr, pow_q16};
 use super::FalError;
 
 /// `fal` parameters (validated by [`FalConfig::build`]).
@@ -37,8 +42,22 @@ pub struct FalCoeffs {
     alpha_q16: u32,
     /// δ, Q16 of the unit of e.
     delta_q16: i64,
-    /// Linear-zone slope δ^(α−1), Q40.
-    k_q40: i64,
+    /// Linear-zone slope δ^(α−1) = `k_m·2^−k_sh`, mantissa in [2³⁰, 2³¹).
+    k_m: i64,
+    /// Shift of the slope (15 … 45 for the validated α and δ).
+    k_sh: u32,
+}
+
+/// `k` as `(k_m, k_sh)` with `k_m ∈ [2³⁰, 2³¹)`, `k = k_m·2^−k_sh` (k ∈ [2⁻¹⁵, 2¹⁵]
+/// for the validated α and δ, so `k_sh` ∈ 15…45; k = 0 gives `(0, 62)`).
+fn slope_parts(k: f64) -> (i64, u32) {
+    let mut m = k;
+    let mut sh = 0u32;
+    while m < 1_073_741_824.0 && sh < 62 {
+        m *= 2.0;
+        sh = sh.saturating_add(1);
+    }
+    ((m + 0.5).min(2_147_483_647.0) as i64, sh)
 }
 
 impl FalConfig {
@@ -57,10 +76,12 @@ impl FalConfig {
         // δ^α in Q16 by the hot path's own power, then k = δ^α/δ (Q16/Q16 → ·2^40).
         let dal = pow_q16(delta_q16.unsigned_abs(), alpha_q16);
         let k = dal as f64 / delta_q16 as f64;
+        let (k_m, k_sh) = slope_parts(k);
         Ok(FalCoeffs {
             alpha_q16,
             delta_q16,
-            k_q40: (k * 1_099_511_627_776.0 + 0.5) as i64,
+            k_m,
+            k_sh,
         })
     }
 }
@@ -71,7 +92,8 @@ impl FalCoeffs {
         Self {
             alpha_q16: 1 << 16,
             delta_q16: 1 << 16,
-            k_q40: 1 << 40,
+            k_m: 1 << 30,
+            k_sh: 30,
         }
     }
 }
@@ -82,7 +104,8 @@ pub fn fal(c: &FalCoeffs, e_q16: i64) -> i64 {
     if c.alpha_q16 == 1 << 16 {
         // α = 1: fal(e) = e in both branches, exactly.
         e_q16
-    } else if e_q16.unsigned_abs() > c.delta_q16.unsigned_abs() {
+    } else if e_q16.unsigned_abs() > c.delta_q16 as u64 {
+        // δ > 0 (validated).
         let p = pow_q16(e_q16.unsigned_abs(), c.alpha_q16);
         if e_q16 < 0 {
             p.wrapping_neg()
@@ -90,7 +113,8 @@ pub fn fal(c: &FalCoeffs, e_q16: i64) -> i64 {
             p
         }
     } else {
-        mul_shr(e_q16, c.k_q40, 40)
+        // |e| ≤ δ ≤ 2^31 (Q16) and k_m < 2^31: the product is below 2^62.
+        mul_bounded_shr(e_q16, c.k_m, c.k_sh)
     }
 }
 
@@ -118,7 +142,8 @@ mod tests {
                     let outside = fal(&c, s * (dq + 1));
                     let scale = (inside.abs() as f64).max(1.0);
                     // One input LSB changes the output by at most the local slope.
-                    let slope = (c.k_q40 as f64 / 2f64.powi(40)).max(1.0) * 2.0 + 2.0;
+                    let k = c.k_m as f64 / 2f64.powi(c.k_sh as i32);
+                    let slope = k.max(1.0) * 2.0 + 2.0;
                     assert!(
                         ((outside - inside) as f64).abs() <= 2e-4 * scale + slope,
                         "α {a} δ {d}: {inside} vs {outside}"

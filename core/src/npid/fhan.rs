@@ -17,21 +17,28 @@
 //! of µm/s² (its rounding is < 5·10⁻⁴ relative for r ≥ 10³ µm/s²), `h0` a Q24 number of
 //! seconds (6·10⁻⁸ s), `1/h0` a Q16 number of 1/s computed from the same quantised `h0`.
 //!
-//! **Square root.** `a0` is formed as `u64::isqrt` (exact floor) of `d² + 8·r·|y|` in
-//! Q12 (µm/s)², i.e. to 1/64 µm/s. Its relative error is below `1/(64·d)` ≤ 1.6·10⁻⁴ for
-//! the validated `d ≥ 100 µm/s`; with the quantisation of `d` (1/64 µm/s) and `y`
-//! (2⁻¹⁶ µm against `d0 ≥ 0.05 µm`) the error of `a0` stays below 5·10⁻⁴ relative,
-//! under the 10⁻³ budget. The argument saturates at 2⁶⁴ (a0 = 2²⁶ µm/s = 67 m/s); with
-//! `d ≤ 2²²` and `|x2| ≤ 2²³` µm/s the sign of `a` is still that of `y` there, so the
-//! saturated result is the correct `−r·sign(y)`.
+//! **Square root.** `a0 = √(d² + 8·r·|y|)` is formed from the argument in Q2 (µm/s)²
+//! (`u64`, below 2⁶³ for the validated ranges) by [`super::fxmath`]'s table + one Newton
+//! step: relative error ≤ 2·10⁻⁸ (measured 0.9·10⁻⁸), plus the argument's quantisation
+//! (< 1 LSB of Q2 on ≥ 9·d² ≥ 9·10⁴ (µm/s)², i.e. < 3·10⁻⁶) and `d`'s (1.5·10⁻⁵ µm/s):
+//! a0's relative error is below 5·10⁻⁶, two hundred times under the 10⁻³ budget.
+//!
+//! **Cost.** No `i128` and no 64-bit division on the per-tick path: every product is an
+//! `i64` product bounded below 2⁶³ by the validated ranges (each line states the bound),
+//! the square root is a table lookup, a `umull` residual and one 32-bit `sdiv`. The
+//! internal [`fhan_bounded`] (used by the TD, whose state is already in range) skips the
+//! entry clamps of the public [`fhan`].
 
-use super::fxmath::{mul_shr, sat_i64, sign};
+use super::fxmath::{mul_bounded_shr, mul_shr, sqrt_u64};
 use super::TdError;
 
 /// Largest |velocity| the TD state and `fhan` accept, µm/s (2²³ µm/s ≈ 8.4 m/s).
 pub const V_MAX_UM_PER_S: i64 = 1 << 23;
 /// Same bound in Q16.
 pub(crate) const V_MAX_Q16: i64 = V_MAX_UM_PER_S << 16;
+/// Largest |x1| [`fhan_bounded`] accepts, µm Q16 (2⁴² = 2²⁶ µm ≈ 67 m, eight times
+/// the ±8.4 m of [`crate::units::PosUm`]); [`fhan`] clamps to it.
+pub(crate) const X1_MAX_Q16: i64 = 1 << 42;
 
 /// Parameters of `fhan` in engineering units (validated by [`FhanConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,6 +64,10 @@ pub struct FhanCoeffs {
     d_q16: i64,
     /// d0 = h0·d, µm, Q16.
     d0_q16: i64,
+    /// r, µm/s², Q16 (|fhan| in the saturated zone).
+    r_q16: i64,
+    /// d², (µm/s)², Q2 (from the quantised `d_q16`).
+    d2_q2: u64,
 }
 
 impl FhanConfig {
@@ -81,12 +92,17 @@ impl FhanConfig {
         }
         // 2^40 / h0_q24 = (1/h0) in Q16; h0_q24 ≥ 167.
         let inv_h0_q16 = (1i64 << 40).checked_div(h0_q24).unwrap_or(i64::MAX);
+        // d ≤ 2^22 µm/s: d_q16² < 2^76, so square d in Q8 (d_q16 >> 8 < 2^30) → Q16, >> 14.
+        let d_q8 = d_q16 >> 8;
+        let d2_q2 = (d_q8 as u64).wrapping_mul(d_q8 as u64) >> 14;
         Ok(FhanCoeffs {
             r: r_int,
             h0_q24,
             inv_h0_q16,
             d_q16,
             d0_q16,
+            r_q16: r_int << 16,
+            d2_q2,
         })
     }
 }
@@ -100,45 +116,80 @@ impl FhanCoeffs {
     pub fn h0_s(&self) -> f64 {
         self.h0_q24 as f64 / 16_777_216.0
     }
+    /// d = r·h0 in Q16 µm/s (> 0).
+    pub(crate) fn d_q16(&self) -> i64 {
+        self.d_q16
+    }
+    /// 1/h0 in Q16 1/s.
+    pub(crate) fn inv_h0_q16_raw(&self) -> i64 {
+        self.inv_h0_q16
+    }
     /// r in Q16 µm/s².
+    pub(crate) fn r_q16_raw(&self) -> i64 {
+        self.r_q16
+    }
+    /// r in Q16 µm/s².
+    #[cfg(test)]
     pub(crate) fn r_q16(&self) -> i64 {
-        self.r.wrapping_shl(16)
+        self.r_q16
     }
 }
 
 /// `fhan(x1, x2, r, h0)`: µm (Q16) and µm/s (Q16) in, µm/s² (Q16) out, |result| ≤ r.
+/// `x1` is clamped to ±2²⁶ µm and `x2` to ±[`V_MAX_UM_PER_S`] first.
 #[inline]
 pub fn fhan(c: &FhanCoeffs, x1_um_q16: i64, x2_um_per_s_q16: i64) -> i64 {
-    let x2 = x2_um_per_s_q16.clamp(-V_MAX_Q16, V_MAX_Q16);
-    let y = x1_um_q16.saturating_add(mul_shr(x2, c.h0_q24, 24));
-    let a = if y.unsigned_abs() > c.d0_q16.unsigned_abs() {
-        // (µm/s)² in Q12: d (Q6)² + 8·r·|y| (Q0·Q16 → ·8 >> 4 = >> 1).
-        let d_q6 = c.d_q16.wrapping_shr(10);
-        let d2 = (d_q6 as i128).wrapping_mul(d_q6 as i128);
-        let ry = (c.r as i128)
-            .wrapping_mul(y.unsigned_abs() as i128)
-            .wrapping_shr(1);
-        let arg = d2.saturating_add(ry);
-        let arg = if arg > u64::MAX as i128 {
-            u64::MAX
+    fhan_bounded(
+        c,
+        x1_um_q16.clamp(-X1_MAX_Q16, X1_MAX_Q16),
+        x2_um_per_s_q16.clamp(-V_MAX_Q16, V_MAX_Q16),
+    )
+}
+
+/// [`fhan`] for `|x1| ≤ 2⁴²` (µm Q16, [`X1_MAX_Q16`]) and `|x2| ≤` [`V_MAX_Q16`]: the
+/// bounds below hold only then (larger inputs wrap, they never panic).
+#[inline(always)]
+fn fhan_bounded(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
+    let a = fhan_a(c, x1, x2);
+    if a > c.d_q16 {
+        c.r_q16.wrapping_neg()
+    } else if a < c.d_q16.wrapping_neg() {
+        c.r_q16
+    } else {
+        // |a| ≤ d = r·h0: |a_q16·inv_h0_q16| ≤ r·2^32 < 2^62.
+        mul_bounded_shr(a, c.inv_h0_q16, 16).wrapping_neg()
+    }
+}
+
+/// The switching variable `a` of `fhan` (µm/s Q16) for the ranges of [`fhan_bounded`]:
+/// `fhan = −r·sign(a)` if `|a| > d`, else `−a/h0` (the TD scales that by `h` itself).
+#[inline(always)]
+pub(crate) fn fhan_a(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
+    // |x2·h0_q24| ≤ 2^39·0.1·2^24 < 2^60; |y| ≤ 2^42 + 2^36 < 2^43.
+    let y = x1.wrapping_add(mul_bounded_shr(x2, c.h0_q24, 24));
+    let ay = y.unsigned_abs();
+    // d0 > 0 (validated).
+    if ay > c.d0_q16 as u64 {
+        // Q2 (µm/s)²: d² + 8·r·|y| = d² + r·|y_q16| >> 11, split at bit 16 of |y| so
+        // both products stay in 64 bits: r < 2^30, |y| >> 16 < 2^27 → (·) << 5 < 2^62;
+        // (|y| & 0xFFFF)·r < 2^46. Sum < 2^63.
+        // r < 2^30 and both halves of |y| fit a u32: two `umull`.
+        let r = c.r as u32;
+        let ry_hi = u64::from(r).wrapping_mul(u64::from((ay >> 16) as u32));
+        let ry_lo = u64::from(r).wrapping_mul(u64::from(ay as u32 & 0xFFFF));
+        let arg = c.d2_q2.wrapping_add(ry_hi << 5).wrapping_add(ry_lo >> 11);
+        // √(Q2) = Q1 = s·2^(1−k); in Q16: s·2^(16−k). s ≤ 2^31: < 2^47.
+        let (s, k) = sqrt_u64(arg);
+        let a0_q16 = (i64::from(s) << 16).wrapping_shr(k);
+        let half = a0_q16.wrapping_sub(c.d_q16).wrapping_shr(1);
+        if y < 0 {
+            x2.wrapping_sub(half)
         } else {
-            arg as u64
-        };
-        let a0_q16 = (arg.isqrt() as i64).wrapping_shl(10);
-        let half = a0_q16.saturating_sub(c.d_q16).wrapping_shr(1);
-        x2.saturating_add(sign(y).wrapping_mul(half))
+            x2.wrapping_add(half)
+        }
     } else {
-        x2.saturating_add(mul_shr(y, c.inv_h0_q16, 16))
-    };
-    if a.unsigned_abs() > c.d_q16.unsigned_abs() {
-        sign(a).wrapping_neg().wrapping_mul(c.r_q16())
-    } else {
-        sat_i64(
-            (a as i128)
-                .wrapping_mul(c.inv_h0_q16 as i128)
-                .wrapping_shr(16)
-                .wrapping_neg(),
-        )
+        // |y| ≤ d0 and d0·(1/h0) = d ≤ 2^22 µm/s: |y_q16·inv_h0_q16| ≤ 2^54.
+        x2.wrapping_add(mul_bounded_shr(y, c.inv_h0_q16, 16))
     }
 }
 

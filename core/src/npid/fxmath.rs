@@ -15,7 +15,23 @@
 //! `α·ln2·4.4·10⁻⁵ + 2.9·10⁻⁵ + 2⁻²³ ≈ 1.0·10⁻⁴` (the tests measure ≤ 1.3·10⁻⁴ over
 //! x ∈ [10⁻³, 10⁶], α ∈ [0, 2]), ten times under the 10⁻³ budget of the issue.
 //!
-//! **Square root.** `u64::isqrt` (exact floor, a bit-by-bit integer algorithm, no float).
+//! **Square root.** [`sqrt_u64`]: the argument is normalised by an even shift so its
+//! leading one is bit 63 or 62; its top 32 bits `t` ∈ [2³⁰, 2³²) index a 49-entry table
+//! of `√(i/64)` (Q31, i = 16…64, built at compile time by the exact `u64::isqrt`) with
+//! linear interpolation: error ≤ `max|f″|·Δ²/8 = (¼·0.25^−1.5)/8/64² = 6.1·10⁻⁵`
+//! absolute on a value ≥ ½, i.e. ≤ 1.2·10⁻⁴ relative. One Newton step `s += (M − s²)/(2s)`
+//! on the full 62-bit argument (exact `umull` residual, one 32-bit `sdiv`) squares that
+//! to ≈ 10⁻⁸; the quotient's 16-bit divisor and truncation add ≈ 10⁻⁹ (test
+//! `sqrt_relative_error`: measured 0.9·10⁻⁸ over 2¹⁰ … 2⁶⁴). No loop, no library call: about 30
+//! instructions on a Cortex-M4 (the bit-by-bit `u64::isqrt` took several hundred).
+//!
+//! **Products on a 32-bit CPU.** An `i128` product is a library routine on the
+//! Cortex-M4 (≈ 40 instructions plus the saturation); an `i64 × i64` product that is
+//! known not to overflow is three instructions (`umull`, 2 × `mla`), an `i32 × i32 →
+//! i64` product one (`smull`). [`mul_shr`] takes the `smull` path whenever both
+//! operands fit 32 bits and keeps the exact `i128` path (with saturation) otherwise; the
+//! hot paths of the TD, `fhan` and the NPID use [`mul_bounded_shr`] where the ranges
+//! documented at each call site bound the product below 2⁶³.
 //!
 //! Every helper saturates instead of overflowing and never panics.
 
@@ -44,7 +60,76 @@ const EXP2_TAB: [u32; 65] = [
     2147483648,
 ];
 
-pub(crate) use crate::q::{mul64_shr as mul_shr, sat_i64};
+pub(crate) use crate::q::sat_i64;
+
+/// `(a · b) >> s` for two `i64`, exact (arithmetic shift: rounds toward −∞) and
+/// saturated to `i64`; `s` ≤ 62. Same result as [`crate::q::mul64_shr`] for every input,
+/// but when both operands fit an `i32` (the common case: gains and sines in Q30/Q24,
+/// commands in LSB Q16) the product is a single `smull`, with no `i128` routine.
+#[inline(always)]
+pub(crate) fn mul_shr(a: i64, b: i64, s: u32) -> i64 {
+    let (a32, b32) = (a as i32, b as i32);
+    if i64::from(a32) == a && i64::from(b32) == b {
+        // |a·b| ≤ 2^62: exact in an i64, and the shifted value cannot leave the range.
+        i64::from(a32).wrapping_mul(i64::from(b32)).wrapping_shr(s)
+    } else {
+        crate::q::mul64_shr(a, b, s)
+    }
+}
+
+/// `(a · b) >> s` for a product the caller has bounded: `|a · b| < 2⁶³` (each call
+/// site states why). Three multiply instructions on a Cortex-M4; wrapping, so an
+/// unproven bound would give a wrong value, never a panic.
+#[inline(always)]
+pub(crate) const fn mul_bounded_shr(a: i64, b: i64, s: u32) -> i64 {
+    a.wrapping_mul(b).wrapping_shr(s)
+}
+
+/// `√(i/64)` in Q31 for i = 16…64 (`floor(√(i·2⁵⁶))`, exact integer square root at
+/// compile time).
+const SQRT_TAB: [u32; 49] = {
+    let mut t = [0u32; 49];
+    let mut i = 0;
+    while i < 49 {
+        #[allow(clippy::arithmetic_side_effects, clippy::indexing_slicing)]
+        {
+            t[i] = ((16 + i as u64) << 56).isqrt() as u32;
+            i += 1;
+        }
+    }
+    t
+};
+
+/// `√x`, returned as `(s, k)`: `√x ≈ s · 2^(1 − k)` with `s` ∈ [2³⁰, 2³¹] (√ of the
+/// normalised argument, Q31) and `k` ∈ 0…31 (half the even normalising shift).
+/// Relative error ≤ 2·10⁻⁸ (measured 0.9·10⁻⁸, module docs). `x = 0` gives `s = 0`.
+#[inline]
+pub(crate) fn sqrt_u64(x: u64) -> (u32, u32) {
+    let k = x.leading_zeros() / 2;
+    // m ∈ [2^62, 2^64): leading one at bit 63 or 62.
+    let m = x.wrapping_shl(k.wrapping_mul(2));
+    let top = m.wrapping_shr(32) as u32;
+    // top ∈ [2^30, 2^32): index = top >> 26 ∈ 16…63, weight = the 26 bits below.
+    let idx = (top >> 26).wrapping_sub(16) as usize;
+    let lo = SQRT_TAB.get(idx).copied().unwrap_or(0);
+    let hi = SQRT_TAB.get(idx.wrapping_add(1)).copied().unwrap_or(0);
+    // 0 ≤ hi − lo < 2^25 (slope of √ on [¼, 1] ≤ 1, step 2^31/64), weight < 2^26.
+    let s0 = lo.wrapping_add(
+        u64::from(hi.wrapping_sub(lo))
+            .wrapping_mul(u64::from(top & 0x3FF_FFFF))
+            .wrapping_shr(26) as u32,
+    );
+    // One Newton step on M = m/4 ∈ [2^60, 2^62), √M ≈ s0 (|s0 − √M| ≤ 6.1·10⁻⁵·2^31 <
+    // 2^17): s1 = s0 + (M − s0²)/(2·s0). |M − s0²| ≤ 2·2^31·2^17 = 2^49, so the residual
+    // >> 19 (< 2^30) and 2·s0 >> 16 = s0 >> 15 ∈ [2^15, 2^16] are 32-bit: one `sdiv`,
+    // and (M − s0²)/(2·s0) = (num/den)·2^3.
+    let rho =
+        (m.wrapping_shr(2) as i64).wrapping_sub(u64::from(s0).wrapping_mul(u64::from(s0)) as i64);
+    let num = rho.wrapping_shr(19) as i32;
+    let den = s0.wrapping_shr(15) as i32;
+    let delta = num.checked_div(den).unwrap_or(0).wrapping_shl(3);
+    (s0.wrapping_add_signed(delta), k)
+}
 
 /// `sign(x)` with `sign(0) = 0`, as −1, 0, +1.
 #[inline(always)]
@@ -55,54 +140,57 @@ pub(crate) const fn sign(x: i64) -> i64 {
 /// Linear interpolation in a 65-entry Q30 table: `idx` ∈ 0…63, `w` the weight of the
 /// next entry in Q(`wbits`). Returns Q30.
 #[inline(always)]
-fn interp(tab: &[u32; 65], idx: usize, w: u64, wbits: u32) -> i64 {
-    let lo = i64::from(tab.get(idx).copied().unwrap_or(0));
-    let hi = i64::from(tab.get(idx.wrapping_add(1)).copied().unwrap_or(0));
-    // |hi − lo| < 2^25 and w < 2^32: the product is below 2^57.
-    let step = hi
-        .wrapping_sub(lo)
-        .wrapping_mul(w as i64)
-        .wrapping_shr(wbits);
+fn interp(tab: &[u32; 65], idx: usize, w: u32, wbits: u32) -> u32 {
+    let lo = tab.get(idx).copied().unwrap_or(0);
+    let hi = tab.get(idx.wrapping_add(1)).copied().unwrap_or(0);
+    // Both tables increase: 0 ≤ hi − lo < 2^25, w < 2^32: one `umull`, product < 2^57.
+    let step = u64::from(hi.wrapping_sub(lo))
+        .wrapping_mul(u64::from(w))
+        .wrapping_shr(wbits) as u32;
     lo.wrapping_add(step)
 }
 
-/// `log2(x / 2^frac)` in Q24 for `x > 0` (`x = 0` returns `i64::MIN / 4`, "−∞").
+/// `log2(x / 2^frac)` in Q24 for `x > 0` (`x = 0` returns `i32::MIN / 4`, "−∞");
+/// `frac` ≤ 32.
 ///
-/// Range: `[−frac, 64 − frac)`, absolute error ≤ 4.5·10⁻⁵.
+/// Range: `[−frac, 64 − frac)` (within ±2³⁰ in Q24), absolute error ≤ 4.5·10⁻⁵. The
+/// interpolation runs on the top 32 bits of the normalised argument: one `umull`.
 #[inline]
-pub(crate) fn log2_q24(x: u64, frac: u32) -> i64 {
+pub(crate) fn log2_q24(x: u64, frac: u32) -> i32 {
     if x == 0 {
-        return i64::MIN / 4;
+        return i32::MIN / 4;
     }
     let lz = x.leading_zeros();
     let msb = 63u32.wrapping_sub(lz);
-    // Leading one at bit 63; the next 6 bits index the table, the 32 below weight it.
-    let m = x.wrapping_shl(lz);
-    let idx = (m.wrapping_shr(57) & 63) as usize;
-    let w = m.wrapping_shr(25) & 0xFFFF_FFFF;
+    // Leading one at bit 63; of the top word, the next 6 bits index the table and the
+    // 25 below (as a Q32 weight) interpolate.
+    let top = x.wrapping_shl(lz).wrapping_shr(32) as u32;
+    let idx = (top.wrapping_shr(25) & 63) as usize;
+    let w = top.wrapping_shl(7);
     let frac_q30 = interp(&LOG2_TAB, idx, w, 32);
-    let int = i64::from(msb).wrapping_sub(i64::from(frac));
-    int.wrapping_shl(24).wrapping_add(frac_q30.wrapping_shr(6))
+    let int = (msb as i32).wrapping_sub(frac as i32);
+    int.wrapping_shl(24)
+        .wrapping_add(frac_q30.wrapping_shr(6) as i32)
 }
 
 /// `2^(l / 2^24)` in Q(`out_frac`), saturated to `[0, i64::MAX]`. `out_frac` ≤ 32.
 ///
 /// Relative error ≤ 3·10⁻⁵ (plus one LSB of the output format).
 #[inline]
-pub(crate) fn exp2_q24(l: i64, out_frac: u32) -> i64 {
-    let n = l.wrapping_shr(24); // floor
-    let f = (l & 0xFF_FFFF) as u64; // Q24 in [0, 1)
+pub(crate) fn exp2_q24(l: i32, out_frac: u32) -> i64 {
+    let n = l.wrapping_shr(24); // floor, −128 … 127
+    let f = (l & 0xFF_FFFF) as u32; // Q24 in [0, 1)
     let idx = f.wrapping_shr(18) as usize;
-    let w = f & 0x3_FFFF;
-    let v = interp(&EXP2_TAB, idx, w, 18); // Q30 in [2^30, 2^31]
-                                           // value = v·2^(n − 30) in units, ·2^out_frac in the output format.
-    let sh = n.saturating_add(i64::from(out_frac)).saturating_sub(30);
+    let v = interp(&EXP2_TAB, idx, f & 0x3_FFFF, 18); // Q30 in [2^30, 2^31]
+                                                      // value = v·2^(n − 30) in units, ·2^out_frac in the output format.
+    let sh = n.wrapping_add(out_frac as i32).wrapping_sub(30);
     if sh >= 32 {
         i64::MAX
     } else if sh >= 0 {
-        v.wrapping_shl(sh as u32)
-    } else if sh > -63 {
-        v.wrapping_shr(sh.unsigned_abs() as u32)
+        // v < 2^32, sh < 32: below 2^63.
+        i64::from(v).wrapping_shl(sh as u32)
+    } else if sh > -32 {
+        i64::from(v.wrapping_shr(sh.unsigned_abs()))
     } else {
         0
     }
@@ -119,8 +207,11 @@ pub(crate) fn pow_q16(x: u64, alpha_q16: u32) -> i64 {
         return 0;
     }
     let l = log2_q24(x, 16);
-    // |l| < 2^30 and α < 2^18: the product is below 2^48.
-    let p = l.wrapping_mul(i64::from(alpha_q16)).wrapping_shr(16);
+    // l ∈ [−16, 48)·2^24 (|l| < 2^30) and α ≤ 2^17: one `smull`, and the product
+    // shifted by 16 lies in [−2^29, 3·2^30): an i32.
+    let p = i64::from(l)
+        .wrapping_mul(i64::from(alpha_q16 as i32))
+        .wrapping_shr(16) as i32;
     exp2_q24(p, 16)
 }
 
@@ -146,7 +237,7 @@ mod tests {
             let got = log2_q24(x, 16) as f64 / 2f64.powi(24);
             let want = (x as f64 / 65536.0).log2();
             worst_l = worst_l.max((got - want).abs());
-            let l = (k as i64 - 10_000) * 40_000; // ±24 in log2
+            let l = (k as i32 - 10_000) * 40_000; // ±24 in log2
             let got = exp2_q24(l, 16) as f64 / 65536.0;
             let want = 2f64.powf(l as f64 / 2f64.powi(24));
             if want > 1.0 {
@@ -181,10 +272,59 @@ mod tests {
     }
 
     #[test]
+    fn sqrt_relative_error() {
+        let mut worst: f64 = 0.0;
+        let mut x: f64 = 1024.0;
+        while x < 1.8e19 {
+            for d in [0u64, 1, 7, 12_345] {
+                let xi = (x as u64).saturating_add(d);
+                let (s, k) = sqrt_u64(xi);
+                let got = f64::from(s) * 2f64.powi(1 - k as i32);
+                let want = (xi as f64).sqrt();
+                worst = worst.max((got - want).abs() / want);
+            }
+            x *= 1.0037;
+        }
+        assert!(worst < 2e-8, "sqrt error {worst}");
+        let (s, k) = sqrt_u64(u64::MAX);
+        assert!((f64::from(s) * 2f64.powi(1 - k as i32) / 2f64.powi(32) - 1.0).abs() < 1e-5);
+        assert_eq!(sqrt_u64(0).0, 0);
+    }
+
+    #[test]
+    fn mul_shr_fast_path_matches_i128() {
+        let vals = [
+            0i64,
+            1,
+            -1,
+            12_345,
+            -98_765_432,
+            i64::from(i32::MAX),
+            i64::from(i32::MIN),
+            1 << 31,
+            -(1 << 31) - 1,
+            1 << 40,
+            i64::MAX,
+            i64::MIN,
+        ];
+        for &a in &vals {
+            for &b in &vals {
+                for s in [0, 1, 16, 24, 30, 40, 62] {
+                    assert_eq!(
+                        mul_shr(a, b, s),
+                        crate::q::mul64_shr(a, b, s),
+                        "{a} {b} {s}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn extremes_saturate() {
         assert_eq!(pow_q16(0, 32768), 0);
         assert_eq!(pow_q16(u64::MAX, 2 << 16), i64::MAX);
-        assert_eq!(exp2_q24(i64::MIN / 4, 16), 0);
+        assert_eq!(exp2_q24(i32::MIN / 4, 16), 0);
         assert_eq!(sat_i64(i128::MAX), i64::MAX);
         assert_eq!(mul_shr(i64::MAX, i64::MAX, 0), i64::MAX);
         assert_eq!(mul_shr(-3, 5, 1), -8);

@@ -14,14 +14,23 @@
 //! For the contour loop ([`super::ccc`]) the same law runs on an error signal: TD-I
 //! tracks ε(k) (`e1 = z11`, `e2 = z12`) and TD-II is not used ([`Npid::regulate`]).
 //!
-//! Formats: TD states µm and µm/s in Q16 (`i64`), `e0` µm·s in Q32 (`i64`), β in Q24,
-//! the output [`CmdLsb`].
+//! Formats: TD states µm and µm/s in Q16 (`i64`, |z1| ≤ 2⁴¹, |z2| ≤ 2³⁹), `e0` µm·s in
+//! Q32 (`i64`, ≤ 10⁶·2³² < 2⁵²), β in Q24 (≤ 10⁶·2²⁴ < 2⁴⁴), the output [`CmdLsb`].
+//!
+//! **Cost.** Every product is an `i64` product bounded below 2⁶³ (no `i128` routine on
+//! the Cortex-M4): `e1·h` by the TD clamps, `β·fal` by clamping each `fal` value to
+//! `|fal| ≤ 2⁶²/β_q24` first, i.e. each term to ±2²² LSB. That clamp only acts when a
+//! single term alone exceeds 2²² LSB (2000 × the DAC range), where the old `i128` form
+//! would have given the same clamped output unless the other terms cancelled more than
+//! 4·10⁶ LSB of it. The build decides per term (`TermMode`): a term with β = 0 is
+//! skipped, and the clamp is left out where `|fal|` over the term's whole input range
+//! (`|e0| ≤` integral limit, `|e1| ≤ 2⁴²`, `|e2| ≤ 2⁴⁰` in Q16) cannot reach it.
 
 use super::fal::{fal, FalCoeffs, FalConfig};
 use super::fhan::FhanConfig;
-use super::fxmath::{mul_shr, sign};
+use super::fxmath::mul_bounded_shr;
 use super::td::{Td, TdCoeffs, TdConfig};
-use super::{cmd_from_q16, q16_from_pos, ErrorLaw, NpidError};
+use super::{q16_from_pos, ErrorLaw, NpidError};
 use crate::units::{CmdLsb, PosUm};
 
 /// Nonlinear PID parameters in engineering units (validated by [`NpidConfig::build`]).
@@ -60,11 +69,28 @@ pub struct NpidCoeffs {
     td_meas: TdCoeffs,
     /// β0, β1, β2 in Q24.
     beta_q24: [i64; 3],
+    /// Clamp of each `fal` value before its product, Q16: `2⁶²/β_q24` (`i64::MAX` for
+    /// β = 0), so `|β·fal|` ≤ 2⁶² in Q40.
+    fal_max_q16: [i64; 3],
+    /// How each term is evaluated.
+    mode: [TermMode; 3],
     fal: [FalCoeffs; 3],
     /// e0 clamp, µm·s Q32.
     e0_max_q32: i64,
     /// Output clamp, LSB Q16.
     u_max_q16: i64,
+}
+
+/// How a term `β·fal(e)` of the law is evaluated (chosen by [`NpidConfig::build`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+enum TermMode {
+    /// β = 0: the term is zero.
+    Off,
+    /// `|fal|` over the whole input range stays below the clamp: plain product.
+    Direct,
+    /// `fal` clamped to `±2⁶²/β_q24` before the product.
+    Clamped,
 }
 
 fn gain_q24(b: f64, term: u8) -> Result<i64, NpidError> {
@@ -108,12 +134,36 @@ impl NpidConfig {
         if !(ol.is_finite() && (1.0..=2047.0).contains(&ol)) {
             return Err(NpidError::OutputLimit);
         }
+        let fal_max = |b: i64| (1i64 << 62).checked_div(b).unwrap_or(i64::MAX);
+        let [b0, b1, b2] = beta_q24;
+        let e0_max_q32 = (il * 4_294_967_296.0) as i64;
+        // Largest |input| of each term, Q16: e0 (the integral limit), e1 (2^42: two TD
+        // positions of ±2^41), e2 (2^40: two TD velocities of ±2^39).
+        let bounds = [e0_max_q32 >> 16, 1i64 << 42, 1i64 << 40];
+        let mode = |i: usize| {
+            let b = beta_q24.get(i).copied().unwrap_or(0);
+            let (Some(f), Some(&e)) = (fal.get(i), bounds.get(i)) else {
+                return TermMode::Clamped;
+            };
+            // fal is odd and (up to 2^-12 relative, see its tests) monotone: the largest
+            // |fal| is at the bound; keep a 1/256 margin.
+            let out = super::fal::fal(f, e).unsigned_abs();
+            if b == 0 {
+                TermMode::Off
+            } else if out.saturating_add(out >> 8).saturating_add(1) <= fal_max(b) as u64 {
+                TermMode::Direct
+            } else {
+                TermMode::Clamped
+            }
+        };
         Ok(NpidCoeffs {
             td_ref,
             td_meas,
             beta_q24,
+            fal_max_q16: [fal_max(b0), fal_max(b1), fal_max(b2)],
+            mode: [mode(0), mode(1), mode(2)],
             fal,
-            e0_max_q32: (il * 4_294_967_296.0) as i64,
+            e0_max_q32,
             u_max_q16: (ol * 65536.0) as i64,
         })
     }
@@ -128,7 +178,7 @@ pub struct Npid {
     /// e0, µm·s Q32.
     e0_q32: i64,
     /// −1/0/+1: the output was clamped at −limit / not clamped / +limit.
-    sat: i64,
+    sat: i8,
 }
 
 impl Npid {
@@ -153,29 +203,60 @@ impl Npid {
         &self.td_meas
     }
 
-    /// `u` from `e1` (µm Q16) and `e2` (µm/s Q16), integrating `e0` first.
-    #[inline]
+    /// `u` from `e1` (µm Q16, |e1| ≤ 2⁴²) and `e2` (µm/s Q16, |e2| ≤ 2⁴⁰), integrating
+    /// `e0` first.
+    #[inline(always)]
     fn law(&mut self, c: &NpidCoeffs, e1: i64, e2: i64) -> CmdLsb {
         let [f0, f1, f2] = &c.fal;
         let [b0, b1, b2] = c.beta_q24;
-        if self.sat == 0 || sign(e1) != self.sat {
-            let de0 = mul_shr(e1, c.td_ref.h_q24(), 8); // Q16·Q24 >> 8 = Q32
+        let [m0, m1, m2] = c.fal_max_q16;
+        let [k0, k1, k2] = c.mode;
+        // Conditional integration: not while the output is clamped and e1 pushes further
+        // into the clamp (e1 = 0 adds nothing either way).
+        let push = if self.sat > 0 {
+            e1 > 0
+        } else if self.sat < 0 {
+            e1 < 0
+        } else {
+            false
+        };
+        if !push {
+            // Q16·Q24 >> 8 = Q32; |e1·h_q24| ≤ 2^42·2^18 = 2^60.
+            let de0 = mul_bounded_shr(e1, c.td_ref.h_q24(), 8);
+            // |e0| ≤ 2^52 before the add: no overflow.
             self.e0_q32 = self
                 .e0_q32
-                .saturating_add(de0)
+                .wrapping_add(de0)
                 .clamp(c.e0_max_q32.wrapping_neg(), c.e0_max_q32);
         }
-        let u = mul_shr(fal(f0, self.e0_q32.wrapping_shr(16)), b0, 24)
-            .saturating_add(mul_shr(fal(f1, e1), b1, 24))
-            .saturating_add(mul_shr(fal(f2, e2), b2, 24));
-        self.sat = if u > c.u_max_q16 {
-            1
-        } else if u < c.u_max_q16.wrapping_neg() {
-            -1
-        } else {
-            0
+        // β·fal with |fal| ≤ 2^62/β: each product ≤ 2^62, each term ≤ 2^38 (Q16), the
+        // sum ≤ 3·2^38.
+        let term = |k: TermMode, f: &FalCoeffs, e: i64, b: i64, m: i64| {
+            if k == TermMode::Off {
+                return 0;
+            }
+            let v = fal(f, e);
+            let v = if k == TermMode::Clamped {
+                v.clamp(m.wrapping_neg(), m)
+            } else {
+                v
+            };
+            mul_bounded_shr(v, b, 24)
         };
-        cmd_from_q16(u.clamp(c.u_max_q16.wrapping_neg(), c.u_max_q16))
+        let u = term(k0, f0, self.e0_q32.wrapping_shr(16), b0, m0)
+            .wrapping_add(term(k1, f1, e1, b1, m1))
+            .wrapping_add(term(k2, f2, e2, b2, m2));
+        let lim = c.u_max_q16;
+        let (u, sat) = if u > lim {
+            (lim, 1)
+        } else if u < lim.wrapping_neg() {
+            (lim.wrapping_neg(), -1)
+        } else {
+            (u, 0)
+        };
+        self.sat = sat;
+        // |u| ≤ 2047·2^16 < 2^31.
+        CmdLsb::from_bits(u as i32)
     }
 }
 
@@ -185,23 +266,24 @@ impl ErrorLaw for Npid {
     /// One period of the axis law: TD-I on the reference, TD-II on the measurement.
     #[inline]
     fn track(&mut self, c: &NpidCoeffs, reference_um: PosUm, measured_um: PosUm) -> CmdLsb {
-        self.td_ref.step(&c.td_ref, q16_from_pos(reference_um));
-        self.td_meas.step(&c.td_meas, q16_from_pos(measured_um));
+        self.td_ref.step_pos(&c.td_ref, reference_um);
+        self.td_meas.step_pos(&c.td_meas, measured_um);
+        // |z1| ≤ 2^41, |z2| ≤ 2^39 (TD clamps): the differences cannot overflow.
         let e1 = self
             .td_ref
             .position_um_q16()
-            .saturating_sub(self.td_meas.position_um_q16());
+            .wrapping_sub(self.td_meas.position_um_q16());
         let e2 = self
             .td_ref
             .velocity_um_per_s_q16()
-            .saturating_sub(self.td_meas.velocity_um_per_s_q16());
+            .wrapping_sub(self.td_meas.velocity_um_per_s_q16());
         self.law(c, e1, e2)
     }
 
     /// One period of the law on an error signal (TD-I only).
     #[inline]
     fn regulate(&mut self, c: &NpidCoeffs, error_um: PosUm) -> CmdLsb {
-        self.td_ref.step(&c.td_ref, q16_from_pos(error_um));
+        self.td_ref.step_pos(&c.td_ref, error_um);
         let e1 = self.td_ref.position_um_q16();
         let e2 = self.td_ref.velocity_um_per_s_q16();
         self.law(c, e1, e2)
@@ -304,5 +386,39 @@ mod tests {
         // The integral stopped growing while the output was at its limit.
         assert!(n.e0_q32.abs() <= c.e0_max_q32);
         assert!(n.e0_q32 < c.e0_max_q32);
+    }
+
+    #[test]
+    fn term_modes_match_wide_reference() {
+        // β = 0 → Off; small gains → Direct; a huge β1 with α = 1 → Clamped.
+        let mut cfg = config();
+        cfg.beta2 = 0.0;
+        let c = cfg.build().unwrap();
+        assert_eq!(c.mode, [TermMode::Direct, TermMode::Direct, TermMode::Off]);
+        cfg.beta1 = 5e5;
+        cfg.fal1 = FalConfig {
+            alpha: 1.0,
+            delta: 1.0,
+        };
+        let big = cfg.build().unwrap();
+        assert_eq!(big.mode[1], TermMode::Clamped);
+        // Against an i128 evaluation of the same law: identical while the clamp is idle,
+        // and the clamped term still saturates the output with the right sign.
+        for (coeffs, errs) in [
+            (&c, [3i64 << 16, -(70 << 16), 12 << 16]),
+            (&big, [0, -(1 << 40), 1 << 20]),
+            (&big, [0, 1 << 40, -(1 << 20)]),
+        ] {
+            let mut n = Npid::at_rest(PosUm::ZERO);
+            let u = n.law(coeffs, errs[1], errs[2]);
+            let mut wide: i128 = 0;
+            for (i, e) in [n.e0_q32 >> 16, errs[1], errs[2]].into_iter().enumerate() {
+                let f = fal(&coeffs.fal[i], e);
+                wide += (i128::from(f) * i128::from(coeffs.beta_q24[i])) >> 24;
+            }
+            let lim = i128::from(coeffs.u_max_q16);
+            let want = wide.clamp(-lim, lim) as i64;
+            assert!((i64::from(u.to_bits()) - want).abs() <= 1, "{u} vs {want}");
+        }
     }
 }

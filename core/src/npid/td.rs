@@ -15,12 +15,18 @@
 //! i.e. `z1 − v = −2·h0·z2`): the nonlinear PID runs the same TD on reference and
 //! measurement so the lags cancel in `e1 = z11 − z21`.
 //!
-//! Formats: `z1` µm Q16 (`i64`), `z2` µm/s Q16 clamped to ±[`super::V_MAX_UM_PER_S`],
-//! `h` a Q24 number of seconds.
+//! Formats: `z1` µm Q16 (`i64`) clamped to ±2⁴¹ (±2²⁵ µm ≈ 33.5 m, four times the
+//! ±8.4 m of [`crate::units::PosUm`]), `z2` µm/s Q16 clamped to
+//! ±[`super::V_MAX_UM_PER_S`], `h` a Q24 number of seconds. With these clamps every
+//! product of a step is an `i64` product bounded below 2⁶³ (stated at each line): no
+//! `i128` routine on a 32-bit CPU.
 
-use super::fhan::{fhan, FhanCoeffs, FhanConfig, V_MAX_Q16};
-use super::fxmath::mul_shr;
+use super::fhan::{fhan_a, FhanCoeffs, FhanConfig, V_MAX_Q16};
+use super::fxmath::{mul_bounded_shr, mul_shr};
 use super::TdError;
+
+/// Largest |z1| and |v| of a step, µm Q16 (2⁴¹).
+const Z1_MAX_Q16: i64 = 1 << 41;
 
 /// TD parameters in engineering units (validated by [`TdConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,6 +47,10 @@ pub struct TdCoeffs {
     fhan: FhanCoeffs,
     /// h, s, Q24.
     h_q24: i64,
+    /// r·h, µm/s, Q16: the z2 step where fhan saturates (|a| > d).
+    rh_q16: i64,
+    /// h/h0, Q24 (≤ 1): the z2 step in fhan's linear zone is −a·h/h0.
+    h_over_h0_q24: i64,
 }
 
 impl TdConfig {
@@ -58,9 +68,17 @@ impl TdConfig {
         if self.h0_s < h * (1.0 - 1e-9) {
             return Err(TdError::FilterBelowStep);
         }
+        let h_q24 = (h * 16_777_216.0 + 0.5) as i64;
+        // r_q16 < 2^46, h_q24 < 2^18; h_q24 < 2^18 so h_q24·2^24 < 2^42; h0_q24 ≥ 167.
+        let rh_q16 = mul_shr(fhan.r_q16_raw(), h_q24, 24);
+        // h/h0 as h·(1/h0) from fhan's own quantised 1/h0 (Q16), i.e. the same factor
+        // the step had as fhan·h; < 2^18·2^33 before the shift.
+        let h_over_h0_q24 = mul_shr(fhan.inv_h0_q16_raw(), h_q24, 16);
         Ok(TdCoeffs {
             fhan,
-            h_q24: (h * 16_777_216.0 + 0.5) as i64,
+            h_q24,
+            rh_q16,
+            h_over_h0_q24,
         })
     }
 }
@@ -89,29 +107,57 @@ pub struct Td {
 }
 
 impl Td {
-    /// A TD at rest at `z1_um_q16` (µm, Q16).
+    /// A TD at rest at `z1_um_q16` (µm, Q16; clamped to ±2⁴¹, ±33.5 m).
     pub const fn at_rest(z1_um_q16: i64) -> Self {
+        let z1 = if z1_um_q16 > Z1_MAX_Q16 {
+            Z1_MAX_Q16
+        } else if z1_um_q16 < -Z1_MAX_Q16 {
+            -Z1_MAX_Q16
+        } else {
+            z1_um_q16
+        };
         Self {
-            z1_um_q16,
+            z1_um_q16: z1,
             z2_um_per_s_q16: 0,
         }
     }
 
-    /// One step toward `v_um_q16` (µm, Q16). Never fails.
+    /// One step toward `v_um_q16` (µm, Q16; clamped to ±2⁴¹). Never fails.
     #[inline]
     pub fn step(&mut self, c: &TdCoeffs, v_um_q16: i64) {
-        let f = fhan(
-            &c.fhan,
-            self.z1_um_q16.saturating_sub(v_um_q16),
-            self.z2_um_per_s_q16,
-        );
-        self.z1_um_q16 = self
-            .z1_um_q16
-            .saturating_add(mul_shr(self.z2_um_per_s_q16, c.h_q24, 24));
-        self.z2_um_per_s_q16 = self
-            .z2_um_per_s_q16
-            .saturating_add(mul_shr(f, c.h_q24, 24))
-            .clamp(-V_MAX_Q16, V_MAX_Q16);
+        self.step_bounded(c, v_um_q16.clamp(-Z1_MAX_Q16, Z1_MAX_Q16));
+    }
+
+    /// One step toward a position from [`crate::units::PosUm`] (|v| < 2²³ µm ≤ 2³⁹ in
+    /// Q16): no clamp needed on the input.
+    #[inline(always)]
+    pub(crate) fn step_pos(&mut self, c: &TdCoeffs, v: crate::units::PosUm) {
+        self.step_bounded(c, super::q16_from_pos(v));
+    }
+
+    /// The step for `|v| ≤ 2⁴¹` (µm Q16).
+    #[inline(always)]
+    fn step_bounded(&mut self, c: &TdCoeffs, v: i64) {
+        let (z1, z2) = (self.z1_um_q16, self.z2_um_per_s_q16);
+        // |z1|, |v| ≤ 2^41: |x1| ≤ 2^42 = fhan_bounded's range; |z2| ≤ V_MAX_Q16.
+        // h·fhan from fhan's switching variable a: −r·h·sign(a) if |a| > d, else
+        // −a·h/h0 (one product instead of fhan's and then h's).
+        let a = fhan_a(&c.fhan, z1.wrapping_sub(v), z2);
+        let d = c.fhan.d_q16();
+        let dz2 = if a > d {
+            c.rh_q16.wrapping_neg()
+        } else if a < d.wrapping_neg() {
+            c.rh_q16
+        } else {
+            // |a| ≤ d ≤ 2^38 (Q16), h/h0 ≤ 1 (+1 LSB): |a·h_over_h0_q24| ≤ 2^62.
+            mul_bounded_shr(a.wrapping_neg(), c.h_over_h0_q24, 24)
+        };
+        // |z2·h_q24| ≤ 2^39·2^18 = 2^57 (h ≤ 10 ms < 2^18 in Q24).
+        let z1 = z1.wrapping_add(mul_bounded_shr(z2, c.h_q24, 24));
+        // |dz2| ≤ r·h ≤ r·h0 = d ≤ 2^22 µm/s (validated).
+        let z2 = z2.wrapping_add(dz2);
+        self.z1_um_q16 = z1.clamp(-Z1_MAX_Q16, Z1_MAX_Q16);
+        self.z2_um_per_s_q16 = z2.clamp(-V_MAX_Q16, V_MAX_Q16);
     }
 
     /// Tracked position z1, µm Q16.
