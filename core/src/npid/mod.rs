@@ -2,8 +2,8 @@
 //!
 //! | file | what |
 //! |---|---|
-//! | [`fxmath`] (private) | wide products, `|x|^α` by base-2 log/exp tables (≤ 1.3·10⁻⁴ relative) |
-//! | [`fhan`] | Han's time-optimal synthesis function, integer square root |
+//! | [`fxmath`] (private) | bounded 64-bit products (no `i128`), √ by table + one Newton step (≤ 2·10⁻⁸ relative), `|x|^α` by base-2 log/exp tables (≤ 1.3·10⁻⁴ relative) |
+//! | [`fhan`] | Han's time-optimal synthesis function (a0 within 5·10⁻⁶ relative) |
 //! | [`td`] | the discrete tracking differentiator |
 //! | [`fal`] | the power law with a linear zone |
 //! | [`feedforward`] | velocity feed-forward per axis from the interpolated reference (direction-dependent gain, lead) |
@@ -22,7 +22,7 @@
 //!
 //! | quantity | unit | format | resolution | range |
 //! |---|---|---|---|---|
-//! | TD position z1, errors e1, E, ε | µm | Q16 | 1.5·10⁻⁵ µm | ±1.4·10¹⁴ µm (saturating) |
+//! | TD position z1, errors e1, E, ε | µm | Q16 | 1.5·10⁻⁵ µm | ±2²⁵ µm = ±33.5 m (TD z1 clamped; `fhan`'s position input ±67 m) |
 //! | TD velocity z2, e2 | µm/s | Q16 | 1.5·10⁻⁵ µm/s | ±2²³ µm/s (clamped) |
 //! | `fhan` | µm/s² | Q16 | 1.5·10⁻⁵ µm/s² | ±r ≤ 10⁹ µm/s² |
 //! | integral e0 | µm·s | Q32 | 2.3·10⁻¹⁰ µm·s | ±integral limit ≤ 10⁶ |
