@@ -204,11 +204,7 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         let mut prev: Option<(usize, &Node<S>)> = None;
         for i in 0..nodes.len() {
             let (row, node) = at(i).ok_or(TableError::TooFewNodes)?;
-            for (axis, (x, lim)) in node.slave_um.iter().zip(limits.axes.iter()).enumerate() {
-                if *x < lim.min_um || *x > lim.max_um {
-                    return Err(TableError::OutOfRange { row, axis });
-                }
-            }
+            check_range(row, node, limits)?;
             if let Some((_, p)) = prev {
                 let len = node.master.to_bits().checked_sub(p.master.to_bits());
                 let len = match len {
@@ -226,14 +222,7 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
                     .enumerate()
                 {
                     let diff = i64::from(b.to_bits()).saturating_sub(i64::from(a.to_bits()));
-                    // |Δx|·θ̇ ≤ v_max·len, both sides Q8·Q16 in i128.
-                    let lhs = i128::from(diff.unsigned_abs())
-                        .saturating_mul(i128::from(limits.master_speed_per_s.to_bits()));
-                    let rhs = i128::from(lim.max_speed_um_per_s.to_bits())
-                        .saturating_mul(i128::from(len));
-                    if lhs > rhs {
-                        return Err(TableError::TooSteep { row, axis });
-                    }
+                    check_slope(row, axis, diff, len, lim, limits)?;
                     *d = i32::try_from(diff).map_err(|_| TableError::TooSteep { row, axis })?;
                 }
                 let len_u = len.unsigned_abs();
@@ -259,6 +248,28 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         }
         let last = *prev.map(|(_, n)| n).ok_or(TableError::TooFewNodes)?;
         Ok(Self { segs, last })
+    }
+
+    /// Checks this (already built) table against other limits — e.g. after a limit
+    /// parameter changed — with the rules of [`Self::try_from_nodes`] that depend on the
+    /// limits: positions within range, slopes within the axis top speed at the master top
+    /// speed. Rows count in increasing master order.
+    pub fn check_limits(&self, limits: &TableLimits<S>) -> Result<(), TableError> {
+        if limits.master_speed_per_s <= 0 {
+            return Err(TableError::MasterSpeed);
+        }
+        // Same order as building: node 0, then per segment its end node and its slope.
+        for row in 0..self.len() {
+            let node = self.node(row).ok_or(TableError::TooFewNodes)?;
+            check_range(row, &node, limits)?;
+            let Some(seg) = row.checked_sub(1).and_then(|k| self.segs.get(k)) else {
+                continue;
+            };
+            for (axis, (d, lim)) in seg.dx.iter().zip(limits.axes.iter()).enumerate() {
+                check_slope(row, axis, i64::from(*d), i64::from(seg.len), lim, limits)?;
+            }
+        }
+        Ok(())
     }
 
     /// Number of nodes.
@@ -477,6 +488,41 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
             dx: &s.dx,
             frac_q32: lk.frac_q32,
         })
+    }
+}
+
+/// Every slave position of `node` (row `row`) within its axis range.
+fn check_range<const S: usize>(
+    row: usize,
+    node: &Node<S>,
+    limits: &TableLimits<S>,
+) -> Result<(), TableError> {
+    for (axis, (x, lim)) in node.slave_um.iter().zip(limits.axes.iter()).enumerate() {
+        if *x < lim.min_um || *x > lim.max_um {
+            return Err(TableError::OutOfRange { row, axis });
+        }
+    }
+    Ok(())
+}
+
+/// One segment's slope within the axis top speed at the master top speed:
+/// |Δx|·θ̇_max ≤ v_max·len, both sides Q8·Q16 in `i128` (`diff_bits` Δx raw µm Q8,
+/// `len_bits` raw master Q16; the segment ends at row `row`).
+fn check_slope<const S: usize>(
+    row: usize,
+    axis: usize,
+    diff_bits: i64,
+    len_bits: i64,
+    lim: &AxisLimits,
+    limits: &TableLimits<S>,
+) -> Result<(), TableError> {
+    let lhs = i128::from(diff_bits.unsigned_abs())
+        .saturating_mul(i128::from(limits.master_speed_per_s.to_bits()));
+    let rhs = i128::from(lim.max_speed_um_per_s.to_bits()).saturating_mul(i128::from(len_bits));
+    if lhs > rhs {
+        Err(TableError::TooSteep { row, axis })
+    } else {
+        Ok(())
     }
 }
 
@@ -711,6 +757,30 @@ mod tests {
         }
 
         #[test]
+        /// A built table checked against other limits gives the verdict (and the error)
+        /// that building it with those limits gives.
+        #[test]
+        fn check_limits_agrees_with_building(steps in table_strategy(), max_um in 0.0f64..400_000.0,
+                                             v_max in 1_000.0f64..1_000_000.0, master_speed in 1.0f64..3000.0) {
+            let mut nodes = std::vec::Vec::new();
+            let mut m = 0.0;
+            for (dm, x, y) in &steps {
+                m += dm.round().max(1.0);
+                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
+            }
+            let mut wide = lim::<2>();
+            wide.master_speed_per_s = MasterRate::from_num(1);
+            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &wide).unwrap();
+            prop_assert_eq!(t.check_limits(&wide), Ok(()));
+            let mut other = lim::<2>();
+            other.master_speed_per_s = MasterRate::from_num(master_speed);
+            other.axes[1].min_um = PosUm::from_num(-max_um);
+            other.axes[1].max_um = PosUm::from_num(max_um);
+            other.axes[0].max_speed_um_per_s = VelUmPerS::from_num(v_max);
+            let built = CamTable::<2, 64>::try_from_nodes(&nodes, &other).map(|_| ());
+            prop_assert_eq!(t.check_limits(&other), built);
+        }
+
         fn never_panics(ms in proptest::collection::vec(any::<i64>(), 0..10), xs in any::<i32>(), q in any::<i64>(),
                         c0 in any::<usize>(), rate in any::<i32>()) {
             let nodes: std::vec::Vec<Node<1>> = ms.iter().map(|m| Node { master: Master::from_bits(*m), slave_um: [PosUm::from_bits(xs)] }).collect();

@@ -186,7 +186,14 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         }
         let mut f = self.st.fcfg;
         let mut lim = self.st.limits;
-        apply_param(&mut f, &mut lim, axis, param, value)?;
+        apply_param(
+            &mut f,
+            &mut lim,
+            self.st.active.as_ref(),
+            axis,
+            param,
+            value,
+        )?;
         // Rebuild the law if one runs.
         if let Some(t) = self.st.active.clone() {
             let law = Law::new(&f, t).map_err(|_| range)?;

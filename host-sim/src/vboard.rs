@@ -250,7 +250,8 @@ impl Device<AXES, CAPACITY> for Machine {
         }
         let mut f = self.fcfg;
         let mut lim = self.limits;
-        apply_param(&mut f, &mut lim, axis, param, value)?;
+        let active = self.rt.law().map(|l| l.table());
+        apply_param(&mut f, &mut lim, active, axis, param, value)?;
         // Rebuild the law if one runs.
         if let Some(t) = self.rt.law().map(|l| l.table().clone()) {
             let law = Follower::new(&f, t).map_err(|_| range)?;

@@ -6,19 +6,21 @@
 
 use super::msg::{Nak, NakCode, ParamId};
 use crate::follower::FollowerConfig;
-use crate::table::TableLimits;
+use crate::table::{CamTable, TableLimits};
 use crate::units::{MasterRate, PosUm};
 
 /// Sets `param` of slave `axis` to `value` (engineering units, see [`ParamId`]) in `cfg`
-/// and `lim`, and validates the axis with its own builder
-/// ([`crate::axis::AxisConfig::build`]).
+/// and `lim`, validates the axis with its own builder
+/// ([`crate::axis::AxisConfig::build`]) and, for a limit, checks that the `active` table
+/// still passes the table rules with the new limits ([`CamTable::check_limits`]).
 ///
 /// Errors: `UnknownParam` for an axis the device does not have, `ParamRange` (detail: axis
-/// and parameter) for a value out of range; `cfg` and `lim` may then be partly changed, so
-/// pass copies.
-pub fn apply_param<const S: usize>(
+/// and parameter) for a value out of range or one the active table would violate; `cfg`
+/// and `lim` may then be partly changed, so pass copies.
+pub fn apply_param<const S: usize, const N: usize>(
     cfg: &mut FollowerConfig<S>,
     lim: &mut TableLimits<S>,
+    active: Option<&CamTable<S, N>>,
     axis: u8,
     param: ParamId,
     value: f32,
@@ -61,6 +63,9 @@ pub fn apply_param<const S: usize>(
                 .ok_or(range)?;
         }
     }
+    if let Some(t) = active {
+        t.check_limits(lim).map_err(|_| range)?;
+    }
     a.build(period_us).map(|_| ()).map_err(|_| range)
 }
 
@@ -68,7 +73,10 @@ pub fn apply_param<const S: usize>(
 mod tests {
     use super::*;
     use crate::axis::AxisConfig;
-    use crate::table::AxisLimits;
+    use crate::table::{AxisLimits, Node};
+    use crate::units::Master;
+
+    const NONE: Option<&CamTable<1, 8>> = None;
 
     fn setup() -> (FollowerConfig<1>, TableLimits<1>) {
         let lim = TableLimits {
@@ -85,27 +93,82 @@ mod tests {
     #[test]
     fn applies_and_validates() {
         let (mut c, mut l) = setup();
-        apply_param(&mut c, &mut l, 0, ParamId::KpLsbPerUm, 0.5).unwrap();
+        apply_param(&mut c, &mut l, NONE, 0, ParamId::KpLsbPerUm, 0.5).unwrap();
         assert_eq!(c.axes[0].kp_lsb_per_um, 0.5);
-        apply_param(&mut c, &mut l, 0, ParamId::KvLsbPerUmS, 0.02).unwrap();
+        apply_param(&mut c, &mut l, NONE, 0, ParamId::KvLsbPerUmS, 0.02).unwrap();
         assert_eq!(c.axes[0].kv_neg_lsb_per_um_s, 0.02);
-        apply_param(&mut c, &mut l, 0, ParamId::MasterSpeedPerS, 5000.0).unwrap();
+        apply_param(&mut c, &mut l, NONE, 0, ParamId::MasterSpeedPerS, 5000.0).unwrap();
         assert_eq!(l.master_speed_per_s, MasterRate::from_num(5000));
         let range = Nak::with(NakCode::ParamRange, 0, ParamId::KpLsbPerUm as u8);
         assert_eq!(
-            apply_param(&mut c, &mut l, 0, ParamId::KpLsbPerUm, -1.0),
+            apply_param(&mut c, &mut l, NONE, 0, ParamId::KpLsbPerUm, -1.0),
             Err(range)
         );
         let range = Nak::with(NakCode::ParamRange, 0, ParamId::MinUm as u8);
         assert_eq!(
-            apply_param(&mut c, &mut l, 0, ParamId::MinUm, 600_000.0),
+            apply_param(&mut c, &mut l, NONE, 0, ParamId::MinUm, 600_000.0),
             Err(range)
         );
         let unknown = Nak::with(NakCode::UnknownParam, 3, ParamId::KpLsbPerUm as u8);
         assert_eq!(
-            apply_param(&mut c, &mut l, 3, ParamId::KpLsbPerUm, 1.0),
+            apply_param(&mut c, &mut l, NONE, 3, ParamId::KpLsbPerUm, 1.0),
             Err(unknown)
         );
         assert_eq!(AxisConfig::default().valve, c.axes[0].valve);
+    }
+
+    #[test]
+    fn a_limit_the_active_table_would_violate_is_refused() {
+        let (mut c, mut l) = setup();
+        // 0 → 100 mm over 1000 master counts (100 µm/count): at a 500 counts/s master
+        // top speed that is 50 mm/s, within the axis top speed of 100 mm/s.
+        l.master_speed_per_s = MasterRate::from_num(500);
+        let nodes = [0, 1000].map(|m| Node {
+            master: Master::from_num(m),
+            slave_um: [PosUm::from_num(m * 100)],
+        });
+        let t = CamTable::<1, 8>::try_from_nodes(&nodes, &l).unwrap();
+        let active = Some(&t);
+        // Within: accepted.
+        apply_param(&mut c, &mut l, active, 0, ParamId::MaxUm, 150_000.0).unwrap();
+        // The table reaches 100 mm: a 90 mm maximum is refused, the limits stay.
+        let (c0, l0) = (c, l);
+        let range = Nak::with(NakCode::ParamRange, 0, ParamId::MaxUm as u8);
+        let (mut c1, mut l1) = (c0, l0);
+        assert_eq!(
+            apply_param(&mut c1, &mut l1, active, 0, ParamId::MaxUm, 90_000.0),
+            Err(range)
+        );
+        // Its slope is 100 µm/count · 500 counts/s = 50 mm/s: a 40 mm/s top speed, or a
+        // master at 1500 counts/s (150 mm/s > 100 mm/s), is refused.
+        let speed = Nak::with(NakCode::ParamRange, 0, ParamId::MaxSpeedUmPerS as u8);
+        let (mut c1, mut l1) = (c0, l0);
+        assert_eq!(
+            apply_param(
+                &mut c1,
+                &mut l1,
+                active,
+                0,
+                ParamId::MaxSpeedUmPerS,
+                40_000.0
+            ),
+            Err(speed)
+        );
+        let master = Nak::with(NakCode::ParamRange, 0, ParamId::MasterSpeedPerS as u8);
+        let (mut c1, mut l1) = (c0, l0);
+        assert_eq!(
+            apply_param(
+                &mut c1,
+                &mut l1,
+                active,
+                0,
+                ParamId::MasterSpeedPerS,
+                1500.0
+            ),
+            Err(master)
+        );
+        // Without an active table the same value is accepted.
+        let (mut c1, mut l1) = (c0, l0);
+        apply_param(&mut c1, &mut l1, NONE, 0, ParamId::MaxUm, 90_000.0).unwrap();
     }
 }
