@@ -39,7 +39,8 @@
 //! [`super::Param`]. No float and no allocation per period; the window is written in
 //! place.
 //!
-//! Work per period: one full path evaluation, one normalisation of r′, one curvature, one
+//! Work per period: one full path evaluation, one normalisation of r′ (of the new point,
+//! kept for the next period's step), one curvature, one
 //! 64-bit division, and per extra point one position evaluation
 //! ([`ParametricPath::position`]) and two `i64×i64→i128` products; h ≤ min(h_max, H).
 //! Measured on a Cortex-M4 (`docs/contour.md`): about 600 instructions per extra point on
@@ -225,12 +226,11 @@ impl Reference {
 pub struct Interpolator {
     u: i64,
     cur: PathPoint,
+    /// û, |r′|, 1/|r′| at `cur` (computed once when the point is reached: the next
+    /// period's Taylor step reuses it); `None` where r′ = 0.
+    frame: Option<DerivFrame>,
     tangent: Xy<i32>,
     finished: bool,
-}
-
-fn tangent_of(p: &PathPoint) -> Option<Xy<i32>> {
-    deriv_frame(p).map(|f| Xy::new(f.ux, f.uy))
 }
 
 impl Interpolator {
@@ -241,10 +241,12 @@ impl Interpolator {
     ) -> Self {
         let u = path.u_start();
         let cur = path.eval(u);
-        let tangent = tangent_of(&cur).unwrap_or(Xy::new(0, 0));
+        let frame = deriv_frame(&cur);
+        let tangent = frame.map_or(Xy::new(0, 0), |f| Xy::new(f.ux, f.uy));
         let s = Self {
             u: u.to_bits(),
             cur,
+            frame,
             tangent,
             finished: u >= path.u_end(),
         };
@@ -294,7 +296,7 @@ impl Interpolator {
             return self.hold();
         }
         let ds = coeffs.step_q32(feed);
-        let Some(frame) = deriv_frame(&self.cur) else {
+        let Some(frame) = self.frame else {
             // r′ = 0 violates the path contract: stop rather than guess a direction.
             self.finished = true;
             return self.hold();
@@ -319,7 +321,10 @@ impl Interpolator {
         let (u0, start_pos) = (self.u, self.cur.pos.map(PosFine::to_bits));
         self.u = u1;
         self.cur = next;
-        self.tangent = tangent_of(&next).unwrap_or(self.tangent);
+        self.frame = deriv_frame(&next);
+        if let Some(f) = self.frame {
+            self.tangent = Xy::new(f.ux, f.uy);
+        }
         self.finished = u1 >= u_end;
         let point = self.ordinary();
         let n = window.push_with(point, |buf| {

@@ -85,6 +85,7 @@ mod estimate;
 mod fx;
 mod geom;
 mod interp;
+mod nearest;
 mod parabola;
 mod path;
 pub mod trig;

@@ -6,13 +6,16 @@
 //! estimation, never as motion commands. Pushing into a full window overwrites the
 //! oldest ordinary point (a ring buffer: O(1), no allocation).
 //!
-//! Memory: `N · (40 + 8·H) + 16` bytes (`ContourWindow<16, 63>`: 8.5 KiB).
+//! Memory: `N · (40 + 8·H) + 16` bytes on the Cortex-M4 (+ 24 on a 64-bit host)
+//! (`ContourWindow<16, 63>`: 8.5 KiB).
 //!
 //! Every relative vector the estimator forms (extra points, chords, P − S) is saturated
 //! to ±2^30 LSB = ±262 mm, so a difference of two of them fits an `i32` and a sum of two
 //! `i32·i32` products is bounded; chords are never that long (the interpolator caps one
 //! tick's advance at 65.5 mm) and a point further than that from the path is flagged
 //! [`super::ContourEstimate::saturated`].
+
+use core::cell::Cell;
 
 use super::fx::clamp_to_i32;
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
@@ -67,7 +70,14 @@ pub struct ContourWindow<const N: usize, const H: usize> {
     /// Physical index of the oldest point.
     head: usize,
     len: usize,
+    /// Warm start of the nearest-point search: the physical slot of the last nearest
+    /// point, [`NO_HINT`] when there is none (cleared, or that point has left the window).
+    /// Interior mutability so that [`ContourWindow::estimate`] can stay `&self`.
+    pub(crate) hint: Cell<u16>,
 }
+
+/// The value of [`ContourWindow::hint`] meaning "no warm start: scan the window".
+pub(crate) const NO_HINT: u16 = u16::MAX;
 
 /// The window size the firmware uses: 16 ordinary points (15 segments, enough for a
 /// servo lagging up to 13 periods), up to 63 extra points per segment (bisection ≤ 6
@@ -87,6 +97,7 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
             slots: [Slot::<H>::EMPTY; N],
             head: 0,
             len: 0,
+            hint: Cell::new(NO_HINT),
         }
     }
 
@@ -114,42 +125,35 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
     pub fn clear(&mut self) {
         self.head = 0;
         self.len = 0;
-    }
-
-    /// Index (0 = oldest) of the ordinary point nearest to `p` (Q52.12 raw) by |p − S|²,
-    /// each component saturated to ±2^30 LSB (±262 mm). One pass over the slots in
-    /// storage order — the valid slots are always the first `len` (the head moves only
-    /// once the ring is full) — with one `i32×i32` square per component. `None` if empty.
-    pub(crate) fn nearest_point(&self, p: Xy<i64>) -> Option<usize> {
-        let mut best = (u64::MAX, None);
-        for (k, s) in self.slots.iter().take(self.len).enumerate() {
-            let dx = clamp_to_i32(p.x.saturating_sub(s.point.pos.x.to_bits()), REL_LIMIT);
-            let dy = clamp_to_i32(p.y.saturating_sub(s.point.pos.y.to_bits()), REL_LIMIT);
-            // |d| ≤ 2^30 per component: i32 squares (`smull`), sum < 2^61.
-            let d2 = (i64::from(dx).wrapping_mul(i64::from(dx)) as u64)
-                .wrapping_add(i64::from(dy).wrapping_mul(i64::from(dy)) as u64);
-            if d2 < best.0 {
-                best = (d2, Some(k));
-            }
-        }
-        // Logical index = (physical − head) mod N.
-        best.1.map(|k| {
-            if k >= self.head {
-                k.wrapping_sub(self.head)
-            } else {
-                k.wrapping_add(N).wrapping_sub(self.head)
-            }
-        })
+        self.hint.set(NO_HINT);
     }
 
     /// Physical slot index of logical index `i` (0 = oldest).
-    fn phys(&self, i: usize) -> usize {
+    pub(crate) fn phys(&self, i: usize) -> usize {
         let p = self.head.wrapping_add(i);
         if p >= N {
             p.wrapping_sub(N)
         } else {
             p
         }
+    }
+
+    pub(crate) fn slot_pos_raw(&self, i: usize) -> Option<Xy<i64>> {
+        self.slot(i).map(|s| s.point.pos.map(PosFine::to_bits))
+    }
+
+    /// Raw positions of the held points in storage order (the valid slots are always
+    /// the first `len`: the head moves only once the ring is full), for the full scan.
+    pub(crate) fn stored_pos_raw(&self) -> impl Iterator<Item = Xy<i64>> + '_ {
+        self.slots
+            .iter()
+            .take(self.len)
+            .map(|s| s.point.pos.map(PosFine::to_bits))
+    }
+
+    /// Physical index of the oldest point.
+    pub(crate) fn head(&self) -> usize {
+        self.head
     }
 
     fn slot(&self, i: usize) -> Option<&Slot<H>> {
@@ -230,6 +234,10 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         } else {
             let i = self.head;
             self.head = self.phys(1);
+            // The oldest point is overwritten: a warm start from it would be stale.
+            if usize::from(self.hint.get()) == i {
+                self.hint.set(NO_HINT);
+            }
             i
         };
         match self.slots.get_mut(idx) {
@@ -278,10 +286,10 @@ mod tests {
 
     #[test]
     fn default_window_size_is_as_documented() {
-        // N·(40 + 8·H) + 16 bytes.
+        // N·(40 + 8·H) + 24 bytes on a 64-bit host (head, len, hint; + 16 on the M4).
         assert_eq!(
             core::mem::size_of::<DefaultWindow>(),
-            16 * (40 + 8 * 63) + 16
+            16 * (40 + 8 * 63) + 24
         );
     }
 
