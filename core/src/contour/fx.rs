@@ -5,15 +5,30 @@
 //! `i64` are formed in an `i128` (exact: |a·b| ≤ 2^126); products of two `i32` in an
 //! `i64` (exact: ≤ 2^62).
 
-pub(crate) use crate::q::sat_i64;
+/// Saturates an `i128` to the `i64` range (same result as `crate::q::sat_i64`, but one
+/// test: does the high half equal the sign extension of the low half? On a Cortex-M4
+/// that is two word compares instead of two 128-bit comparisons).
+#[inline(always)]
+pub(crate) const fn sat_i64(x: i128) -> i64 {
+    let lo = x as i64;
+    if (x >> 64) as i64 == lo >> 63 {
+        lo
+    } else if x < 0 {
+        i64::MIN
+    } else {
+        i64::MAX
+    }
+}
 
-/// `x >> s` rounded to nearest (ties toward +∞), for `1 ≤ s ≤ 126`.
+/// `x >> s` rounded to nearest (ties toward +∞), for `0 ≤ s ≤ 126` and |x| ≤ 2^126
+/// (every caller passes a product of two `i64`: then adding the rounding half cannot
+/// overflow, so it is a plain add, not a saturating one).
 #[inline(always)]
 pub(crate) const fn shr_round_i128(x: i128, s: u32) -> i128 {
     if s == 0 {
         return x;
     }
-    x.saturating_add(1i128.wrapping_shl(s.wrapping_sub(1)))
+    x.wrapping_add(1i128.wrapping_shl(s.wrapping_sub(1)))
         .wrapping_shr(s)
 }
 
@@ -234,6 +249,27 @@ pub(crate) fn normalize(dx: i64, dy: i64) -> Option<UnitLen> {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn sat_i64_matches_the_q_helper() {
+        for x in [
+            0i128,
+            1,
+            -1,
+            i128::from(i64::MAX),
+            i128::from(i64::MAX) + 1,
+            i128::from(i64::MIN),
+            i128::from(i64::MIN) - 1,
+            i128::MAX,
+            i128::MIN,
+            1 << 100,
+            -(1 << 100),
+            (1 << 64) + 5,
+            -(1 << 64) + 5,
+        ] {
+            assert_eq!(sat_i64(x), crate::q::sat_i64(x), "{x}");
+        }
+    }
 
     #[test]
     fn rounding_helpers() {
