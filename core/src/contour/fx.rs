@@ -94,29 +94,27 @@ const RSQRT_SEED: [u32; 32] = [
 /// y = 1/√x for x ∈ [0.25, 2) in Q2.30 (`x` raw in [2^28, 2^31)), Q2.30 result:
 ///
 /// ```text
-/// y0 = table[⌊16x⌋],   y ← y·(3 − x·y²)/2   (three times)
+/// y0 = table[⌊16x⌋],   y ← y·(3 − (x·y)·y)/2   (three times)
 /// ```
 ///
 /// Newton's iteration for the inverse square root squares the relative error (×1.5):
-/// 5.8 % → 0.5 % → 4·10⁻⁵ → 2·10⁻⁹, plus the Q30 rounding: below 4·10⁻⁹. Only
-/// `u32×u32→u64` products (`umull`), no division.
+/// 5.8 % → 0.5 % → 4·10⁻⁵ → 2·10⁻⁹, plus the Q30 truncations: below 4·10⁻⁹. All in
+/// `u32` with `u32×u32→u64` products (one `umull` each: x·y < 2^62 and its Q30 result
+/// x·y ≈ √x < 2^31; (x·y)·y ≈ 1 is saturated to `u32`; 3 − x·y² < 2^32; y·t < 2^63
+/// and y·t/2 < 2^32), no division.
 #[inline]
 pub(crate) fn rsqrt_q30(x: u32) -> u32 {
-    let mut y = u64::from(
-        RSQRT_SEED
-            .get((x >> 26) as usize)
-            .copied()
-            .unwrap_or(1 << 30),
-    );
-    let x = u64::from(x);
+    let mut y = RSQRT_SEED
+        .get((x >> 26) as usize)
+        .copied()
+        .unwrap_or(1 << 30);
     for _ in 0..3 {
-        // y ≤ 2^31: y² ≤ 2^62; y² (Q30) ≤ 2^32; x·y² < 2^63; y·t < 2^63.
-        let y2 = y.wrapping_mul(y) >> 30;
-        let xy2 = x.wrapping_mul(y2) >> 30;
-        let t = (3u64 << 30).saturating_sub(xy2);
-        y = y.wrapping_mul(t) >> 31;
+        let xy = (u64::from(x).wrapping_mul(u64::from(y)) >> 30) as u32;
+        let xy2 = (u64::from(xy).wrapping_mul(u64::from(y)) >> 30).min(u64::from(u32::MAX)) as u32;
+        let t = (3u32 << 30).saturating_sub(xy2);
+        y = (u64::from(y).wrapping_mul(u64::from(t)) >> 31).min(u64::from(u32::MAX)) as u32;
     }
-    y.min(u64::from(u32::MAX)) as u32
+    y
 }
 
 /// √v, rounded, for any `u64` (relative error < 4·10⁻⁹, so exact to 1 LSB below
@@ -218,17 +216,21 @@ pub(crate) fn normalize(dx: i64, dy: i64) -> Option<UnitLen> {
         let r = s.unsigned_abs();
         (dx.wrapping_shr(r), dy.wrapping_shr(r))
     };
-    // |n| < 2^30 ⇒ n² < 2^60, sum < 2^61; and ≥ 2^58 since max|n| ≥ 2^29.
-    let l2 = (nx.wrapping_mul(nx) as u64).wrapping_add(ny.wrapping_mul(ny) as u64);
+    // |n| < 2^30: i32 components, so every product below is one `smull`/`smlal`.
+    let (nx, ny) = (nx as i32, ny as i32);
+    // n² < 2^60, sum < 2^61; and ≥ 2^58 since max|n| ≥ 2^29.
+    let l2 = (i64::from(nx).wrapping_mul(i64::from(nx)) as u64)
+        .wrapping_add(i64::from(ny).wrapping_mul(i64::from(ny)) as u64);
     let y = rsqrt_q30((l2 >> 30) as u32);
     // u = n/|n| = n·y/2^60 in units of 2^-30: (n·y) >> 30 (|n·y| < 2^61).
     let yi = i64::from(y);
-    let ux = clamp_to_i32(shr_round_i64(nx.wrapping_mul(yi), 30), 1 << 30);
-    let uy = clamp_to_i32(shr_round_i64(ny.wrapping_mul(yi), 30), 1 << 30);
+    let ux = clamp_to_i32(shr_round_i64(i64::from(nx).wrapping_mul(yi), 30), 1 << 30);
+    let uy = clamp_to_i32(shr_round_i64(i64::from(ny).wrapping_mul(yi), 30), 1 << 30);
     // |n| = n·u (Q30 → shift 30), then undo the scaling by 2^s.
     let ln = shr_round_i64(
-        nx.wrapping_mul(i64::from(ux))
-            .saturating_add(ny.wrapping_mul(i64::from(uy))),
+        i64::from(nx)
+            .wrapping_mul(i64::from(ux))
+            .saturating_add(i64::from(ny).wrapping_mul(i64::from(uy))),
         30,
     );
     let len = if s >= 0 {
