@@ -36,7 +36,7 @@
 
 use super::fx::{clamp_to_i32, mul_shr_i64};
 use super::geom::{dot, rel, seg_dist, sub, SegDist};
-use super::window::{ContourWindow, OrdinaryPoint};
+use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
 use crate::units::PosUm;
 
@@ -167,47 +167,6 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         Some(seg_dist(w, d, self.tangent_raw(a)))
     }
 
-    /// Steps 1–2: the nearest ordinary point and the segment holding the foot point,
-    /// as the index a of its first point (the segment is (S_a, S_{a+1})), and whether P
-    /// is saturated-far. `None` for an empty window; for a single point, a = 0.
-    pub(crate) fn choose_segment(&self, p: Xy<i64>) -> Option<(usize, bool)> {
-        let n = self.len();
-        let m = self.nearest_point(p)?;
-        let sm = self.pos_raw(m)?;
-        let (wm, saturated) = rel(p, sm);
-        if n == 1 {
-            return Some((0, saturated));
-        }
-        // Which side of the normal at S_m is P on? (P − S_m)·t_m ≥ 0: the foot lies
-        // after S_m (outgoing segment), else before it (incoming).
-        let t = self.tangent_raw(m);
-        let forward = if t == Xy::new(0, 0) {
-            None
-        } else {
-            Some(dot(wm, t) >= 0)
-        };
-        let incoming = m.checked_sub(1);
-        let outgoing = if m.wrapping_add(1) < n { Some(m) } else { None };
-        let a = match (incoming, outgoing, forward) {
-            (Some(_), Some(o), Some(true)) => o,
-            (Some(i), Some(_), Some(false)) => i,
-            (Some(i), Some(o), None) => {
-                // No tangent stored: the nearer segment by distance (seed's literal rule).
-                let di = self.segment_distance(p, i)?.dist;
-                let d_o = self.segment_distance(p, o)?.dist;
-                if d_o < di {
-                    o
-                } else {
-                    i
-                }
-            }
-            (Some(i), None, _) => i,
-            (None, Some(o), _) => o,
-            (None, None, _) => return None,
-        };
-        Some((a, saturated))
-    }
-
     /// The adaptive estimate of the contour error of the actual point `p` (µm, the
     /// axes' position format). `None` only for an empty window. See the module docs for
     /// the method and its worst-case cost.
@@ -219,29 +178,64 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
     }
 
     /// [`Self::estimate`] for a point given in the fine format.
+    /// P is saturated to ±268 m like the window's points.
     pub fn estimate_fine(&self, p: Xy<PosFine>) -> Option<ContourEstimate> {
-        let p = p.map(PosFine::to_bits);
-        let (a, saturated) = self.choose_segment(p)?;
-        let sa = self.pos_raw(a)?;
-        let (w, _) = rel(p, sa);
-        if self.len() == 1 {
-            let seg = seg_dist(w, Xy::new(0, 0), self.tangent_raw(0));
-            let u = self.u_raw(0);
-            return Some(finish(sa, seg, 0, 0, u, 0, saturated));
+        let p = clamp_pos(p.map(PosFine::to_bits));
+        let n = self.len();
+        // Step 1: the nearest ordinary point S_m (warm-started walk or full scan).
+        let m = self.nearest_point(p)?;
+        let slot_m = self.slot(m)?;
+        let sm = slot_m.pos_raw();
+        let (wm, saturated) = rel(p, sm);
+        if n == 1 {
+            let seg = seg_dist(wm, Xy::new(0, 0), slot_m.tangent_raw());
+            return Some(finish(sm, seg, 0, 0, slot_m.u_raw(), 0, saturated));
         }
+        // Step 2: the segment (S_a, S_b) on P's side of the normal at S_m:
+        // (P − S_m)·t_m ≥ 0 → the foot lies after S_m (outgoing), else before it.
+        let t = slot_m.tangent_raw();
+        let incoming = m.checked_sub(1);
+        let outgoing = if m.wrapping_add(1) < n { Some(m) } else { None };
+        let a = match (incoming, outgoing) {
+            (Some(i), Some(o)) => {
+                if t != Xy::new(0, 0) {
+                    if dot(wm, t) >= 0 {
+                        o
+                    } else {
+                        i
+                    }
+                } else {
+                    // No tangent stored: the nearer segment by distance (seed's rule).
+                    let di = self.segment_distance(p, i)?.dist;
+                    let d_o = self.segment_distance(p, o)?.dist;
+                    if d_o < di {
+                        o
+                    } else {
+                        i
+                    }
+                }
+            }
+            (Some(i), None) => i,
+            (None, Some(o)) => o,
+            (None, None) => return None,
+        };
         let b = a.wrapping_add(1);
-        let sb = self.pos_raw(b)?;
-        let (d, _) = rel(sb, sa);
-        let extras = self.extras_raw(b);
+        let (slot_a, slot_b) = (self.slot(a)?, self.slot(b)?);
+        let sa = slot_a.pos_raw();
+        let w = if a == m { wm } else { rel(p, sa).0 };
+        let (d, _) = rel(slot_b.pos_raw(), sa);
+        // b ≥ 1: its extra points are those of the segment (S_a, S_b).
+        let extras = slot_b.extras();
+        // Step 3: bisection; step 4: the final chord.
         let (lo, hi, steps) = bisect(w, d, extras);
         let el = seq_point(extras, d, lo);
         let eh = seq_point(extras, d, hi);
-        let seg = seg_dist(sub(w, el), sub(eh, el), self.tangent_raw(b));
+        let seg = seg_dist(sub(w, el), sub(eh, el), slot_b.tangent_raw());
         let base = Xy::new(
             sa.x.saturating_add(i64::from(el.x)),
             sa.y.saturating_add(i64::from(el.y)),
         );
-        let u = u_at_foot(self.u_raw(a), self.u_raw(b), lo, extras.len(), &seg);
+        let u = u_at_foot(slot_a.u_raw(), slot_b.u_raw(), lo, extras.len(), &seg);
         Some(finish(base, seg, b, lo, u, steps, saturated))
     }
 

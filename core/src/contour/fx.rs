@@ -161,6 +161,20 @@ pub(crate) const fn clamp_to_i32(x: i64, lim: i32) -> i32 {
     }
 }
 
+/// Saturates an `i64` to ±2^30 (the estimator's relative-vector limit, `REL_LIMIT`)
+/// and returns it as `i32`; equal to `clamp_to_i32(x, 1 << 30)` with one range test
+/// (x + 2^30 < 2^31 unsigned) on the common in-range path.
+#[inline(always)]
+pub(crate) const fn clamp_rel(x: i64) -> i32 {
+    if (x.wrapping_add(1 << 30) as u64) < (1u64 << 31) {
+        x as i32
+    } else if x < 0 {
+        -(1 << 30)
+    } else {
+        1 << 30
+    }
+}
+
 /// A unit vector in Q2.30 (`I2F30`: 2^30 = 1.0, resolution 9.3·10⁻¹⁰), the length of
 /// the vector it was made from in the input's own format, and its reciprocal.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -288,6 +302,22 @@ mod tests {
         assert!(sqrt_u64(u64::MAX).abs_diff(1 << 32) <= 8);
         assert_eq!(clamp_to_i32(1 << 40, 100), 100);
         assert_eq!(clamp_to_i32(-(1 << 40), 100), -100);
+        for x in [
+            0i64,
+            5,
+            -5,
+            (1 << 30) - 1,
+            1 << 30,
+            (1 << 30) + 1,
+            -(1 << 30),
+            -(1 << 30) - 1,
+            i64::MAX,
+            i64::MIN,
+            1 << 40,
+            -(1 << 40),
+        ] {
+            assert_eq!(clamp_rel(x), clamp_to_i32(x, 1 << 30), "{x}");
+        }
         assert_eq!(normalize(0, 0), None);
         let u = normalize(3 << 20, 4 << 20).unwrap();
         assert_eq!(u.len, 5 << 20);

@@ -48,7 +48,7 @@
 //! A tick that does not advance (feed 0, path finished) leaves the window unchanged.
 
 use super::fx::{mul_shr_i64, sat_i64};
-use super::geom::rel;
+use super::geom::rel_sat;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
 use super::window::{ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, UnitQ30, Xy};
@@ -338,7 +338,7 @@ impl Interpolator {
                     break;
                 }
                 let pos = path.position(Param::from_bits(ue));
-                *slot = rel(pos.map(PosFine::to_bits), start_pos).0;
+                *slot = rel_sat(pos.map(PosFine::to_bits), start_pos);
                 n = n.wrapping_add(1);
             }
             n

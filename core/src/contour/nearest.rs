@@ -32,15 +32,16 @@
 //! the servo has been following — the branch continuity a contouring controller wants —
 //! while the full scan may jump to the other branch.
 
-use super::fx::clamp_to_i32;
-use super::window::{ContourWindow, NO_HINT, REL_LIMIT};
+use super::fx::clamp_rel;
+use super::window::{ContourWindow, NO_HINT};
 use super::Xy;
 
-/// |p − s|², each component saturated to ±[`REL_LIMIT`] (Q24 µm², < 2^61).
+/// |p − s|², each component saturated to ±`REL_LIMIT` (2^30) (Q24 µm², < 2^61).
 #[inline(always)]
 fn dist2(p: Xy<i64>, s: Xy<i64>) -> u64 {
-    let dx = clamp_to_i32(p.x.saturating_sub(s.x), REL_LIMIT);
-    let dy = clamp_to_i32(p.y.saturating_sub(s.y), REL_LIMIT);
+    // Both within ±POS_LIMIT (2^40): the i64 difference is exact.
+    let dx = clamp_rel(p.x.wrapping_sub(s.x));
+    let dy = clamp_rel(p.y.wrapping_sub(s.y));
     // |d| ≤ 2^30 per component: i32 squares (`smull`), sum < 2^61.
     (i64::from(dx).wrapping_mul(i64::from(dx)) as u64)
         .wrapping_add(i64::from(dy).wrapping_mul(i64::from(dy)) as u64)

@@ -23,6 +23,18 @@ use super::{Param, PosFine, RelUm, UnitQ30, Xy};
 /// Largest |relative coordinate| used by the estimator, raw Q20.12 (262 mm).
 pub(crate) const REL_LIMIT: i32 = 1 << 30;
 
+/// Largest |absolute coordinate| the window stores and the estimator takes, raw Q52.12
+/// (2^28 µm = 268 m, far beyond the ±8.388 m of a validated path): positions are
+/// saturated to it, so the difference of two of them is an exact `i64` (no saturating
+/// subtraction in the estimator's inner loops).
+pub(crate) const POS_LIMIT: i64 = 1 << 40;
+
+/// Saturates an absolute raw position to ±[`POS_LIMIT`].
+#[inline(always)]
+pub(crate) fn clamp_pos(p: Xy<i64>) -> Xy<i64> {
+    p.map(|v| v.clamp(-POS_LIMIT, POS_LIMIT))
+}
+
 /// An ordinary interpolation point (a motion command) as stored in the window.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -36,7 +48,7 @@ pub struct OrdinaryPoint {
 }
 
 #[derive(Clone, Copy, Debug)]
-struct Slot<const H: usize> {
+pub(crate) struct Slot<const H: usize> {
     point: OrdinaryPoint,
     /// Extra points of the segment ending here, relative to the previous ordinary point.
     n_extra: u16,
@@ -44,6 +56,30 @@ struct Slot<const H: usize> {
 }
 
 impl<const H: usize> Slot<H> {
+    /// Raw position (Q52.12).
+    #[inline(always)]
+    pub(crate) fn pos_raw(&self) -> Xy<i64> {
+        self.point.pos.map(PosFine::to_bits)
+    }
+
+    /// Raw unit tangent (Q2.30).
+    #[inline(always)]
+    pub(crate) fn tangent_raw(&self) -> Xy<i32> {
+        self.point.tangent.map(UnitQ30::to_bits)
+    }
+
+    /// Raw path parameter.
+    #[inline(always)]
+    pub(crate) fn u_raw(&self) -> i64 {
+        self.point.u.to_bits()
+    }
+
+    /// The extra points of the segment ending here (relative to the previous point).
+    #[inline(always)]
+    pub(crate) fn extras(&self) -> &[Xy<i32>] {
+        self.extra.get(..usize::from(self.n_extra)).unwrap_or(&[])
+    }
+
     const EMPTY: Self = Slot {
         point: OrdinaryPoint {
             pos: Xy {
@@ -156,7 +192,8 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         self.head
     }
 
-    fn slot(&self, i: usize) -> Option<&Slot<H>> {
+    /// The slot of logical index `i` (0 = oldest).
+    pub(crate) fn slot(&self, i: usize) -> Option<&Slot<H>> {
         if i >= self.len {
             return None;
         }
@@ -200,7 +237,7 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
 
     /// Appends an ordinary point and the extra points of the segment from the previous
     /// newest point to it (relative to that previous point; at most `H` are kept, each
-    /// saturated to ±262 mm). Overwrites the oldest point when full. Returns the number
+    /// saturated to ±262 mm; the point's position is saturated to ±268 m). Overwrites the oldest point when full. Returns the number
     /// of extra points stored.
     pub fn push(&mut self, point: OrdinaryPoint, extras: &[Xy<RelUm>]) -> usize {
         self.push_with(point, |buf| {
@@ -244,7 +281,10 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
             Some(slot) => {
                 let n = fill(&mut slot.extra).min(H).min(usize::from(u16::MAX));
                 slot.n_extra = n as u16;
-                slot.point = point;
+                slot.point = OrdinaryPoint {
+                    pos: clamp_pos(point.pos.map(PosFine::to_bits)).map(PosFine::from_bits),
+                    ..point
+                };
                 n
             }
             None => 0,
