@@ -125,15 +125,27 @@ impl InterpConfig {
 
 impl InterpCoeffs {
     /// Advance per period ΔS = v·Ts for a feed, Q32.32 µm raw (capped).
+    ///
+    /// v (Q8, 0 … 2^31) · Ts (Q40, ≤ 2^40) → Q48 → Q32, rounded, without an `i128`:
+    /// Ts = T_h·2^32 + T_l, v·Ts/2^16 = v·T_h·2^16 + (v·T_l + 2^15)/2^16 exactly
+    /// (v·T_h < 2^39, v·T_l < 2^63).
     pub(crate) fn step_q32(&self, feed: VelUmPerS) -> i64 {
-        let v = i64::from(feed.to_bits().max(0));
-        // Q8 · Q40 → Q48 → Q32.
-        mul_shr_i64(v, self.ts_q40, 16).min(MAX_STEP_Q32)
+        let v = feed.to_bits().max(0) as u32;
+        let (th, tl) = ((self.ts_q40 >> 32) as u32, self.ts_q40 as u32);
+        let hi = u64::from(v).wrapping_mul(u64::from(th)) << 16;
+        let lo = u64::from(v)
+            .wrapping_mul(u64::from(tl))
+            .wrapping_add(1 << 15)
+            >> 16;
+        (hi.wrapping_add(lo) as i64).min(MAX_STEP_Q32)
     }
 
-    /// Q·v, µm in Q8 raw.
+    /// Q·v, µm in Q8 raw: Q (Q16, ≤ 1000·2^16 < 2^26) · v (Q8, < 2^31) < 2^57, one
+    /// `u32×u32→u64` product, rounded.
     fn qv_q8(&self, feed: VelUmPerS) -> i64 {
-        mul_shr_i64(self.q_q16, i64::from(feed.to_bits().max(0)), 16)
+        let v = u64::from(feed.to_bits().max(0) as u32);
+        let q = u64::from(self.q_q16.clamp(0, i64::from(u32::MAX)) as u32);
+        (q.wrapping_mul(v).wrapping_add(1 << 15) >> 16) as i64
     }
 
     /// h = min(⌊Q·κ·v⌋, h_max, cap) for a curvature in 1/µm (Q32 raw).
@@ -303,20 +315,21 @@ impl Interpolator {
         };
         let taylor = Taylor::at(&self.cur, &frame);
         let u_end = path.u_end().to_bits();
-        let u1 = self
-            .u
-            .saturating_add(taylor.du(taylor.first(ds)))
-            .min(u_end);
+        // First-order step a = ΔS/|r′| (units of u).
+        let a = taylor.first(ds);
+        let u1 = self.u.saturating_add(taylor.du(a)).min(u_end);
         if ds <= 0 || u1 <= self.u {
             return self.hold();
         }
         let kappa = curvature_q32_per_um(&self.cur, &frame);
         let h = coeffs.extra_count(kappa, feed, H);
-        // First-order step of one sub-interval, a_e = (ΔS/(h + 1))/|r′|.
-        let a_e = taylor
-            .first(ds)
-            .checked_div(h.wrapping_add(1) as i64)
-            .unwrap_or(0);
+        // First-order step of one sub-interval, a_e = (ΔS/(h + 1))/|r′| (the 64-bit
+        // division only when there are extra points to place).
+        let a_e = if h == 0 {
+            0
+        } else {
+            a.checked_div(h.wrapping_add(1) as i64).unwrap_or(0)
+        };
         let next = path.eval(Param::from_bits(u1));
         let (u0, start_pos) = (self.u, self.cur.pos.map(PosFine::to_bits));
         self.u = u1;
@@ -385,6 +398,24 @@ mod tests {
         // 200 mm/s · 1 ms = 200 µm.
         let ds = c.build().unwrap().step_q32(VelUmPerS::from_num(200_000));
         assert!((ds as f64 / 4_294_967_296.0 - 200.0).abs() < 1e-6);
+        // The split products equal the exact i128 forms over the whole feed range.
+        for (period_us, q_s) in [(10, 0.0), (1000, 1.0), (250, 0.25), (1_000_000, 1000.0)] {
+            let k = InterpConfig {
+                period_us,
+                q_s,
+                h_max: 63,
+            }
+            .build()
+            .unwrap();
+            for v in [0, 1, 255, 256_000, 51_200_000, 1 << 30, i32::MAX, -5] {
+                let f = VelUmPerS::from_bits(v);
+                let vb = i128::from(v.max(0));
+                let exact = ((vb * i128::from(k.ts_q40) + (1 << 15)) >> 16) as i64;
+                assert_eq!(k.step_q32(f), exact.min(MAX_STEP_Q32), "{period_us} {v}");
+                let qv = ((vb * i128::from(k.q_q16) + (1 << 15)) >> 16) as i64;
+                assert_eq!(k.qv_q8(f), qv, "{q_s} {v}");
+            }
+        }
     }
 
     #[test]
