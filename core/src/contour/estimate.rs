@@ -34,7 +34,7 @@
 //! more for a foot clamped to a chord end, about a dozen products) and one 32-bit
 //! division for [`ContourEstimate::u_foot`]. No 64-bit division, no library call. No allocation, no float, no panic; the window is only read.
 
-use super::fx::{clamp_to_i32, mul_shr_i64};
+use super::fx::clamp_to_i32;
 use super::geom::{dot, rel, seg_dist, sub, SegDist};
 use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
@@ -257,7 +257,13 @@ pub(crate) fn u_at_foot(u_a: i64, u_b: i64, lo: usize, h: usize, seg: &SegDist) 
         .checked_div(n)
         .unwrap_or(0)
         .min(1 << 16);
-    u_a.saturating_add(mul_shr_i64(u_b.saturating_sub(u_a), i64::from(frac), 16))
+    // (Δu·frac + 2^15) >> 16 without an i128: Δu = Δu_h·2^16 + Δu_l, exact
+    // (|Δu| ≤ 2^62 after the clamp: Δu_h·frac ≤ 2^62, Δu_l·frac < 2^33).
+    let du = u_b.saturating_sub(u_a).clamp(-(1 << 62), 1 << 62);
+    let f = i64::from(frac);
+    let hi = (du >> 16).wrapping_mul(f);
+    let lo = (du & 0xFFFF).wrapping_mul(f).wrapping_add(1 << 15) >> 16;
+    u_a.saturating_add(hi.wrapping_add(lo))
 }
 
 /// Packs a segment distance (foot relative to `base`) into an estimate.
@@ -288,6 +294,43 @@ pub(crate) fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn u_at_foot_split_product_is_exact() {
+        let seg = |t: i64| SegDist {
+            dist: 0,
+            eps: 0,
+            foot: Xy::new(0, 0),
+            unit: Xy::new(0, 0),
+            along: 0,
+            len: 0,
+            t_q30: t,
+        };
+        for (ua, ub) in [
+            (0i64, 200 << 32),
+            (-5 << 40, 7 << 40),
+            (1 << 50, -(1 << 50)),
+            (3, 3),
+        ] {
+            for (lo, h, t) in [
+                (0usize, 0usize, 0i64),
+                (0, 0, 1 << 29),
+                (3, 7, 12345),
+                (63, 63, 1 << 30),
+            ] {
+                let s = seg(t);
+                let n = (h as i64) + 1;
+                let frac = ((((lo as i64) << 16) + ((t.clamp(0, 1 << 30)) >> 14)) / n).min(1 << 16);
+                let exact =
+                    ua + (((i128::from(ub - ua) * i128::from(frac)) + (1 << 15)) >> 16) as i64;
+                assert_eq!(
+                    u_at_foot(ua, ub, lo, h, &s),
+                    exact,
+                    "{ua} {ub} {lo} {h} {t}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn bisection_bound_table() {

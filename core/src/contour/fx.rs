@@ -197,7 +197,10 @@ impl UnitLen {
     pub fn recip(&self, frac: u32) -> i64 {
         let e = self.exp.saturating_add(frac as i32);
         let y = i64::from(self.rsq);
-        if e >= 0 {
+        if (0..=31).contains(&e) {
+            // y < 2^32: the shifted value fits an i64 (the usual case, no i128 shift).
+            y.wrapping_shl(e as u32)
+        } else if e >= 0 {
             sat_i64((y as i128).wrapping_shl(e.min(100) as u32))
         } else {
             shr_round_i64(y, e.unsigned_abs().min(63))
