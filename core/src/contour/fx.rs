@@ -48,6 +48,26 @@ pub(crate) const fn mul_shr_i64(a: i64, b: i64, s: u32) -> i64 {
     sat_i64(shr_round_i128((a as i128).wrapping_mul(b as i128), s))
 }
 
+/// `(a · b) >> 30` rounded to nearest for an `i32` (a unit-vector component, Q30) times
+/// an `i64`, equal to `mul_shr_i64(a, b, 30)` but from two 32-bit products:
+///
+/// ```text
+/// b = b_h·2^32 + b_l  →  (a·b + 2^29) >> 30 = 4·a·b_h + (a·b_l + 2^29) >> 30   (exact)
+/// ```
+///
+/// (`smull` for a·b_h, `umull` + `mla` for a·b_l); falls back to the `i128` form when
+/// 4·a·b_h could leave the `i64` range.
+#[inline(always)]
+pub(crate) const fn mul_shr30_i32_i64(a: i32, b: i64) -> i64 {
+    let hi = (a as i64).wrapping_mul(b >> 32);
+    if hi.unsigned_abs() >= 1 << 60 {
+        return mul_shr_i64(a as i64, b, 30);
+    }
+    let lo = (a as i64).wrapping_mul(b as u32 as i64);
+    // |lo| < 2^63; the rounded shift cannot overflow; |4·hi| < 2^62.
+    (hi << 2).wrapping_add(lo.wrapping_add(1 << 29) >> 30)
+}
+
 /// `(a · b) >> s` rounded to nearest for `i32` operands (exact `i64` product).
 #[inline(always)]
 pub(crate) const fn mul_shr_i32(a: i32, b: i32, s: u32) -> i64 {
@@ -341,6 +361,16 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn mul_shr30_matches_the_i128_form(a: i32, b: i64) {
+            prop_assert_eq!(mul_shr30_i32_i64(a, b), mul_shr_i64(i64::from(a), b, 30));
+        }
+
+        #[test]
+        fn mul_shr30_matches_on_unit_components(a in -(1i32 << 30)..=(1 << 30), b in -(1i64 << 45)..(1i64 << 45)) {
+            prop_assert_eq!(mul_shr30_i32_i64(a, b), mul_shr_i64(i64::from(a), b, 30));
+        }
+
         #[test]
         fn sqrt_matches_f64(v: u64) {
             let r = sqrt_u64(v) as f64;

@@ -47,7 +47,7 @@
 //! a circle (sin/cos), so h_max is also the CPU-budget knob.
 //! A tick that does not advance (feed 0, path finished) leaves the window unchanged.
 
-use super::fx::{mul_shr_i64, sat_i64};
+use super::fx::{mul_shr30_i32_i64, mul_shr_i64, sat_i64};
 use super::geom::rel_sat;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
 use super::window::{ContourWindow, OrdinaryPoint};
@@ -176,11 +176,8 @@ pub(crate) struct Taylor {
 impl Taylor {
     /// The expansion at a point (one normalisation of r′, three products).
     pub(crate) fn at(p: &PathPoint, f: &DerivFrame) -> Self {
-        let tdot = mul_shr_i64(i64::from(f.ux), p.d2.x.to_bits(), 30).saturating_add(mul_shr_i64(
-            i64::from(f.uy),
-            p.d2.y.to_bits(),
-            30,
-        ));
+        let tdot = mul_shr30_i32_i64(f.ux, p.d2.x.to_bits())
+            .saturating_add(mul_shr30_i32_i64(f.uy, p.d2.y.to_bits()));
         Taylor {
             inv_q30: f.inv_q30,
             // (û·r″)(Q32)·(1/|r′|)(Q30)/2 → Q32.
