@@ -150,10 +150,14 @@ impl InterpCoeffs {
 
     /// h = min(⌊Q·κ·v⌋, h_max, cap) for a curvature in 1/µm (Q32 raw).
     pub(crate) fn extra_count(&self, kappa_q32: i64, feed: VelUmPerS, cap: usize) -> usize {
-        // κ (Q32) · Qv (Q8) → Q40 → integer, floored.
-        let h = sat_i64(
-            (kappa_q32.saturating_abs() as i128).wrapping_mul(self.qv_q8(feed) as i128) >> 40,
-        );
+        // κ (Q32) · Qv (Q8) → Q40 → integer, floored. Both below 2^32 (a radius above
+        // 1 µm, Q·v below 16.7 m): one `umull`; otherwise the exact `i128` product.
+        let (k, qv) = (kappa_q32.saturating_abs(), self.qv_q8(feed));
+        let h = if k <= i64::from(u32::MAX) && (0..=i64::from(u32::MAX)).contains(&qv) {
+            ((k as u64).wrapping_mul(qv as u64) >> 40) as i64
+        } else {
+            sat_i64((k as i128).wrapping_mul(qv as i128) >> 40)
+        };
         let cap = cap.min(usize::from(self.h_max)) as i64;
         h.clamp(0, cap) as usize
     }
