@@ -142,7 +142,8 @@ impl Figure for XyEstimated {
     }
 }
 
-/// The measured call of `xy_contour_part`: the contour half of one X–Y period.
+/// The measured call of `xy_contour_part`: the contour half of one X–Y period, its
+/// outputs written in place (as the control loop consumes them).
 #[inline(never)]
 fn contour_part(
     it: &mut Interpolator,
@@ -150,9 +151,10 @@ fn contour_part(
     ic: &InterpCoeffs,
     path: &Parabola,
     measured: Xy<PosUm>,
-) -> (Reference, Option<ContourEstimate>) {
-    let r = it.step(ic, path, VelUmPerS::from_num(FEED_UM_PER_S), w);
-    (r, w.estimate(measured))
+    out: &mut (Reference, Option<ContourEstimate>),
+) {
+    out.0 = it.step(ic, path, VelUmPerS::from_num(FEED_UM_PER_S), w);
+    out.1 = w.estimate(measured);
 }
 
 /// `xy_contour_part`: the contour half of `xy_cross_coupled_estimated` —
@@ -165,7 +167,7 @@ pub struct XyContourPart {
     window: ContourWindow<N, H>,
     refs: [[PosUm; 2]; LAG + 1],
     measured: [PosUm; 2],
-    out: Option<(Reference, Option<ContourEstimate>)>,
+    out: (Reference, Option<ContourEstimate>),
 }
 
 impl XyContourPart {
@@ -181,7 +183,15 @@ impl XyContourPart {
             window,
             refs: x.refs,
             measured: x.measured,
-            out: None,
+            out: (
+                Reference {
+                    point: Default::default(),
+                    extra_points: 0,
+                    advanced: false,
+                    finished: false,
+                },
+                None,
+            ),
         })
     }
 
@@ -199,16 +209,16 @@ impl Figure for XyContourPart {
     fn call(&mut self, k: u32) {
         self.next_inputs(k);
         let [mx, my] = self.measured;
-        let out = contour_part(
+        contour_part(
             &mut self.it,
             &mut self.window,
             &self.ic,
             &self.path,
             Xy::new(mx, my),
+            &mut self.out,
         );
-        let r = out.0.pos_um();
+        let r = self.out.0.pos_um();
         self.refs[k as usize % (LAG + 1)] = [r.x, r.y];
-        self.out = Some(out);
     }
 
     #[inline(always)]
@@ -222,7 +232,7 @@ impl Figure for XyContourPart {
 
     /// The path is still running and every call had an estimate.
     fn healthy(&self) -> bool {
-        self.out
-            .is_some_and(|(r, e)| r.advanced && !r.finished && e.is_some())
+        let (r, e) = &self.out;
+        r.advanced && !r.finished && e.is_some()
     }
 }

@@ -68,6 +68,33 @@ pub(crate) const fn mul_shr30_i32_i64(a: i32, b: i64) -> i64 {
     (hi << 2).wrapping_add(lo.wrapping_add(1 << 29) >> 30)
 }
 
+/// `(a · b) >> s` rounded to nearest (2 ≤ s ≤ 32 on the fast path), saturated, for an `i64` times a
+/// non-negative `i64` (a reciprocal such as 1/|r′| in Q30): equal to `mul_shr_i64(a, b,
+/// s)`. When b < 2^32 it is formed from two 32-bit products:
+///
+/// ```text
+/// a = a_h·2^32 + a_l  →  (a·b + 2^(s−1)) >> s = a_h·b·2^(32−s) + (a_l·b + 2^(s−1)) >> s
+/// ```
+///
+/// (exact; a_h·b is an `i32×u32` product, a_l·b a `umull`), else — or when the first
+/// term could leave the `i64` range — by the `i128` form.
+#[inline(always)]
+pub(crate) const fn mul_shr_i64_by_u32(a: i64, b: i64, s: u32) -> i64 {
+    if b < 0 || b > u32::MAX as i64 || s < 2 || s > 32 {
+        return mul_shr_i64(a, b, s);
+    }
+    let hi = (a >> 32).wrapping_mul(b);
+    // |hi·2^(32−s)| < 2^62 and the second term < 2^62 (s ≥ 2): the sum fits an i64.
+    if hi.unsigned_abs() >= 1u64.wrapping_shl(s.wrapping_add(30)) {
+        return mul_shr_i64(a, b, s);
+    }
+    let lo = ((a as u32 as u64)
+        .wrapping_mul(b as u64)
+        .wrapping_add(1u64.wrapping_shl(s.wrapping_sub(1)))
+        .wrapping_shr(s)) as i64;
+    hi.wrapping_shl(32u32.wrapping_sub(s)).wrapping_add(lo)
+}
+
 /// `(a · b) >> s` rounded to nearest for `i32` operands (exact `i64` product).
 #[inline(always)]
 pub(crate) const fn mul_shr_i32(a: i32, b: i32, s: u32) -> i64 {
@@ -369,6 +396,21 @@ mod tests {
         #[test]
         fn mul_shr30_matches_on_unit_components(a in -(1i32 << 30)..=(1 << 30), b in -(1i64 << 45)..(1i64 << 45)) {
             prop_assert_eq!(mul_shr30_i32_i64(a, b), mul_shr_i64(i64::from(a), b, 30));
+        }
+
+        #[test]
+        fn mul_by_u32_matches_the_i128_form(a: i64, b in -(1i64 << 33)..(1i64 << 33), s in 0u32..40) {
+            prop_assert_eq!(mul_shr_i64_by_u32(a, b, s), mul_shr_i64(a, b, s));
+        }
+
+        #[test]
+        fn mul_by_u32_matches_on_small_operands(a in -(1i64 << 50)..(1i64 << 50), b in 0i64..(1i64 << 32), s in 29u32..33) {
+            prop_assert_eq!(mul_shr_i64_by_u32(a, b, s), mul_shr_i64(a, b, s));
+        }
+
+        #[test]
+        fn mul_by_u32_matches_at_the_extremes(a in prop_oneof![Just(i64::MAX), Just(i64::MIN), any::<i64>()], b in prop_oneof![Just(u32::MAX as i64), Just(0i64), 0i64..(1i64 << 32)], s in 0u32..34) {
+            prop_assert_eq!(mul_shr_i64_by_u32(a, b, s), mul_shr_i64(a, b, s));
         }
 
         #[test]

@@ -47,7 +47,7 @@
 //! a circle (sin/cos), so h_max is also the CPU-budget knob.
 //! A tick that does not advance (feed 0, path finished) leaves the window unchanged.
 
-use super::fx::{mul_shr30_i32_i64, mul_shr_i64, sat_i64};
+use super::fx::{mul_shr30_i32_i64, mul_shr_i64, mul_shr_i64_by_u32, sat_i64};
 use super::geom::rel_sat;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
 use super::window::{ContourWindow, OrdinaryPoint};
@@ -185,13 +185,13 @@ impl Taylor {
         Taylor {
             inv_q30: f.inv_q30,
             // (û·r″)(Q32)·(1/|r′|)(Q30)/2 → Q32.
-            c_q32: mul_shr_i64(tdot, f.inv_q30, 31),
+            c_q32: mul_shr_i64_by_u32(tdot, f.inv_q30, 31),
         }
     }
 
     /// a = s/|r′| for an arc length `s` (Q32 µm), Q32 units of u.
     pub(crate) fn first(&self, s: i64) -> i64 {
-        mul_shr_i64(s, self.inv_q30, 30)
+        mul_shr_i64_by_u32(s, self.inv_q30, 30)
     }
 
     /// Δu = a − a²·c for a first-order step `a` (Q32). Where the second-order term would
