@@ -2,8 +2,9 @@
 //!
 //! Given the actual point P and a [`ContourWindow`]:
 //!
-//! 1. **Nearest ordinary point** S_m: a linear scan of the window, |P − S_k|² (N
-//!    evaluations).
+//! 1. **Nearest ordinary point** S_m by |P − S_k|²: a walk downhill from the last call's
+//!    nearest point (3 evaluations in steady state), with a full scan of the window (N
+//!    evaluations) as the fallback ([`super::nearest`]).
 //! 2. **Segment choice** between (S_{m−1}, S_m) and (S_m, S_{m+1}): the one on P's side
 //!    of the path normal at S_m, i.e. outgoing when (P − S_m)·t_m ≥ 0 with t_m the unit
 //!    tangent stored with S_m. The seed compares P's distances to the two segments;
@@ -27,12 +28,15 @@
 //!    path**. This is SPEC §D's convention, ε ≈ −C1·E1 + C2·E2 with E = V − P, so the
 //!    cross-coupled controller can use it as is.
 //!
-//! **Worst case per call** (`N` ordinary points, `H` extra points per segment): N squared
-//! distances (2 subtractions, 2 `i32×i32→i64` products each), one dot product for the
+//! **Worst case per call** (`N` ordinary points, `H` extra points per segment): a walk
+//! that ends at the window's end plus the full scan, at most 2N squared distances (2
+//! subtractions, 2 `i32×i32→i64` products each), one dot product for the
 //! segment choice, ⌈log₂(H + 1)⌉ bisection steps (6 subtractions and 2 products each),
 //! one point-to-chord distance (one inverse square root by 3 Newton steps, at most one
 //! more for a foot clamped to a chord end, about a dozen products) and one 32-bit
-//! division for [`ContourEstimate::u_foot`]. No 64-bit division, no library call. No allocation, no float, no panic; the window is only read.
+//! division for [`ContourEstimate::u_foot`]. No 64-bit division, no library call. No
+//! allocation, no float, no panic; the window is only read (apart from the warm-start hint,
+//! a `Cell` inside it).
 
 use super::fx::clamp_to_i32;
 use super::geom::{dot, rel, seg_dist, sub, SegDist};
