@@ -204,6 +204,7 @@ fn main() -> ! {
     r.run("npid_td_fal", npid::NpidTrack::new());
     // The X–Y cross-coupled tick with estimation (SPEC §C + §D).
     r.run("xy_cross_coupled_estimated", xy::XyEstimated::new());
+    r.run("xy_contour_part", xy::XyContourPart::new());
 
     let ok = r.ok;
     let _ = writeln!(r.o, "DONE ok={ok}");

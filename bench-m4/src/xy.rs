@@ -12,11 +12,19 @@
 //! ±2 µm ripple (a servo lagging 150 µm along the path): the estimator searches a window
 //! position well behind the newest point. The 2 300 calls of a run (warm-up included)
 //! cover the path through the vertex without reaching its end.
+//!
+//! `xy_contour_part` ([`XyContourPart`]) is the contour half of the same tick alone —
+//! [`Interpolator::step`] + [`ContourWindow::estimate`] on the same path, window, feed and
+//! measured points — so the interpolator/estimator share of the X–Y budget is measured
+//! directly rather than by subtraction.
 
 use crate::harness::Figure;
 use crate::npid::{axis_coeffs, contour_coeffs};
 use core::hint::black_box;
-use hydra_core::contour::{InterpCoeffs, InterpConfig, Parabola, ParabolaSpec};
+use hydra_core::contour::{
+    ContourEstimate, ContourWindow, InterpCoeffs, InterpConfig, Interpolator, Parabola,
+    ParabolaSpec, Reference, Xy,
+};
 use hydra_core::npid::{CrossCoupled, EstimatedXy, NpidCoeffs, XyCoeffs, XyPeriod};
 use hydra_core::units::{PosUm, VelUmPerS};
 
@@ -132,5 +140,100 @@ impl Figure for XyEstimated {
                 && !p.reference.finished
                 && p.output.command.iter().all(|u| u.abs() < 2047)
         })
+    }
+}
+
+/// The measured call of `xy_contour_part`: the contour half of one X–Y period, its
+/// outputs written in place (as the control loop consumes them).
+#[inline(never)]
+fn contour_part(
+    it: &mut Interpolator,
+    w: &mut ContourWindow<N, H>,
+    ic: &InterpCoeffs,
+    path: &Parabola,
+    measured: Xy<PosUm>,
+    out: &mut (Reference, Option<ContourEstimate>),
+) {
+    out.0 = it.step(ic, path, VelUmPerS::from_num(FEED_UM_PER_S), w);
+    out.1 = w.estimate(measured);
+}
+
+/// `xy_contour_part`: the contour half of `xy_cross_coupled_estimated` —
+/// [`Interpolator::step`] + [`ContourWindow::estimate`] in the same set-up (same path,
+/// window, feed and measured points), without the nonlinear PIDs.
+pub struct XyContourPart {
+    path: Parabola,
+    ic: InterpCoeffs,
+    it: Interpolator,
+    window: ContourWindow<N, H>,
+    refs: [[PosUm; 2]; LAG + 1],
+    measured: [PosUm; 2],
+    out: (Reference, Option<ContourEstimate>),
+}
+
+impl XyContourPart {
+    /// At the path's start.
+    pub fn new() -> Option<Self> {
+        let x = XyEstimated::new()?;
+        let mut window = ContourWindow::new();
+        let it = Interpolator::start(&x.path, &mut window);
+        Some(Self {
+            path: x.path,
+            ic: x.ic,
+            it,
+            window,
+            refs: x.refs,
+            measured: x.measured,
+            out: (
+                Reference {
+                    point: Default::default(),
+                    extra_points: 0,
+                    advanced: false,
+                    finished: false,
+                },
+                None,
+            ),
+        })
+    }
+
+    #[inline(always)]
+    fn next_inputs(&mut self, k: u32) {
+        let back = (k as usize + 1) % (LAG + 1);
+        let ripple = PosUm::from_bits(((k & 7) as i32 - 4) * (1 << 7));
+        let [x, y] = self.refs[back];
+        self.measured = [x + ripple, y - ripple];
+    }
+}
+
+impl Figure for XyContourPart {
+    #[inline(always)]
+    fn call(&mut self, k: u32) {
+        self.next_inputs(k);
+        let [mx, my] = self.measured;
+        contour_part(
+            &mut self.it,
+            &mut self.window,
+            &self.ic,
+            &self.path,
+            Xy::new(mx, my),
+            &mut self.out,
+        );
+        let r = self.out.0.pos_um();
+        self.refs[k as usize % (LAG + 1)] = [r.x, r.y];
+    }
+
+    #[inline(always)]
+    fn baseline(&mut self, k: u32) {
+        self.next_inputs(k);
+        black_box(&mut self.measured);
+        let r = black_box(self.refs[0]);
+        self.refs[k as usize % (LAG + 1)] = r;
+        black_box(&mut self.out);
+    }
+
+    /// The path is still running and every call had an estimate.
+    fn healthy(&self) -> bool {
+        let (r, e) = &self.out;
+        r.advanced && !r.finished && e.is_some()
     }
 }

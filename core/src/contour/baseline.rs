@@ -12,7 +12,7 @@
 
 use super::estimate::{finish, u_at_foot, ContourEstimate};
 use super::fx::{clamp_to_i32, mul_shr_i32};
-use super::geom::rel;
+use super::geom::{rel, rel_sat};
 use super::window::{ContourWindow, OrdinaryPoint};
 use super::{PosFine, RelUm, UnitQ30, Xy};
 use crate::units::PosUm;
@@ -26,7 +26,7 @@ fn fine(p: Xy<PosUm>) -> Xy<i64> {
 
 /// Tangent-line estimate at a reference point: ε = (P − R)·n_R, n_R = (t_y, −t_x).
 pub fn tangent_error(reference: &OrdinaryPoint, p: Xy<PosUm>) -> RelUm {
-    let (w, _) = rel(fine(p), reference.pos.map(PosFine::to_bits));
+    let w = rel_sat(fine(p), reference.pos.map(PosFine::to_bits));
     let t = reference.tangent.map(UnitQ30::to_bits);
     // perp = t × w (> 0: P left); ε = −perp.
     let perp = mul_shr_i32(t.x, w.y, 30).saturating_sub(mul_shr_i32(t.y, w.x, 30));

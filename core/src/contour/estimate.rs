@@ -2,8 +2,9 @@
 //!
 //! Given the actual point P and a [`ContourWindow`]:
 //!
-//! 1. **Nearest ordinary point** S_m: a linear scan of the window, |P − S_k|² (N
-//!    evaluations).
+//! 1. **Nearest ordinary point** S_m by |P − S_k|²: a walk downhill from the last call's
+//!    nearest point (3 evaluations in steady state), with a full scan of the window (N
+//!    evaluations) as the fallback ([`super::nearest`]).
 //! 2. **Segment choice** between (S_{m−1}, S_m) and (S_m, S_{m+1}): the one on P's side
 //!    of the path normal at S_m, i.e. outgoing when (P − S_m)·t_m ≥ 0 with t_m the unit
 //!    tangent stored with S_m. The seed compares P's distances to the two segments;
@@ -27,16 +28,19 @@
 //!    path**. This is SPEC §D's convention, ε ≈ −C1·E1 + C2·E2 with E = V − P, so the
 //!    cross-coupled controller can use it as is.
 //!
-//! **Worst case per call** (`N` ordinary points, `H` extra points per segment): N squared
-//! distances (2 subtractions, 2 `i32×i32→i64` products each), one dot product for the
+//! **Worst case per call** (`N` ordinary points, `H` extra points per segment): a walk
+//! that ends at the window's end plus the full scan, at most 2N squared distances (2
+//! subtractions, 2 `i32×i32→i64` products each), one dot product for the
 //! segment choice, ⌈log₂(H + 1)⌉ bisection steps (6 subtractions and 2 products each),
 //! one point-to-chord distance (one inverse square root by 3 Newton steps, at most one
 //! more for a foot clamped to a chord end, about a dozen products) and one 32-bit
-//! division for [`ContourEstimate::u_foot`]. No 64-bit division, no library call. No allocation, no float, no panic; the window is only read.
+//! division for [`ContourEstimate::u_foot`]. No 64-bit division, no library call. No
+//! allocation, no float, no panic; the window is only read (apart from the warm-start hint,
+//! a `Cell` inside it).
 
-use super::fx::{clamp_to_i32, mul_shr_i64};
+use super::fx::clamp_to_i32;
 use super::geom::{dot, rel, seg_dist, sub, SegDist};
-use super::window::{ContourWindow, OrdinaryPoint};
+use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
 use crate::units::PosUm;
 
@@ -167,47 +171,6 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         Some(seg_dist(w, d, self.tangent_raw(a)))
     }
 
-    /// Steps 1–2: the nearest ordinary point and the segment holding the foot point,
-    /// as the index a of its first point (the segment is (S_a, S_{a+1})), and whether P
-    /// is saturated-far. `None` for an empty window; for a single point, a = 0.
-    pub(crate) fn choose_segment(&self, p: Xy<i64>) -> Option<(usize, bool)> {
-        let n = self.len();
-        let m = self.nearest_point(p)?;
-        let sm = self.pos_raw(m)?;
-        let (wm, saturated) = rel(p, sm);
-        if n == 1 {
-            return Some((0, saturated));
-        }
-        // Which side of the normal at S_m is P on? (P − S_m)·t_m ≥ 0: the foot lies
-        // after S_m (outgoing segment), else before it (incoming).
-        let t = self.tangent_raw(m);
-        let forward = if t == Xy::new(0, 0) {
-            None
-        } else {
-            Some(dot(wm, t) >= 0)
-        };
-        let incoming = m.checked_sub(1);
-        let outgoing = if m.wrapping_add(1) < n { Some(m) } else { None };
-        let a = match (incoming, outgoing, forward) {
-            (Some(_), Some(o), Some(true)) => o,
-            (Some(i), Some(_), Some(false)) => i,
-            (Some(i), Some(o), None) => {
-                // No tangent stored: the nearer segment by distance (seed's literal rule).
-                let di = self.segment_distance(p, i)?.dist;
-                let d_o = self.segment_distance(p, o)?.dist;
-                if d_o < di {
-                    o
-                } else {
-                    i
-                }
-            }
-            (Some(i), None, _) => i,
-            (None, Some(o), _) => o,
-            (None, None, _) => return None,
-        };
-        Some((a, saturated))
-    }
-
     /// The adaptive estimate of the contour error of the actual point `p` (µm, the
     /// axes' position format). `None` only for an empty window. See the module docs for
     /// the method and its worst-case cost.
@@ -219,29 +182,64 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
     }
 
     /// [`Self::estimate`] for a point given in the fine format.
+    /// P is saturated to ±268 m like the window's points.
     pub fn estimate_fine(&self, p: Xy<PosFine>) -> Option<ContourEstimate> {
-        let p = p.map(PosFine::to_bits);
-        let (a, saturated) = self.choose_segment(p)?;
-        let sa = self.pos_raw(a)?;
-        let (w, _) = rel(p, sa);
-        if self.len() == 1 {
-            let seg = seg_dist(w, Xy::new(0, 0), self.tangent_raw(0));
-            let u = self.u_raw(0);
-            return Some(finish(sa, seg, 0, 0, u, 0, saturated));
+        let p = clamp_pos(p.map(PosFine::to_bits));
+        let n = self.len();
+        // Step 1: the nearest ordinary point S_m (warm-started walk or full scan).
+        let m = self.nearest_point(p)?;
+        let slot_m = self.slot(m)?;
+        let sm = slot_m.pos_raw();
+        let (wm, saturated) = rel(p, sm);
+        if n == 1 {
+            let seg = seg_dist(wm, Xy::new(0, 0), slot_m.tangent_raw());
+            return Some(finish(sm, seg, 0, 0, slot_m.u_raw(), 0, saturated));
         }
+        // Step 2: the segment (S_a, S_b) on P's side of the normal at S_m:
+        // (P − S_m)·t_m ≥ 0 → the foot lies after S_m (outgoing), else before it.
+        let t = slot_m.tangent_raw();
+        let incoming = m.checked_sub(1);
+        let outgoing = if m.wrapping_add(1) < n { Some(m) } else { None };
+        let a = match (incoming, outgoing) {
+            (Some(i), Some(o)) => {
+                if t != Xy::new(0, 0) {
+                    if dot(wm, t) >= 0 {
+                        o
+                    } else {
+                        i
+                    }
+                } else {
+                    // No tangent stored: the nearer segment by distance (seed's rule).
+                    let di = self.segment_distance(p, i)?.dist;
+                    let d_o = self.segment_distance(p, o)?.dist;
+                    if d_o < di {
+                        o
+                    } else {
+                        i
+                    }
+                }
+            }
+            (Some(i), None) => i,
+            (None, Some(o)) => o,
+            (None, None) => return None,
+        };
         let b = a.wrapping_add(1);
-        let sb = self.pos_raw(b)?;
-        let (d, _) = rel(sb, sa);
-        let extras = self.extras_raw(b);
+        let (slot_a, slot_b) = (self.slot(a)?, self.slot(b)?);
+        let sa = slot_a.pos_raw();
+        let w = if a == m { wm } else { rel(p, sa).0 };
+        let (d, _) = rel(slot_b.pos_raw(), sa);
+        // b ≥ 1: its extra points are those of the segment (S_a, S_b).
+        let extras = slot_b.extras();
+        // Step 3: bisection; step 4: the final chord.
         let (lo, hi, steps) = bisect(w, d, extras);
         let el = seq_point(extras, d, lo);
         let eh = seq_point(extras, d, hi);
-        let seg = seg_dist(sub(w, el), sub(eh, el), self.tangent_raw(b));
+        let seg = seg_dist(sub(w, el), sub(eh, el), slot_b.tangent_raw());
         let base = Xy::new(
             sa.x.saturating_add(i64::from(el.x)),
             sa.y.saturating_add(i64::from(el.y)),
         );
-        let u = u_at_foot(self.u_raw(a), self.u_raw(b), lo, extras.len(), &seg);
+        let u = u_at_foot(slot_a.u_raw(), slot_b.u_raw(), lo, extras.len(), &seg);
         Some(finish(base, seg, b, lo, u, steps, saturated))
     }
 
@@ -263,7 +261,13 @@ pub(crate) fn u_at_foot(u_a: i64, u_b: i64, lo: usize, h: usize, seg: &SegDist) 
         .checked_div(n)
         .unwrap_or(0)
         .min(1 << 16);
-    u_a.saturating_add(mul_shr_i64(u_b.saturating_sub(u_a), i64::from(frac), 16))
+    // (Δu·frac + 2^15) >> 16 without an i128: Δu = Δu_h·2^16 + Δu_l, exact
+    // (|Δu| ≤ 2^62 after the clamp: Δu_h·frac ≤ 2^62, Δu_l·frac < 2^33).
+    let du = u_b.saturating_sub(u_a).clamp(-(1 << 62), 1 << 62);
+    let f = i64::from(frac);
+    let hi = (du >> 16).wrapping_mul(f);
+    let lo = (du & 0xFFFF).wrapping_mul(f).wrapping_add(1 << 15) >> 16;
+    u_a.saturating_add(hi.wrapping_add(lo))
 }
 
 /// Packs a segment distance (foot relative to `base`) into an estimate.
@@ -294,6 +298,43 @@ pub(crate) fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn u_at_foot_split_product_is_exact() {
+        let seg = |t: i64| SegDist {
+            dist: 0,
+            eps: 0,
+            foot: Xy::new(0, 0),
+            unit: Xy::new(0, 0),
+            along: 0,
+            len: 0,
+            t_q30: t,
+        };
+        for (ua, ub) in [
+            (0i64, 200 << 32),
+            (-5 << 40, 7 << 40),
+            (1 << 50, -(1 << 50)),
+            (3, 3),
+        ] {
+            for (lo, h, t) in [
+                (0usize, 0usize, 0i64),
+                (0, 0, 1 << 29),
+                (3, 7, 12345),
+                (63, 63, 1 << 30),
+            ] {
+                let s = seg(t);
+                let n = (h as i64) + 1;
+                let frac = ((((lo as i64) << 16) + ((t.clamp(0, 1 << 30)) >> 14)) / n).min(1 << 16);
+                let exact =
+                    ua + (((i128::from(ub - ua) * i128::from(frac)) + (1 << 15)) >> 16) as i64;
+                assert_eq!(
+                    u_at_foot(ua, ub, lo, h, &s),
+                    exact,
+                    "{ua} {ub} {lo} {h} {t}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn bisection_bound_table() {

@@ -5,15 +5,30 @@
 //! `i64` are formed in an `i128` (exact: |a·b| ≤ 2^126); products of two `i32` in an
 //! `i64` (exact: ≤ 2^62).
 
-pub(crate) use crate::q::sat_i64;
+/// Saturates an `i128` to the `i64` range (same result as `crate::q::sat_i64`, but one
+/// test: does the high half equal the sign extension of the low half? On a Cortex-M4
+/// that is two word compares instead of two 128-bit comparisons).
+#[inline(always)]
+pub(crate) const fn sat_i64(x: i128) -> i64 {
+    let lo = x as i64;
+    if (x >> 64) as i64 == lo >> 63 {
+        lo
+    } else if x < 0 {
+        i64::MIN
+    } else {
+        i64::MAX
+    }
+}
 
-/// `x >> s` rounded to nearest (ties toward +∞), for `1 ≤ s ≤ 126`.
+/// `x >> s` rounded to nearest (ties toward +∞), for `0 ≤ s ≤ 126` and |x| ≤ 2^126
+/// (every caller passes a product of two `i64`: then adding the rounding half cannot
+/// overflow, so it is a plain add, not a saturating one).
 #[inline(always)]
 pub(crate) const fn shr_round_i128(x: i128, s: u32) -> i128 {
     if s == 0 {
         return x;
     }
-    x.saturating_add(1i128.wrapping_shl(s.wrapping_sub(1)))
+    x.wrapping_add(1i128.wrapping_shl(s.wrapping_sub(1)))
         .wrapping_shr(s)
 }
 
@@ -31,6 +46,53 @@ pub(crate) const fn shr_round_i64(x: i64, s: u32) -> i64 {
 #[inline(always)]
 pub(crate) const fn mul_shr_i64(a: i64, b: i64, s: u32) -> i64 {
     sat_i64(shr_round_i128((a as i128).wrapping_mul(b as i128), s))
+}
+
+/// `(a · b) >> 30` rounded to nearest for an `i32` (a unit-vector component, Q30) times
+/// an `i64`, equal to `mul_shr_i64(a, b, 30)` but from two 32-bit products:
+///
+/// ```text
+/// b = b_h·2^32 + b_l  →  (a·b + 2^29) >> 30 = 4·a·b_h + (a·b_l + 2^29) >> 30   (exact)
+/// ```
+///
+/// (`smull` for a·b_h, `umull` + `mla` for a·b_l); falls back to the `i128` form when
+/// 4·a·b_h could leave the `i64` range.
+#[inline(always)]
+pub(crate) const fn mul_shr30_i32_i64(a: i32, b: i64) -> i64 {
+    let hi = (a as i64).wrapping_mul(b >> 32);
+    if hi.unsigned_abs() >= 1 << 60 {
+        return mul_shr_i64(a as i64, b, 30);
+    }
+    let lo = (a as i64).wrapping_mul(b as u32 as i64);
+    // |lo| < 2^63; the rounded shift cannot overflow; |4·hi| < 2^62.
+    (hi << 2).wrapping_add(lo.wrapping_add(1 << 29) >> 30)
+}
+
+/// `(a · b) >> s` rounded to nearest (2 ≤ s ≤ 32 on the fast path), saturated, for an `i64` times a
+/// non-negative `i64` (a reciprocal such as 1/|r′| in Q30): equal to `mul_shr_i64(a, b,
+/// s)`. When b < 2^32 it is formed from two 32-bit products:
+///
+/// ```text
+/// a = a_h·2^32 + a_l  →  (a·b + 2^(s−1)) >> s = a_h·b·2^(32−s) + (a_l·b + 2^(s−1)) >> s
+/// ```
+///
+/// (exact; a_h·b is an `i32×u32` product, a_l·b a `umull`), else — or when the first
+/// term could leave the `i64` range — by the `i128` form.
+#[inline(always)]
+pub(crate) const fn mul_shr_i64_by_u32(a: i64, b: i64, s: u32) -> i64 {
+    if b < 0 || b > u32::MAX as i64 || s < 2 || s > 32 {
+        return mul_shr_i64(a, b, s);
+    }
+    let hi = (a >> 32).wrapping_mul(b);
+    // |hi·2^(32−s)| < 2^62 and the second term < 2^62 (s ≥ 2): the sum fits an i64.
+    if hi.unsigned_abs() >= 1u64.wrapping_shl(s.wrapping_add(30)) {
+        return mul_shr_i64(a, b, s);
+    }
+    let lo = ((a as u32 as u64)
+        .wrapping_mul(b as u64)
+        .wrapping_add(1u64.wrapping_shl(s.wrapping_sub(1)))
+        .wrapping_shr(s)) as i64;
+    hi.wrapping_shl(32u32.wrapping_sub(s)).wrapping_add(lo)
 }
 
 /// `(a · b) >> s` rounded to nearest for `i32` operands (exact `i64` product).
@@ -79,29 +141,27 @@ const RSQRT_SEED: [u32; 32] = [
 /// y = 1/√x for x ∈ [0.25, 2) in Q2.30 (`x` raw in [2^28, 2^31)), Q2.30 result:
 ///
 /// ```text
-/// y0 = table[⌊16x⌋],   y ← y·(3 − x·y²)/2   (three times)
+/// y0 = table[⌊16x⌋],   y ← y·(3 − (x·y)·y)/2   (three times)
 /// ```
 ///
 /// Newton's iteration for the inverse square root squares the relative error (×1.5):
-/// 5.8 % → 0.5 % → 4·10⁻⁵ → 2·10⁻⁹, plus the Q30 rounding: below 4·10⁻⁹. Only
-/// `u32×u32→u64` products (`umull`), no division.
+/// 5.8 % → 0.5 % → 4·10⁻⁵ → 2·10⁻⁹, plus the Q30 truncations: below 4·10⁻⁹. All in
+/// `u32` with `u32×u32→u64` products (one `umull` each: x·y < 2^62 and its Q30 result
+/// x·y ≈ √x < 2^31; (x·y)·y ≈ 1 is saturated to `u32`; 3 − x·y² < 2^32; y·t < 2^63
+/// and y·t/2 < 2^32), no division.
 #[inline]
 pub(crate) fn rsqrt_q30(x: u32) -> u32 {
-    let mut y = u64::from(
-        RSQRT_SEED
-            .get((x >> 26) as usize)
-            .copied()
-            .unwrap_or(1 << 30),
-    );
-    let x = u64::from(x);
+    let mut y = RSQRT_SEED
+        .get((x >> 26) as usize)
+        .copied()
+        .unwrap_or(1 << 30);
     for _ in 0..3 {
-        // y ≤ 2^31: y² ≤ 2^62; y² (Q30) ≤ 2^32; x·y² < 2^63; y·t < 2^63.
-        let y2 = y.wrapping_mul(y) >> 30;
-        let xy2 = x.wrapping_mul(y2) >> 30;
-        let t = (3u64 << 30).saturating_sub(xy2);
-        y = y.wrapping_mul(t) >> 31;
+        let xy = (u64::from(x).wrapping_mul(u64::from(y)) >> 30) as u32;
+        let xy2 = (u64::from(xy).wrapping_mul(u64::from(y)) >> 30).min(u64::from(u32::MAX)) as u32;
+        let t = (3u32 << 30).saturating_sub(xy2);
+        y = (u64::from(y).wrapping_mul(u64::from(t)) >> 31).min(u64::from(u32::MAX)) as u32;
     }
-    y.min(u64::from(u32::MAX)) as u32
+    y
 }
 
 /// √v, rounded, for any `u64` (relative error < 4·10⁻⁹, so exact to 1 LSB below
@@ -148,6 +208,20 @@ pub(crate) const fn clamp_to_i32(x: i64, lim: i32) -> i32 {
     }
 }
 
+/// Saturates an `i64` to ±2^30 (the estimator's relative-vector limit, `REL_LIMIT`)
+/// and returns it as `i32`; equal to `clamp_to_i32(x, 1 << 30)` with one range test
+/// (x + 2^30 < 2^31 unsigned) on the common in-range path.
+#[inline(always)]
+pub(crate) const fn clamp_rel(x: i64) -> i32 {
+    if (x.wrapping_add(1 << 30) as u64) < (1u64 << 31) {
+        x as i32
+    } else if x < 0 {
+        -(1 << 30)
+    } else {
+        1 << 30
+    }
+}
+
 /// A unit vector in Q2.30 (`I2F30`: 2^30 = 1.0, resolution 9.3·10⁻¹⁰), the length of
 /// the vector it was made from in the input's own format, and its reciprocal.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -170,7 +244,10 @@ impl UnitLen {
     pub fn recip(&self, frac: u32) -> i64 {
         let e = self.exp.saturating_add(frac as i32);
         let y = i64::from(self.rsq);
-        if e >= 0 {
+        if (0..=31).contains(&e) {
+            // y < 2^32: the shifted value fits an i64 (the usual case, no i128 shift).
+            y.wrapping_shl(e as u32)
+        } else if e >= 0 {
             sat_i64((y as i128).wrapping_shl(e.min(100) as u32))
         } else {
             shr_round_i64(y, e.unsigned_abs().min(63))
@@ -203,17 +280,21 @@ pub(crate) fn normalize(dx: i64, dy: i64) -> Option<UnitLen> {
         let r = s.unsigned_abs();
         (dx.wrapping_shr(r), dy.wrapping_shr(r))
     };
-    // |n| < 2^30 ⇒ n² < 2^60, sum < 2^61; and ≥ 2^58 since max|n| ≥ 2^29.
-    let l2 = (nx.wrapping_mul(nx) as u64).wrapping_add(ny.wrapping_mul(ny) as u64);
+    // |n| < 2^30: i32 components, so every product below is one `smull`/`smlal`.
+    let (nx, ny) = (nx as i32, ny as i32);
+    // n² < 2^60, sum < 2^61; and ≥ 2^58 since max|n| ≥ 2^29.
+    let l2 = (i64::from(nx).wrapping_mul(i64::from(nx)) as u64)
+        .wrapping_add(i64::from(ny).wrapping_mul(i64::from(ny)) as u64);
     let y = rsqrt_q30((l2 >> 30) as u32);
     // u = n/|n| = n·y/2^60 in units of 2^-30: (n·y) >> 30 (|n·y| < 2^61).
     let yi = i64::from(y);
-    let ux = clamp_to_i32(shr_round_i64(nx.wrapping_mul(yi), 30), 1 << 30);
-    let uy = clamp_to_i32(shr_round_i64(ny.wrapping_mul(yi), 30), 1 << 30);
+    let ux = clamp_to_i32(shr_round_i64(i64::from(nx).wrapping_mul(yi), 30), 1 << 30);
+    let uy = clamp_to_i32(shr_round_i64(i64::from(ny).wrapping_mul(yi), 30), 1 << 30);
     // |n| = n·u (Q30 → shift 30), then undo the scaling by 2^s.
     let ln = shr_round_i64(
-        nx.wrapping_mul(i64::from(ux))
-            .saturating_add(ny.wrapping_mul(i64::from(uy))),
+        i64::from(nx)
+            .wrapping_mul(i64::from(ux))
+            .saturating_add(i64::from(ny).wrapping_mul(i64::from(uy))),
         30,
     );
     let len = if s >= 0 {
@@ -236,6 +317,27 @@ mod tests {
     use proptest::prelude::*;
 
     #[test]
+    fn sat_i64_matches_the_q_helper() {
+        for x in [
+            0i128,
+            1,
+            -1,
+            i128::from(i64::MAX),
+            i128::from(i64::MAX) + 1,
+            i128::from(i64::MIN),
+            i128::from(i64::MIN) - 1,
+            i128::MAX,
+            i128::MIN,
+            1 << 100,
+            -(1 << 100),
+            (1 << 64) + 5,
+            -(1 << 64) + 5,
+        ] {
+            assert_eq!(sat_i64(x), crate::q::sat_i64(x), "{x}");
+        }
+    }
+
+    #[test]
     fn rounding_helpers() {
         assert_eq!(shr_round_i64(5, 1), 3);
         assert_eq!(shr_round_i64(-5, 1), -2);
@@ -250,6 +352,22 @@ mod tests {
         assert!(sqrt_u64(u64::MAX).abs_diff(1 << 32) <= 8);
         assert_eq!(clamp_to_i32(1 << 40, 100), 100);
         assert_eq!(clamp_to_i32(-(1 << 40), 100), -100);
+        for x in [
+            0i64,
+            5,
+            -5,
+            (1 << 30) - 1,
+            1 << 30,
+            (1 << 30) + 1,
+            -(1 << 30),
+            -(1 << 30) - 1,
+            i64::MAX,
+            i64::MIN,
+            1 << 40,
+            -(1 << 40),
+        ] {
+            assert_eq!(clamp_rel(x), clamp_to_i32(x, 1 << 30), "{x}");
+        }
         assert_eq!(normalize(0, 0), None);
         let u = normalize(3 << 20, 4 << 20).unwrap();
         assert_eq!(u.len, 5 << 20);
@@ -270,6 +388,31 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn mul_shr30_matches_the_i128_form(a: i32, b: i64) {
+            prop_assert_eq!(mul_shr30_i32_i64(a, b), mul_shr_i64(i64::from(a), b, 30));
+        }
+
+        #[test]
+        fn mul_shr30_matches_on_unit_components(a in -(1i32 << 30)..=(1 << 30), b in -(1i64 << 45)..(1i64 << 45)) {
+            prop_assert_eq!(mul_shr30_i32_i64(a, b), mul_shr_i64(i64::from(a), b, 30));
+        }
+
+        #[test]
+        fn mul_by_u32_matches_the_i128_form(a: i64, b in -(1i64 << 33)..(1i64 << 33), s in 0u32..40) {
+            prop_assert_eq!(mul_shr_i64_by_u32(a, b, s), mul_shr_i64(a, b, s));
+        }
+
+        #[test]
+        fn mul_by_u32_matches_on_small_operands(a in -(1i64 << 50)..(1i64 << 50), b in 0i64..(1i64 << 32), s in 29u32..33) {
+            prop_assert_eq!(mul_shr_i64_by_u32(a, b, s), mul_shr_i64(a, b, s));
+        }
+
+        #[test]
+        fn mul_by_u32_matches_at_the_extremes(a in prop_oneof![Just(i64::MAX), Just(i64::MIN), any::<i64>()], b in prop_oneof![Just(u32::MAX as i64), Just(0i64), 0i64..(1i64 << 32)], s in 0u32..34) {
+            prop_assert_eq!(mul_shr_i64_by_u32(a, b, s), mul_shr_i64(a, b, s));
+        }
+
         #[test]
         fn sqrt_matches_f64(v: u64) {
             let r = sqrt_u64(v) as f64;

@@ -4,31 +4,37 @@
 //! Inputs are saturated to ±2^30 LSB (±262 mm, [`super::window`]), so every product of
 //! two components fits an `i64` exactly and sums of two products saturate harmlessly.
 
-use super::fx::{clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, sqrt_u64};
-use super::window::REL_LIMIT;
+use super::fx::{clamp_rel, clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, sqrt_u64};
 use super::Xy;
 
-/// `a − b`, saturated to ±[`REL_LIMIT`].
+/// `a − b`, saturated to ±`REL_LIMIT` (2^30 LSB).
 #[inline]
 pub(crate) fn sub(a: Xy<i32>, b: Xy<i32>) -> Xy<i32> {
     Xy::new(
-        clamp_to_i32(i64::from(a.x).wrapping_sub(i64::from(b.x)), REL_LIMIT),
-        clamp_to_i32(i64::from(a.y).wrapping_sub(i64::from(b.y)), REL_LIMIT),
+        clamp_rel(i64::from(a.x).wrapping_sub(i64::from(b.x))),
+        clamp_rel(i64::from(a.y).wrapping_sub(i64::from(b.y))),
     )
 }
 
 /// `a − b` of two absolute Q52.12 positions as a relative vector, saturated; the flag
-/// says whether it saturated.
+/// says whether it saturated. For positions of the window or an estimated point (both
+/// saturated to ±`POS_LIMIT` = 2^40 LSB, so the `i64` difference is exact).
 #[inline]
 pub(crate) fn rel(a: Xy<i64>, b: Xy<i64>) -> (Xy<i32>, bool) {
-    let dx = a.x.saturating_sub(b.x);
-    let dy = a.y.saturating_sub(b.y);
-    let lim = i64::from(REL_LIMIT);
-    let sat =
-        !(lim.wrapping_neg()..=lim).contains(&dx) || !(lim.wrapping_neg()..=lim).contains(&dy);
-    (
-        Xy::new(clamp_to_i32(dx, REL_LIMIT), clamp_to_i32(dy, REL_LIMIT)),
-        sat,
+    let dx = a.x.wrapping_sub(b.x);
+    let dy = a.y.wrapping_sub(b.y);
+    let (cx, cy) = (clamp_rel(dx), clamp_rel(dy));
+    // Saturated ⇔ a component fell outside ±REL_LIMIT (the clamp changed it).
+    let sat = i64::from(cx) != dx || i64::from(cy) != dy;
+    (Xy::new(cx, cy), sat)
+}
+
+/// [`rel`] for any positions (a path's own points): the difference saturates first.
+#[inline]
+pub(crate) fn rel_sat(a: Xy<i64>, b: Xy<i64>) -> Xy<i32> {
+    Xy::new(
+        clamp_rel(a.x.saturating_sub(b.x)),
+        clamp_rel(a.y.saturating_sub(b.y)),
     )
 }
 
@@ -97,8 +103,8 @@ pub(crate) fn seg_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>) -> SegDist {
         (
             perp.saturating_abs(),
             Xy::new(
-                clamp_to_i32(mul_shr_i32(unit.x, along32, 30), REL_LIMIT),
-                clamp_to_i32(mul_shr_i32(unit.y, along32, 30), REL_LIMIT),
+                clamp_rel(mul_shr_i32(unit.x, along32, 30)),
+                clamp_rel(mul_shr_i32(unit.y, along32, 30)),
             ),
         )
     };
@@ -131,6 +137,7 @@ pub(crate) fn seg_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>) -> SegDist {
 
 #[cfg(test)]
 mod tests {
+    use super::super::window::REL_LIMIT;
     use super::*;
 
     const UM: i32 = 4096;

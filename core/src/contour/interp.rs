@@ -39,15 +39,16 @@
 //! [`super::Param`]. No float and no allocation per period; the window is written in
 //! place.
 //!
-//! Work per period: one full path evaluation, one normalisation of r′, one curvature, one
+//! Work per period: one full path evaluation, one normalisation of r′ (of the new point,
+//! kept for the next period's step), one curvature, one
 //! 64-bit division, and per extra point one position evaluation
 //! ([`ParametricPath::position`]) and two `i64×i64→i128` products; h ≤ min(h_max, H).
 //! Measured on a Cortex-M4 (`docs/contour.md`): about 600 instructions per extra point on
 //! a circle (sin/cos), so h_max is also the CPU-budget knob.
 //! A tick that does not advance (feed 0, path finished) leaves the window unchanged.
 
-use super::fx::{mul_shr_i64, sat_i64};
-use super::geom::rel;
+use super::fx::{mul_shr30_i32_i64, mul_shr_i64, mul_shr_i64_by_u32, sat_i64};
+use super::geom::rel_sat;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
 use super::window::{ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, UnitQ30, Xy};
@@ -124,23 +125,39 @@ impl InterpConfig {
 
 impl InterpCoeffs {
     /// Advance per period ΔS = v·Ts for a feed, Q32.32 µm raw (capped).
+    ///
+    /// v (Q8, 0 … 2^31) · Ts (Q40, ≤ 2^40) → Q48 → Q32, rounded, without an `i128`:
+    /// Ts = T_h·2^32 + T_l, v·Ts/2^16 = v·T_h·2^16 + (v·T_l + 2^15)/2^16 exactly
+    /// (v·T_h < 2^39, v·T_l < 2^63).
     pub(crate) fn step_q32(&self, feed: VelUmPerS) -> i64 {
-        let v = i64::from(feed.to_bits().max(0));
-        // Q8 · Q40 → Q48 → Q32.
-        mul_shr_i64(v, self.ts_q40, 16).min(MAX_STEP_Q32)
+        let v = feed.to_bits().max(0) as u32;
+        let (th, tl) = ((self.ts_q40 >> 32) as u32, self.ts_q40 as u32);
+        let hi = u64::from(v).wrapping_mul(u64::from(th)) << 16;
+        let lo = u64::from(v)
+            .wrapping_mul(u64::from(tl))
+            .wrapping_add(1 << 15)
+            >> 16;
+        (hi.wrapping_add(lo) as i64).min(MAX_STEP_Q32)
     }
 
-    /// Q·v, µm in Q8 raw.
+    /// Q·v, µm in Q8 raw: Q (Q16, ≤ 1000·2^16 < 2^26) · v (Q8, < 2^31) < 2^57, one
+    /// `u32×u32→u64` product, rounded.
     fn qv_q8(&self, feed: VelUmPerS) -> i64 {
-        mul_shr_i64(self.q_q16, i64::from(feed.to_bits().max(0)), 16)
+        let v = u64::from(feed.to_bits().max(0) as u32);
+        let q = u64::from(self.q_q16.clamp(0, i64::from(u32::MAX)) as u32);
+        (q.wrapping_mul(v).wrapping_add(1 << 15) >> 16) as i64
     }
 
     /// h = min(⌊Q·κ·v⌋, h_max, cap) for a curvature in 1/µm (Q32 raw).
     pub(crate) fn extra_count(&self, kappa_q32: i64, feed: VelUmPerS, cap: usize) -> usize {
-        // κ (Q32) · Qv (Q8) → Q40 → integer, floored.
-        let h = sat_i64(
-            (kappa_q32.saturating_abs() as i128).wrapping_mul(self.qv_q8(feed) as i128) >> 40,
-        );
+        // κ (Q32) · Qv (Q8) → Q40 → integer, floored. Both below 2^32 (a radius above
+        // 1 µm, Q·v below 16.7 m): one `umull`; otherwise the exact `i128` product.
+        let (k, qv) = (kappa_q32.saturating_abs(), self.qv_q8(feed));
+        let h = if k <= i64::from(u32::MAX) && (0..=i64::from(u32::MAX)).contains(&qv) {
+            ((k as u64).wrapping_mul(qv as u64) >> 40) as i64
+        } else {
+            sat_i64((k as i128).wrapping_mul(qv as i128) >> 40)
+        };
         let cap = cap.min(usize::from(self.h_max)) as i64;
         h.clamp(0, cap) as usize
     }
@@ -163,21 +180,18 @@ pub(crate) struct Taylor {
 impl Taylor {
     /// The expansion at a point (one normalisation of r′, three products).
     pub(crate) fn at(p: &PathPoint, f: &DerivFrame) -> Self {
-        let tdot = mul_shr_i64(i64::from(f.ux), p.d2.x.to_bits(), 30).saturating_add(mul_shr_i64(
-            i64::from(f.uy),
-            p.d2.y.to_bits(),
-            30,
-        ));
+        let tdot = mul_shr30_i32_i64(f.ux, p.d2.x.to_bits())
+            .saturating_add(mul_shr30_i32_i64(f.uy, p.d2.y.to_bits()));
         Taylor {
             inv_q30: f.inv_q30,
             // (û·r″)(Q32)·(1/|r′|)(Q30)/2 → Q32.
-            c_q32: mul_shr_i64(tdot, f.inv_q30, 31),
+            c_q32: mul_shr_i64_by_u32(tdot, f.inv_q30, 31),
         }
     }
 
     /// a = s/|r′| for an arc length `s` (Q32 µm), Q32 units of u.
     pub(crate) fn first(&self, s: i64) -> i64 {
-        mul_shr_i64(s, self.inv_q30, 30)
+        mul_shr_i64_by_u32(s, self.inv_q30, 30)
     }
 
     /// Δu = a − a²·c for a first-order step `a` (Q32). Where the second-order term would
@@ -225,12 +239,11 @@ impl Reference {
 pub struct Interpolator {
     u: i64,
     cur: PathPoint,
+    /// û, |r′|, 1/|r′| at `cur` (computed once when the point is reached: the next
+    /// period's Taylor step reuses it); `None` where r′ = 0.
+    frame: Option<DerivFrame>,
     tangent: Xy<i32>,
     finished: bool,
-}
-
-fn tangent_of(p: &PathPoint) -> Option<Xy<i32>> {
-    deriv_frame(p).map(|f| Xy::new(f.ux, f.uy))
 }
 
 impl Interpolator {
@@ -241,10 +254,12 @@ impl Interpolator {
     ) -> Self {
         let u = path.u_start();
         let cur = path.eval(u);
-        let tangent = tangent_of(&cur).unwrap_or(Xy::new(0, 0));
+        let frame = deriv_frame(&cur);
+        let tangent = frame.map_or(Xy::new(0, 0), |f| Xy::new(f.ux, f.uy));
         let s = Self {
             u: u.to_bits(),
             cur,
+            frame,
             tangent,
             finished: u >= path.u_end(),
         };
@@ -294,32 +309,36 @@ impl Interpolator {
             return self.hold();
         }
         let ds = coeffs.step_q32(feed);
-        let Some(frame) = deriv_frame(&self.cur) else {
+        let Some(frame) = self.frame else {
             // r′ = 0 violates the path contract: stop rather than guess a direction.
             self.finished = true;
             return self.hold();
         };
         let taylor = Taylor::at(&self.cur, &frame);
         let u_end = path.u_end().to_bits();
-        let u1 = self
-            .u
-            .saturating_add(taylor.du(taylor.first(ds)))
-            .min(u_end);
+        // First-order step a = ΔS/|r′| (units of u).
+        let a = taylor.first(ds);
+        let u1 = self.u.saturating_add(taylor.du(a)).min(u_end);
         if ds <= 0 || u1 <= self.u {
             return self.hold();
         }
         let kappa = curvature_q32_per_um(&self.cur, &frame);
         let h = coeffs.extra_count(kappa, feed, H);
-        // First-order step of one sub-interval, a_e = (ΔS/(h + 1))/|r′|.
-        let a_e = taylor
-            .first(ds)
-            .checked_div(h.wrapping_add(1) as i64)
-            .unwrap_or(0);
+        // First-order step of one sub-interval, a_e = (ΔS/(h + 1))/|r′| (the 64-bit
+        // division only when there are extra points to place).
+        let a_e = if h == 0 {
+            0
+        } else {
+            a.checked_div(h.wrapping_add(1) as i64).unwrap_or(0)
+        };
         let next = path.eval(Param::from_bits(u1));
         let (u0, start_pos) = (self.u, self.cur.pos.map(PosFine::to_bits));
         self.u = u1;
         self.cur = next;
-        self.tangent = tangent_of(&next).unwrap_or(self.tangent);
+        self.frame = deriv_frame(&next);
+        if let Some(f) = self.frame {
+            self.tangent = Xy::new(f.ux, f.uy);
+        }
         self.finished = u1 >= u_end;
         let point = self.ordinary();
         let n = window.push_with(point, |buf| {
@@ -333,7 +352,7 @@ impl Interpolator {
                     break;
                 }
                 let pos = path.position(Param::from_bits(ue));
-                *slot = rel(pos.map(PosFine::to_bits), start_pos).0;
+                *slot = rel_sat(pos.map(PosFine::to_bits), start_pos);
                 n = n.wrapping_add(1);
             }
             n
@@ -380,6 +399,24 @@ mod tests {
         // 200 mm/s · 1 ms = 200 µm.
         let ds = c.build().unwrap().step_q32(VelUmPerS::from_num(200_000));
         assert!((ds as f64 / 4_294_967_296.0 - 200.0).abs() < 1e-6);
+        // The split products equal the exact i128 forms over the whole feed range.
+        for (period_us, q_s) in [(10, 0.0), (1000, 1.0), (250, 0.25), (1_000_000, 1000.0)] {
+            let k = InterpConfig {
+                period_us,
+                q_s,
+                h_max: 63,
+            }
+            .build()
+            .unwrap();
+            for v in [0, 1, 255, 256_000, 51_200_000, 1 << 30, i32::MAX, -5] {
+                let f = VelUmPerS::from_bits(v);
+                let vb = i128::from(v.max(0));
+                let exact = ((vb * i128::from(k.ts_q40) + (1 << 15)) >> 16) as i64;
+                assert_eq!(k.step_q32(f), exact.min(MAX_STEP_Q32), "{period_us} {v}");
+                let qv = ((vb * i128::from(k.q_q16) + (1 << 15)) >> 16) as i64;
+                assert_eq!(k.qv_q8(f), qv, "{q_s} {v}");
+            }
+        }
     }
 
     #[test]

@@ -17,7 +17,7 @@
 
 use super::fx::{mul_shr_i64, sat_i64, shr_round_i128, shr_round_i64};
 use super::path::{fine_bits, in_range, ParametricPath, PathError, PathPoint};
-use super::trig::{sin_cos_q62, turns_from_deg};
+use super::trig::{sin_cos_q62, turns_from_deg, ONE_Q62};
 use super::{Deriv, Param, PosFine, Xy};
 
 /// Specification of a parabolic segment, engineering units.
@@ -43,6 +43,9 @@ pub struct Parabola {
     vertex: Xy<i64>,
     /// cos θ, sin θ in Q62.
     rot: Xy<i64>,
+    /// θ a multiple of 90° (sin θ, cos θ ∈ {0, ±1} exactly): the rotation is a swap
+    /// and sign change of the components, no product.
+    quarter: Option<Quarter>,
     /// 1/(2p) in Q48 (per µm).
     inv_2p_q48: i64,
     /// 1/p in Q48 (per µm).
@@ -50,6 +53,20 @@ pub struct Parabola {
     /// Parameter range, Q32.32 µm raw.
     u0: i64,
     u1: i64,
+}
+
+/// An axis direction along ±x or ±y.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+enum Quarter {
+    /// θ = 0°: (x, y).
+    PlusX,
+    /// θ = 90°: (−y, x).
+    PlusY,
+    /// θ = 180°: (−x, −y).
+    MinusX,
+    /// θ = 270°: (y, −x).
+    MinusY,
 }
 
 /// Largest |u| the evaluation accepts, Q32 raw (2^23 µm).
@@ -98,6 +115,13 @@ impl ParabolaSpec {
         Ok(Parabola {
             vertex: Xy::new(fine_bits(vx), fine_bits(vy)),
             rot: Xy::new(c, s),
+            quarter: match (c, s) {
+                (ONE_Q62, 0) => Some(Quarter::PlusX),
+                (0, ONE_Q62) => Some(Quarter::PlusY),
+                (c, 0) if c == ONE_Q62.wrapping_neg() => Some(Quarter::MinusX),
+                (0, s) if s == ONE_Q62.wrapping_neg() => Some(Quarter::MinusY),
+                _ => None,
+            },
             inv_2p_q48: (q48 / (2.0 * p)) as i64,
             inv_p_q48: (q48 / p) as i64,
             u0: Param::saturating_from_num(x0).to_bits(),
@@ -107,8 +131,16 @@ impl ParabolaSpec {
 }
 
 impl Parabola {
-    /// Rotates a local vector (Q-format kept) by θ: (c·x − s·y, s·x + c·y).
+    /// Rotates a local vector (Q-format kept) by θ: (c·x − s·y, s·x + c·y). For an axis
+    /// along ±x or ±y the same result without products (exactly: c, s ∈ {0, ±2^62}).
     fn rotate(&self, x: i64, y: i64) -> (i64, i64) {
+        match self.quarter {
+            Some(Quarter::PlusX) => return (x, y),
+            Some(Quarter::PlusY) => return (y.saturating_neg(), x),
+            Some(Quarter::MinusX) => return (x.saturating_neg(), y.saturating_neg()),
+            Some(Quarter::MinusY) => return (y, x.saturating_neg()),
+            None => {}
+        }
         let (c, s) = (self.rot.x, self.rot.y);
         (
             mul_shr_i64(c, x, 62).saturating_sub(mul_shr_i64(s, y, 62)),
@@ -194,6 +226,39 @@ mod tests {
                 assert!(
                     (k - k_exact).abs() < 2e-3 + 1e-6 * k_exact.abs(),
                     "κ {k} vs {k_exact}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn quarter_turn_rotation_equals_the_products() {
+        for (th, q) in [
+            (0.0, Some(Quarter::PlusX)),
+            (90.0, Some(Quarter::PlusY)),
+            (180.0, Some(Quarter::MinusX)),
+            (-90.0, Some(Quarter::MinusY)),
+            (450.0, Some(Quarter::PlusY)),
+            (30.0, None),
+        ] {
+            let mut par = ParabolaSpec {
+                vertex_um: [500.0, -700.0],
+                p_um: 10_000.0,
+                axis_deg: th,
+                x_start_um: -20_000.0,
+                x_end_um: 20_000.0,
+            }
+            .build()
+            .unwrap();
+            assert_eq!(par.quarter, q, "θ = {th}");
+            let fast: [PathPoint; 51] =
+                core::array::from_fn(|i| par.eval(Param::from_num(-20_000 + 800 * i as i32)));
+            par.quarter = None;
+            for (i, f) in fast.iter().enumerate() {
+                assert_eq!(
+                    *f,
+                    par.eval(Param::from_num(-20_000 + 800 * i as i32)),
+                    "θ = {th}"
                 );
             }
         }

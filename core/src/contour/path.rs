@@ -19,7 +19,7 @@
 //! (any u, no panic) and exact to a small fraction of a nanometre, since the estimator's
 //! accuracy can be no better than the points it is given.
 
-use super::fx::{mul_shr_i64, normalize, shr_round_i128};
+use super::fx::{mul_shr30_i32_i64, mul_shr_i64_by_u32, normalize, shr_round_i128};
 use super::{Deriv, Param, PosFine, Xy};
 use fixed::types::I32F32;
 
@@ -114,10 +114,9 @@ pub(crate) fn deriv_frame(p: &PathPoint) -> Option<DerivFrame> {
 pub(crate) fn curvature_q32_per_um(p: &PathPoint, f: &DerivFrame) -> i64 {
     let (d2x, d2y) = (p.d2.x.to_bits(), p.d2.y.to_bits());
     // û × r″ = κ·|r′|², Q32.
-    let cross =
-        mul_shr_i64(i64::from(f.ux), d2y, 30).saturating_sub(mul_shr_i64(i64::from(f.uy), d2x, 30));
-    let c1 = mul_shr_i64(cross, f.inv_q30, 30);
-    mul_shr_i64(c1, f.inv_q30, 30)
+    let cross = mul_shr30_i32_i64(f.ux, d2y).saturating_sub(mul_shr30_i32_i64(f.uy, d2x));
+    let c1 = mul_shr_i64_by_u32(cross, f.inv_q30, 30);
+    mul_shr_i64_by_u32(c1, f.inv_q30, 30)
 }
 
 /// A straight line from `start` to `end` (µm), parameterised by arc length u ∈ [0, L] µm.

@@ -6,7 +6,8 @@
 //! estimation, never as motion commands. Pushing into a full window overwrites the
 //! oldest ordinary point (a ring buffer: O(1), no allocation).
 //!
-//! Memory: `N · (40 + 8·H) + 16` bytes (`ContourWindow<16, 63>`: 8.5 KiB).
+//! Memory: `N · (40 + 8·H) + 16` bytes on the Cortex-M4 (+ 24 on a 64-bit host)
+//! (`ContourWindow<16, 63>`: 8.5 KiB).
 //!
 //! Every relative vector the estimator forms (extra points, chords, P − S) is saturated
 //! to ±2^30 LSB = ±262 mm, so a difference of two of them fits an `i32` and a sum of two
@@ -14,11 +15,25 @@
 //! tick's advance at 65.5 mm) and a point further than that from the path is flagged
 //! [`super::ContourEstimate::saturated`].
 
+use core::cell::Cell;
+
 use super::fx::clamp_to_i32;
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
 
 /// Largest |relative coordinate| used by the estimator, raw Q20.12 (262 mm).
 pub(crate) const REL_LIMIT: i32 = 1 << 30;
+
+/// Largest |absolute coordinate| the window stores and the estimator takes, raw Q52.12
+/// (2^28 µm = 268 m, far beyond the ±8.388 m of a validated path): positions are
+/// saturated to it, so the difference of two of them is an exact `i64` (no saturating
+/// subtraction in the estimator's inner loops).
+pub(crate) const POS_LIMIT: i64 = 1 << 40;
+
+/// Saturates an absolute raw position to ±[`POS_LIMIT`].
+#[inline(always)]
+pub(crate) fn clamp_pos(p: Xy<i64>) -> Xy<i64> {
+    p.map(|v| v.clamp(-POS_LIMIT, POS_LIMIT))
+}
 
 /// An ordinary interpolation point (a motion command) as stored in the window.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -33,7 +48,7 @@ pub struct OrdinaryPoint {
 }
 
 #[derive(Clone, Copy, Debug)]
-struct Slot<const H: usize> {
+pub(crate) struct Slot<const H: usize> {
     point: OrdinaryPoint,
     /// Extra points of the segment ending here, relative to the previous ordinary point.
     n_extra: u16,
@@ -41,6 +56,30 @@ struct Slot<const H: usize> {
 }
 
 impl<const H: usize> Slot<H> {
+    /// Raw position (Q52.12).
+    #[inline(always)]
+    pub(crate) fn pos_raw(&self) -> Xy<i64> {
+        self.point.pos.map(PosFine::to_bits)
+    }
+
+    /// Raw unit tangent (Q2.30).
+    #[inline(always)]
+    pub(crate) fn tangent_raw(&self) -> Xy<i32> {
+        self.point.tangent.map(UnitQ30::to_bits)
+    }
+
+    /// Raw path parameter.
+    #[inline(always)]
+    pub(crate) fn u_raw(&self) -> i64 {
+        self.point.u.to_bits()
+    }
+
+    /// The extra points of the segment ending here (relative to the previous point).
+    #[inline(always)]
+    pub(crate) fn extras(&self) -> &[Xy<i32>] {
+        self.extra.get(..usize::from(self.n_extra)).unwrap_or(&[])
+    }
+
     const EMPTY: Self = Slot {
         point: OrdinaryPoint {
             pos: Xy {
@@ -67,7 +106,14 @@ pub struct ContourWindow<const N: usize, const H: usize> {
     /// Physical index of the oldest point.
     head: usize,
     len: usize,
+    /// Warm start of the nearest-point search: the physical slot of the last nearest
+    /// point, [`NO_HINT`] when there is none (cleared, or that point has left the window).
+    /// Interior mutability so that [`ContourWindow::estimate`] can stay `&self`.
+    pub(crate) hint: Cell<u16>,
 }
+
+/// The value of [`ContourWindow::hint`] meaning "no warm start: scan the window".
+pub(crate) const NO_HINT: u16 = u16::MAX;
 
 /// The window size the firmware uses: 16 ordinary points (15 segments, enough for a
 /// servo lagging up to 13 periods), up to 63 extra points per segment (bisection ≤ 6
@@ -87,6 +133,7 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
             slots: [Slot::<H>::EMPTY; N],
             head: 0,
             len: 0,
+            hint: Cell::new(NO_HINT),
         }
     }
 
@@ -114,36 +161,11 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
     pub fn clear(&mut self) {
         self.head = 0;
         self.len = 0;
-    }
-
-    /// Index (0 = oldest) of the ordinary point nearest to `p` (Q52.12 raw) by |p − S|²,
-    /// each component saturated to ±2^30 LSB (±262 mm). One pass over the slots in
-    /// storage order — the valid slots are always the first `len` (the head moves only
-    /// once the ring is full) — with one `i32×i32` square per component. `None` if empty.
-    pub(crate) fn nearest_point(&self, p: Xy<i64>) -> Option<usize> {
-        let mut best = (u64::MAX, None);
-        for (k, s) in self.slots.iter().take(self.len).enumerate() {
-            let dx = clamp_to_i32(p.x.saturating_sub(s.point.pos.x.to_bits()), REL_LIMIT);
-            let dy = clamp_to_i32(p.y.saturating_sub(s.point.pos.y.to_bits()), REL_LIMIT);
-            // |d| ≤ 2^30 per component: i32 squares (`smull`), sum < 2^61.
-            let d2 = (i64::from(dx).wrapping_mul(i64::from(dx)) as u64)
-                .wrapping_add(i64::from(dy).wrapping_mul(i64::from(dy)) as u64);
-            if d2 < best.0 {
-                best = (d2, Some(k));
-            }
-        }
-        // Logical index = (physical − head) mod N.
-        best.1.map(|k| {
-            if k >= self.head {
-                k.wrapping_sub(self.head)
-            } else {
-                k.wrapping_add(N).wrapping_sub(self.head)
-            }
-        })
+        self.hint.set(NO_HINT);
     }
 
     /// Physical slot index of logical index `i` (0 = oldest).
-    fn phys(&self, i: usize) -> usize {
+    pub(crate) fn phys(&self, i: usize) -> usize {
         let p = self.head.wrapping_add(i);
         if p >= N {
             p.wrapping_sub(N)
@@ -152,7 +174,26 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         }
     }
 
-    fn slot(&self, i: usize) -> Option<&Slot<H>> {
+    pub(crate) fn slot_pos_raw(&self, i: usize) -> Option<Xy<i64>> {
+        self.slot(i).map(|s| s.point.pos.map(PosFine::to_bits))
+    }
+
+    /// Raw positions of the held points in storage order (the valid slots are always
+    /// the first `len`: the head moves only once the ring is full), for the full scan.
+    pub(crate) fn stored_pos_raw(&self) -> impl Iterator<Item = Xy<i64>> + '_ {
+        self.slots
+            .iter()
+            .take(self.len)
+            .map(|s| s.point.pos.map(PosFine::to_bits))
+    }
+
+    /// Physical index of the oldest point.
+    pub(crate) fn head(&self) -> usize {
+        self.head
+    }
+
+    /// The slot of logical index `i` (0 = oldest).
+    pub(crate) fn slot(&self, i: usize) -> Option<&Slot<H>> {
         if i >= self.len {
             return None;
         }
@@ -196,7 +237,7 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
 
     /// Appends an ordinary point and the extra points of the segment from the previous
     /// newest point to it (relative to that previous point; at most `H` are kept, each
-    /// saturated to ±262 mm). Overwrites the oldest point when full. Returns the number
+    /// saturated to ±262 mm; the point's position is saturated to ±268 m). Overwrites the oldest point when full. Returns the number
     /// of extra points stored.
     pub fn push(&mut self, point: OrdinaryPoint, extras: &[Xy<RelUm>]) -> usize {
         self.push_with(point, |buf| {
@@ -230,13 +271,20 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         } else {
             let i = self.head;
             self.head = self.phys(1);
+            // The oldest point is overwritten: a warm start from it would be stale.
+            if usize::from(self.hint.get()) == i {
+                self.hint.set(NO_HINT);
+            }
             i
         };
         match self.slots.get_mut(idx) {
             Some(slot) => {
                 let n = fill(&mut slot.extra).min(H).min(usize::from(u16::MAX));
                 slot.n_extra = n as u16;
-                slot.point = point;
+                slot.point = OrdinaryPoint {
+                    pos: clamp_pos(point.pos.map(PosFine::to_bits)).map(PosFine::from_bits),
+                    ..point
+                };
                 n
             }
             None => 0,
@@ -278,10 +326,10 @@ mod tests {
 
     #[test]
     fn default_window_size_is_as_documented() {
-        // N·(40 + 8·H) + 16 bytes.
+        // N·(40 + 8·H) + 24 bytes on a 64-bit host (head, len, hint; + 16 on the M4).
         assert_eq!(
             core::mem::size_of::<DefaultWindow>(),
-            16 * (40 + 8 * 63) + 16
+            16 * (40 + 8 * 63) + 24
         );
     }
 
