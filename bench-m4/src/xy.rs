@@ -49,6 +49,16 @@ fn tick(
     xy.tick(ic, c, path, VelUmPerS::from_num(FEED_UM_PER_S), measured)
 }
 
+/// The measured point of call `k`: the reference `LAG` periods back (`refs` holds the
+/// last `LAG + 1`, newest at `k % (LAG + 1)`), with a ±2 µm ripple.
+#[inline(always)]
+fn lagged(refs: &[[PosUm; 2]; LAG + 1], k: u32) -> [PosUm; 2] {
+    let back = (k as usize + 1) % (LAG + 1);
+    let ripple = PosUm::from_bits(((k & 7) as i32 - 4) * (1 << 7));
+    let [x, y] = refs[back];
+    [x + ripple, y - ripple]
+}
+
 /// `xy_cross_coupled_estimated`.
 pub struct XyEstimated {
     path: Parabola,
@@ -104,13 +114,10 @@ impl XyEstimated {
         })
     }
 
-    /// The measured point of call `k`: the reference `LAG` periods back, ±2 µm ripple.
+    /// The measured point of call `k` ([`lagged`]).
     #[inline(always)]
     fn next_inputs(&mut self, k: u32) {
-        let back = (k as usize + 1) % (LAG + 1);
-        let ripple = PosUm::from_bits(((k & 7) as i32 - 4) * (1 << 7));
-        let [x, y] = self.refs[back];
-        self.measured = [x + ripple, y - ripple];
+        self.measured = lagged(&self.refs, k);
     }
 }
 
@@ -196,12 +203,10 @@ impl XyContourPart {
         })
     }
 
+    /// The measured point of call `k` ([`lagged`]).
     #[inline(always)]
     fn next_inputs(&mut self, k: u32) {
-        let back = (k as usize + 1) % (LAG + 1);
-        let ripple = PosUm::from_bits(((k & 7) as i32 - 4) * (1 << 7));
-        let [x, y] = self.refs[back];
-        self.measured = [x + ripple, y - ripple];
+        self.measured = lagged(&self.refs, k);
     }
 }
 
