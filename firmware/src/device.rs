@@ -20,9 +20,11 @@
 
 use hydra_core::follower::FollowerConfig;
 use hydra_core::protocol::msg::StatusMsg;
-use hydra_core::protocol::report::{fill_status, state_code};
+use hydra_core::protocol::report::{
+    bad_state, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
+};
 use hydra_core::protocol::{apply_param, Device, Motion, Nak, NakCode, ParamId};
-use hydra_core::runtime::{Command, State};
+use hydra_core::runtime::State;
 use hydra_core::table::{CamTable, TableLimits};
 
 use crate::board::{SLAVES, SYSCLK_HZ};
@@ -140,7 +142,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
             Ok(l) => l,
             Err(e) => {
                 defmt::error!("follower rejected the table: {}", e);
-                return Err(Nak::with(NakCode::Refused, 0, 0));
+                return Err(refused(REFUSED_LAW));
             }
         };
         // Before the tick starts (boot) `main` builds the law from `st.active` itself.
@@ -154,16 +156,11 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
             Ok(())
         } else {
             defmt::warn!("table not installed: runtime not at a safe point");
-            Err(Nak::with(NakCode::Refused, 1, 0))
+            Err(refused(REFUSED_NOT_SAFE))
         }
     }
     fn command(&mut self, m: Motion) -> Result<(), Nak> {
-        let cmd = match m {
-            Motion::Start => Command::Start,
-            Motion::Stop => Command::Stop,
-            Motion::Hold => Command::Hold,
-            Motion::ClearFault => Command::ClearFault,
-        };
+        let cmd = motion_command(m);
         let state = tick::with_runtime(|rt| state_code(rt.state())).unwrap_or(0xFF);
         let io = self
             .io
@@ -173,7 +170,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
             Some(Ok(())) => Ok(()),
             Some(Err(e)) => {
                 defmt::info!("command {} refused: {}", cmd, e);
-                Err(Nak::with(NakCode::BadState, u16::from(state), 0))
+                Err(bad_state(state))
             }
             // The tick did not answer in time (or the queue is full): detail 0xFFFF.
             None => Err(Nak::with(NakCode::BadState, 0xFFFF, 0)),

@@ -21,7 +21,9 @@ use hydra_core::axis::AxisConfig;
 use hydra_core::follower::{Follower, FollowerConfig};
 use hydra_core::protocol::msg::{AxisSample, StatusMsg, Telemetry};
 use hydra_core::protocol::ramflash::RamFlash;
-use hydra_core::protocol::report::{fill_status, state_code};
+use hydra_core::protocol::report::{
+    bad_state, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
+};
 use hydra_core::protocol::{apply_param, Device, Handler, Motion, Nak, NakCode, ParamId, Store};
 use hydra_core::runtime::{
     BootCause, Command, CommandError, EncoderSample, Runtime, RuntimeConfig, Sample, State,
@@ -193,11 +195,6 @@ impl Machine {
     }
 }
 
-fn command_nak(e: CommandError, state: u8) -> Nak {
-    let _ = e;
-    Nak::with(NakCode::BadState, u16::from(state), 0)
-}
-
 impl Device<AXES, CAPACITY> for Machine {
     fn firmware(&self) -> [u8; 3] {
         FIRMWARE
@@ -218,23 +215,18 @@ impl Device<AXES, CAPACITY> for Machine {
         matches!(self.rt.state(), State::Idle | State::Fault)
     }
     fn install_table(&mut self, table: CamTable<AXES, CAPACITY>) -> Result<(), Nak> {
-        let f = Follower::new(&self.fcfg, table).map_err(|_| Nak::with(NakCode::Refused, 0, 0))?;
+        let f = Follower::new(&self.fcfg, table).map_err(|_| refused(REFUSED_LAW))?;
         // at_safe_point() was checked by the handler, so Busy would be a handler bug.
         self.rt
             .install(f)
             .map(|_| ())
-            .map_err(|_| Nak::with(NakCode::Refused, 1, 0))
+            .map_err(|_| refused(REFUSED_NOT_SAFE))
     }
     fn command(&mut self, m: Motion) -> Result<(), Nak> {
-        let cmd = match m {
-            Motion::Start => Command::Start,
-            Motion::Stop => Command::Stop,
-            Motion::Hold => Command::Hold,
-            Motion::ClearFault => Command::ClearFault,
-        };
+        let cmd = motion_command(m);
         let state = state_code(self.rt.state());
         match self.tick(Some(cmd)) {
-            Some(Err(e)) => Err(command_nak(e, state)),
+            Some(Err(_)) => Err(bad_state(state)),
             _ => {
                 if m == Motion::Start {
                     self.started = true;

@@ -1,8 +1,36 @@
 //! The runtime's [`Status`] as the protocol reports it: one mapping for every
 //! [`super::Device`] (the firmware and the host's virtual board).
 
-use super::msg::{AxisStatus, StatusMsg};
-use crate::runtime::{Fault, State, Status};
+use super::handler::Motion;
+use super::msg::{AxisStatus, Nak, NakCode, StatusMsg};
+use crate::runtime::{Command, Fault, State, Status};
+
+/// `Refused` detail: the device's law cannot be built from the table with the present
+/// parameters.
+pub const REFUSED_LAW: u16 = 0;
+/// `Refused` detail: the runtime was not at a safe point.
+pub const REFUSED_NOT_SAFE: u16 = 1;
+
+/// The runtime command of a protocol motion request.
+pub const fn motion_command(m: Motion) -> Command {
+    match m {
+        Motion::Start => Command::Start,
+        Motion::Stop => Command::Stop,
+        Motion::Hold => Command::Hold,
+        Motion::ClearFault => Command::ClearFault,
+    }
+}
+
+/// The Nak of a motion request the runtime refused in state `state` ([`state_code`]).
+pub const fn bad_state(state: u8) -> Nak {
+    Nak::with(NakCode::BadState, state as u16, 0)
+}
+
+/// The Nak of a table the device refused (`detail`: [`REFUSED_LAW`] or
+/// [`REFUSED_NOT_SAFE`]).
+pub const fn refused(detail: u16) -> Nak {
+    Nak::with(NakCode::Refused, detail, 0)
+}
 
 /// State byte of Status: 0 Idle, 1 Following, 2 Holding, 3 Fault.
 pub const fn state_code(s: State) -> u8 {
@@ -102,6 +130,20 @@ mod tests {
         // Filling twice does not append twice.
         fill_status(&status(State::Following, None), |c| c, &mut out);
         assert_eq!(out.axes.len(), 2);
+    }
+
+    #[test]
+    fn motions_map_to_commands_and_naks_carry_their_detail() {
+        assert_eq!(motion_command(Motion::Start), Command::Start);
+        assert_eq!(motion_command(Motion::Stop), Command::Stop);
+        assert_eq!(motion_command(Motion::Hold), Command::Hold);
+        assert_eq!(motion_command(Motion::ClearFault), Command::ClearFault);
+        assert_eq!(
+            (bad_state(2).code, bad_state(2).detail),
+            (NakCode::BadState, 2)
+        );
+        let r = refused(REFUSED_NOT_SAFE);
+        assert_eq!((r.code, r.detail), (NakCode::Refused, 1));
     }
 
     #[test]
