@@ -109,8 +109,6 @@ pub struct FollowerOutputs<const S: usize> {
     pub end_of_table: bool,
     /// The master filter flagged a jump this tick.
     pub master_jump: bool,
-    /// The filtered master estimate now.
-    pub master: MasterEstimate,
 }
 
 impl<const S: usize> Default for FollowerOutputs<S> {
@@ -123,7 +121,6 @@ impl<const S: usize> Default for FollowerOutputs<S> {
             fault: [None; S],
             end_of_table: false,
             master_jump: false,
-            master: MasterEstimate::default(),
         }
     }
 }
@@ -236,6 +233,13 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         }
     }
 
+    /// The filtered master estimate after the last tick (position, speed and
+    /// acceleration now). Computed on demand — for telemetry and the host tools — rather
+    /// than by every tick: the loop itself never needs it in these formats.
+    pub fn master_estimate(&self) -> MasterEstimate {
+        self.filter.estimate_now(&self.mf)
+    }
+
     /// Whether the end-of-table latch is set.
     pub fn ended(&self) -> bool {
         self.ended
@@ -285,7 +289,6 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         };
         out.end_of_table = self.ended;
         out.master_jump = master_jump;
-        out.master = self.filter.estimate_now(&self.mf);
         let (Some(now), Some(pred)) = (t.span(&lk_now), t.span(&lk_pred)) else {
             // Unreachable: `locate` only returns segments of this table.
             out.dac = self.safe_outputs();

@@ -434,3 +434,25 @@ fn axes_with_different_leads_match_single_axis_followers() {
     // The axes really differ (position and lead), so the comparison is not vacuous.
     assert!(nonzero_ff > 1000);
 }
+
+/// `master_estimate` (on demand, not a tick output) follows a master at constant speed:
+/// position within a count of the sample, speed within 1 % of 3 000 counts/s.
+#[test]
+fn master_estimate_on_demand_tracks_a_constant_speed_master() {
+    let cfg = FollowerConfig {
+        axes: [ff_axis()],
+        ..FollowerConfig::default()
+    };
+    let mut f = Follower::new(&cfg, table1(&sine_nodes())).unwrap();
+    assert_eq!(f.master_estimate(), MasterEstimate::default());
+    let mut m = 0.0;
+    for _ in 0..2000 {
+        m += 3.0;
+        f.tick(&inputs(m, 20_000.0));
+    }
+    let e = f.master_estimate();
+    assert!((e.pos.to_num::<f64>() - m).abs() < 1.0, "pos {}", e.pos);
+    let rate = e.rate_per_s.to_num::<f64>();
+    assert!((rate - 3000.0).abs() < 30.0, "rate {rate}");
+    assert!(e.acc_per_s2.to_num::<f64>().abs() < 300.0);
+}

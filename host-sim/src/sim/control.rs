@@ -50,7 +50,7 @@ impl<const S: usize> FollowerDyn for Fw<S> {
         dac.copy_from_slice(&o.dac);
         cmd.copy_from_slice(&o.cmd_lsb);
         target.copy_from_slice(&o.target_um);
-        o.master.pos
+        self.0.master_estimate().pos
     }
 }
 
