@@ -3,8 +3,11 @@
 //!
 //! `--json` prints one object: `{"path", "controller", "max_contour_error_um",
 //! "rms_contour_error_um", "max_tracking_error_um": {"x", "y"},
-//! "disturbance_peak_contour_error_um", "max_command_lsb",
-//! "contour_sign_changes_per_s"}`.
+//! "max_contour_error_at": {"t_s", "normal_deg", "normal_off_axis_deg"},
+//! "disturbance_peak_contour_error_um", "disturbance_peak_at" (same shape or null),
+//! "max_command_lsb", "contour_sign_changes_per_s"}`. `normal_off_axis_deg` is the angle
+//! between the path normal at the peak and the nearest axis: near 0° only that one axis
+//! can act on the contour error there.
 
 use crate::xy::{simulate, ControllerKind, PathKind, XyReport, XyScenario};
 use anyhow::Result;
@@ -116,8 +119,18 @@ pub fn run(args: &Args) -> Result<()> {
             r.max_tracking_error_um.x,
             r.max_tracking_error_um.y
         );
-        if let Some(d) = r.disturbance_peak_contour_error_um {
-            println!("peak contour error within 1 s of the load step: {d:.1} µm");
+        let at = |a: &crate::xy::PeakAt| {
+            format!(
+                "at {:.3} s, path normal {:.1}° from +X ({:.1}° off the nearest axis)",
+                a.t_s, a.normal_deg, a.normal_off_axis_deg
+            )
+        };
+        println!("max contour error {}", at(&r.max_contour_error_at));
+        if let (Some(d), Some(a)) = (r.disturbance_peak_contour_error_um, &r.disturbance_peak_at) {
+            println!(
+                "peak contour error within 1 s of the load step: {d:.1} µm {}",
+                at(a)
+            );
         }
         println!(
             "largest valve command {:.0} LSB; contour-error sign changes {:.1} /s",

@@ -144,6 +144,8 @@ pub struct Sample {
     pub contour_um: f64,
     /// The controller's ε (model or estimate), µm.
     pub controller_contour_um: f64,
+    /// Direction of the path normal at the exact foot point, degrees from +X (−180 … 180].
+    pub normal_deg: f64,
     /// Valve commands, LSB.
     pub command_lsb: [f64; 2],
 }
@@ -155,6 +157,32 @@ pub struct PerAxis {
     pub x: f64,
     /// Y axis.
     pub y: f64,
+}
+
+/// Where a contour-error peak happened and which axis could act on it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PeakAt {
+    /// Time of the peak, s.
+    pub t_s: f64,
+    /// Direction of the path normal at the foot point there, degrees from +X.
+    pub normal_deg: f64,
+    /// Angle between that normal and the nearest coordinate axis, degrees (0 … 45).
+    /// ε = n·(P − F) changes only through the normal's components: at 0° only one axis
+    /// moves the point off or onto the path (an axis reversal on a circle or at a
+    /// parabola's vertex); cross-coupling can redistribute the error to the other axis
+    /// only as far as this angle allows (the other axis' share is sin of it).
+    pub normal_off_axis_deg: f64,
+}
+
+impl PeakAt {
+    fn of(p: &Sample) -> Self {
+        let n = p.normal_deg.rem_euclid(90.0);
+        Self {
+            t_s: p.t_s,
+            normal_deg: p.normal_deg,
+            normal_off_axis_deg: n.min(90.0 - n),
+        }
+    }
 }
 
 /// The result of a run (the `--json` object; the trace is not serialised).
@@ -170,8 +198,12 @@ pub struct XyReport {
     pub rms_contour_error_um: f64,
     /// max |reference − actual| per axis, µm.
     pub max_tracking_error_um: PerAxis,
+    /// Where `max_contour_error_um` happened.
+    pub max_contour_error_at: PeakAt,
     /// max |ε| within 1 s after the load step, µm (null without a disturbance).
     pub disturbance_peak_contour_error_um: Option<f64>,
+    /// Where the disturbance peak happened (null without a disturbance).
+    pub disturbance_peak_at: Option<PeakAt>,
     /// Largest |valve command|, LSB.
     pub max_command_lsb: f64,
     /// Sign changes per second of the contour error after the ramp (oscillation check).
@@ -402,7 +434,9 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
         if fin && finished_at.is_none() {
             finished_at = Some(t);
         }
-        let exact = truth.nearest(actual).eps;
+        let near = truth.nearest(actual);
+        let exact = near.eps;
+        let nrm = truth.left_normal(near.u);
         let cmd = [
             out.command[0].to_num::<f64>(),
             out.command[1].to_num::<f64>(),
@@ -413,6 +447,7 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
             actual_um: actual,
             contour_um: exact,
             controller_contour_um: out.contour_error_um.to_num(),
+            normal_deg: nrm[1].atan2(nrm[0]).to_degrees(),
             command_lsb: cmd,
         });
         // Plant: the command computed now acts from the next period.
@@ -430,9 +465,18 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
     Ok(report(s, trace))
 }
 
+/// The sample with the largest |exact ε| (the first of equal ones).
+fn largest_contour_error<'a>(it: impl Iterator<Item = &'a Sample>) -> Option<&'a Sample> {
+    it.fold(None, |b: Option<&Sample>, p| match b {
+        Some(q) if q.contour_um.abs() >= p.contour_um.abs() => Some(q),
+        _ => Some(p),
+    })
+}
+
 fn report(s: &XyScenario, trace: Vec<Sample>) -> XyReport {
     let n = trace.len().max(1) as f64;
-    let max_c = trace.iter().map(|p| p.contour_um.abs()).fold(0.0, f64::max);
+    let max_at = largest_contour_error(trace.iter());
+    let max_c = max_at.map_or(0.0, |p| p.contour_um.abs());
     let rms = (trace.iter().map(|p| p.contour_um.powi(2)).sum::<f64>() / n).sqrt();
     let ex = trace
         .iter()
@@ -442,13 +486,12 @@ fn report(s: &XyScenario, trace: Vec<Sample>) -> XyReport {
         .iter()
         .map(|p| (p.reference_um[1] - p.actual_um[1]).abs())
         .fold(0.0, f64::max);
-    let dist = s.disturbance.map(|(_, t0)| {
-        trace
-            .iter()
-            .filter(|p| p.t_s >= t0 && p.t_s <= t0 + 1.0)
-            .map(|p| p.contour_um.abs())
-            .fold(0.0, f64::max)
+    let dist_at = s.disturbance.and_then(|(_, t0)| {
+        largest_contour_error(trace.iter().filter(|p| p.t_s >= t0 && p.t_s <= t0 + 1.0))
     });
+    let dist = s
+        .disturbance
+        .map(|_| dist_at.map_or(0.0, |p| p.contour_um.abs()));
     let max_cmd = trace
         .iter()
         .map(|p| p.command_lsb[0].abs().max(p.command_lsb[1].abs()))
@@ -465,7 +508,16 @@ fn report(s: &XyScenario, trace: Vec<Sample>) -> XyReport {
         max_contour_error_um: max_c,
         rms_contour_error_um: rms,
         max_tracking_error_um: PerAxis { x: ex, y: ey },
+        max_contour_error_at: max_at.map_or(
+            PeakAt {
+                t_s: 0.0,
+                normal_deg: 0.0,
+                normal_off_axis_deg: 0.0,
+            },
+            PeakAt::of,
+        ),
         disturbance_peak_contour_error_um: dist,
+        disturbance_peak_at: dist_at.map(PeakAt::of),
         max_command_lsb: max_cmd,
         contour_sign_changes_per_s: changes as f64 / dur,
         trace,
