@@ -22,7 +22,12 @@
 //!    hi − lo, so it stops after at most ⌈log₂(h + 1)⌉ ≤ ⌈log₂(H + 1)⌉ steps
 //!    ([`max_bisection_steps`]) for *any* window contents.
 //! 4. **Final chord** (E_lo, E_hi): the distance from P to it is |ε|, the perpendicular's
-//!    foot (clamped to the chord) is the foot point F.
+//!    foot (clamped to the chord) is the foot point F. At the window's two ends the
+//!    chord is open: a P ahead of the newest point (axes leading a decelerating
+//!    reference) or behind the oldest one is measured to the chord's *line* — the path
+//!    goes on there, the window just holds no more of it. (Clamped, |ε| would be the
+//!    distance to the end point, i.e. the along-path lead, with a sign that flips with
+//!    the tiny normal offset: ±20 µm of chatter in a cross-coupled loop.)
 //! 5. **Sign**: ε = |ε|·sgn(N·(P − F)) with N the right-hand normal of the final chord
 //!    (its direction of travel turned −90°): **ε > 0 when P lies to the right of the
 //!    path**. This is SPEC §D's convention, ε ≈ −C1·E1 + C2·E2 with E = V − P, so the
@@ -39,7 +44,7 @@
 //! a `Cell` inside it).
 
 use super::fx::clamp_to_i32;
-use super::geom::{dot, rel, seg_dist, sub, SegDist};
+use super::geom::{chord_dist, dot, rel, seg_dist, sub, Ends, SegDist};
 use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
 use crate::units::PosUm;
@@ -234,7 +239,18 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         let (lo, hi, steps) = bisect(w, d, extras);
         let el = seq_point(extras, d, lo);
         let eh = seq_point(extras, d, hi);
-        let seg = seg_dist(sub(w, el), sub(eh, el), slot_b.tangent_raw());
+        // At the window's ends the path goes on beyond the last chord: P ahead of the
+        // newest point (axes leading a decelerating reference) or behind the oldest is
+        // measured to the chord's line, not to its end point (step 4).
+        let at_start = a == 0 && lo == 0;
+        let at_end = b.wrapping_add(1) == n && hi == extras.len().wrapping_add(1);
+        let ends = match (at_start, at_end) {
+            (false, false) => Ends::Closed,
+            (true, false) => Ends::OpenStart,
+            (false, true) => Ends::OpenEnd,
+            (true, true) => Ends::Open,
+        };
+        let seg = chord_dist(sub(w, el), sub(eh, el), slot_b.tangent_raw(), ends);
         let base = Xy::new(
             sa.x.saturating_add(i64::from(el.x)),
             sa.y.saturating_add(i64::from(el.y)),
@@ -366,5 +382,51 @@ mod tests {
         // Before the start and beyond the end.
         assert_eq!(bisect(Xy::new(-5 * um, 0), d, &extras).0, 0);
         assert_eq!(bisect(Xy::new(500 * um, 0), d, &extras).1, 10);
+    }
+
+    /// A 16-point window on a circle of radius 50 mm (CCW, points every 50 µm from
+    /// angle 0, with their tangents): P ahead of the newest point or behind the oldest is
+    /// measured to the line of the end chord, within 0.03 µm of the exact distance to the
+    /// circle (measured 0.014 µm 20 µm ahead: the line is the chord's, not the tangent's)
+    /// — not to the end point (which would report the 20–30 µm lead as the error).
+    #[test]
+    fn points_beyond_the_window_ends_measure_to_the_path_not_the_end_point() {
+        let r = 50_000.0f64;
+        let step = 50.0 / r;
+        let mut w: ContourWindow<16, 4> = ContourWindow::new();
+        for k in 0..16 {
+            let a = f64::from(k) * step;
+            w.push(
+                OrdinaryPoint {
+                    pos: Xy::new(
+                        PosFine::from_num(r * a.cos()),
+                        PosFine::from_num(r * a.sin()),
+                    ),
+                    tangent: Xy::new(UnitQ30::from_num(-a.sin()), UnitQ30::from_num(a.cos())),
+                    u: crate::contour::Param::from_num(k),
+                },
+                &[],
+            );
+        }
+        // (angle past the end or before the start, radial offset µm; > 0 outward = right
+        // of a CCW path, i.e. ε > 0).
+        let a_end = 15.0 * step;
+        for (a, off) in [
+            (a_end + 20.0 / r, 3.0),
+            (a_end + 20.0 / r, -2.0),
+            (-20.0 / r, 3.0),
+            (-30.0 / r, -1.5),
+        ] {
+            let p = Xy::new(
+                PosFine::from_num((r + off) * a.cos()),
+                PosFine::from_num((r + off) * a.sin()),
+            );
+            let e = w.estimate_fine(p).unwrap();
+            let eps = e.eps_um.to_num::<f64>();
+            assert!(
+                (eps - off).abs() < 0.03,
+                "angle {a}: ε {eps} vs exact {off}"
+            );
+        }
     }
 }
