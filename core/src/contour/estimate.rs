@@ -22,10 +22,11 @@
 //!    hi − lo, so it stops after at most ⌈log₂(h + 1)⌉ ≤ ⌈log₂(H + 1)⌉ steps
 //!    ([`max_bisection_steps`]) for *any* window contents.
 //! 4. **Final chord** (E_lo, E_hi): the distance from P to it is |ε|, the perpendicular's
-//!    foot (clamped to the chord) is the foot point F. At the window's two ends the
+//!    foot (clamped to the chord) is the foot point F. At the window's newest end, and
+//!    at its oldest while that is still the path's start (window not yet full), the
 //!    chord is open: a P ahead of the newest point (axes leading a decelerating
-//!    reference) or behind the oldest one is measured to the chord's *line* — the path
-//!    goes on there, the window just holds no more of it. (Clamped, |ε| would be the
+//!    reference) or behind the start is measured to the chord's *line* — the path goes
+//!    on there, the window just holds no more of it. (Clamped, |ε| would be the
 //!    distance to the end point, i.e. the along-path lead, with a sign that flips with
 //!    the tiny normal offset: ±20 µm of chatter in a cross-coupled loop.)
 //! 5. **Sign**: ε = |ε|·sgn(N·(P − F)) with N the right-hand normal of the final chord
@@ -240,9 +241,12 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         let el = seq_point(extras, d, lo);
         let eh = seq_point(extras, d, hi);
         // At the window's ends the path goes on beyond the last chord: P ahead of the
-        // newest point (axes leading a decelerating reference) or behind the oldest is
-        // measured to the chord's line, not to its end point (step 4).
-        let at_start = a == 0 && lo == 0;
+        // newest point (axes leading a decelerating reference) or behind the path's
+        // start is measured to the chord's line, not to its end point (step 4). Behind
+        // the oldest point of a full window (a lag longer than the window: too short a
+        // window for the servo) stays clamped: the distance to that point, an
+        // overestimate, not a line that may leave a curved path far behind.
+        let at_start = a == 0 && lo == 0 && n < N;
         let at_end = b.wrapping_add(1) == n && hi == extras.len().wrapping_add(1);
         let ends = match (at_start, at_end) {
             (false, false) => Ends::Closed,
@@ -384,16 +388,10 @@ mod tests {
         assert_eq!(bisect(Xy::new(500 * um, 0), d, &extras).1, 10);
     }
 
-    /// A 16-point window on a circle of radius 50 mm (CCW, points every 50 µm from
-    /// angle 0, with their tangents): P ahead of the newest point or behind the oldest is
-    /// measured to the line of the end chord, within 0.03 µm of the exact distance to the
-    /// circle (measured 0.014 µm 20 µm ahead: the line is the chord's, not the tangent's)
-    /// — not to the end point (which would report the 20–30 µm lead as the error).
-    #[test]
-    fn points_beyond_the_window_ends_measure_to_the_path_not_the_end_point() {
-        let r = 50_000.0f64;
-        let step = 50.0 / r;
-        let mut w: ContourWindow<16, 4> = ContourWindow::new();
+    /// 16 points on a circle of radius 50 mm (CCW, every 50 µm from angle 0, with their
+    /// tangents) in a window of capacity `N`.
+    fn arc_window<const N: usize>(r: f64, step: f64) -> ContourWindow<N, 4> {
+        let mut w = ContourWindow::new();
         for k in 0..16 {
             let a = f64::from(k) * step;
             w.push(
@@ -408,6 +406,20 @@ mod tests {
                 &[],
             );
         }
+        w
+    }
+
+    /// P ahead of the newest point, or behind the path's start in a window not yet full,
+    /// is measured to the line of the end chord, within 0.03 µm of the exact distance to
+    /// the circle (measured 0.014 µm 20 µm ahead: the line is the chord's, not the
+    /// tangent's) — not to the end point (which would report the 20–30 µm lead as the
+    /// error). Behind the oldest point of a full window it stays the distance to that
+    /// point.
+    #[test]
+    fn points_beyond_the_window_ends_measure_to_the_path_not_the_end_point() {
+        let r = 50_000.0f64;
+        let step = 50.0 / r;
+        let w = arc_window::<32>(r, step);
         // (angle past the end or before the start, radial offset µm; > 0 outward = right
         // of a CCW path, i.e. ε > 0).
         let a_end = 15.0 * step;
@@ -428,5 +440,22 @@ mod tests {
                 "angle {a}: ε {eps} vs exact {off}"
             );
         }
+        // Full window (capacity 16): 20 µm behind the oldest point, 3 µm out: √(20² + 3²).
+        let full = arc_window::<16>(r, step);
+        let a = -20.0 / r;
+        let p = Xy::new(
+            PosFine::from_num((r + 3.0) * a.cos()),
+            PosFine::from_num((r + 3.0) * a.sin()),
+        );
+        let eps = full.estimate_fine(p).unwrap().eps_um.to_num::<f64>();
+        assert!((eps - 409.0f64.sqrt()).abs() < 0.03, "full window: ε {eps}");
+        // Ahead of the newest point the full window is open as well.
+        let a = a_end + 20.0 / r;
+        let p = Xy::new(
+            PosFine::from_num((r + 3.0) * a.cos()),
+            PosFine::from_num((r + 3.0) * a.sin()),
+        );
+        let eps = full.estimate_fine(p).unwrap().eps_um.to_num::<f64>();
+        assert!((eps - 3.0).abs() < 0.03, "full window ahead: ε {eps}");
     }
 }
