@@ -36,8 +36,8 @@
 //! Formats (every product 32 × 32 → 64 bits, one `smull`; ranges from the validated
 //! parameters): reference and the last reference µm Q8 (the [`PosUm`] bits); velocities
 //! µm/s Q8 in an `i32` (±8.4 m/s, saturated; resolution 0.004 µm/s); gains LSB/(µm/s) Q24
-//! (0 … 1, resolution 6·10⁻⁸); `1/h` 1/s Q8 (100 … 10⁵, exact for a whole number of
-//! µs-periods dividing 1 s); `T_lead/h` Q18 (0 … 5000); `D_c` and `d` µm Q16 (0 … 1000 µm);
+//! (0 … 1, resolution 6·10⁻⁸); `1/h` 1/s Q8 (100 … 10⁵; rounding ≤ 2·10⁻⁵ relative, exact
+//! for 1 ms, 500 µs, 250 µs, 100 µs); `T_lead/h` Q18 (0 … 5000); `D_c` and `d` µm Q16 (0 … 1000 µm);
 //! `D_c/v_s` µm/(µm/s) Q24 (0 … 100: D_c ≤ 1000 µm, v_s ≥ 0.01 mm/s); output [`CmdLsb`].
 //! Against the f64 equations: within 0.1 LSB (proptest; measured worst ≈ 0.05 LSB, from
 //! the friction term, which differentiates d and so amplifies v_ff's resolution by
