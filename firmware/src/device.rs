@@ -202,6 +202,15 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         self.st.limits = lim;
         Ok(())
     }
+    fn reset_params(&mut self) -> Result<(), Nak> {
+        // Only at boot, before a table is installed (no law to rebuild).
+        if self.st.active.is_some() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        self.st.fcfg = crate::program::follower_config();
+        self.st.limits = crate::program::table_limits();
+        Ok(())
+    }
     fn status(&self, out: &mut StatusMsg) {
         if let Some(st) = tick::with_runtime(|rt| *rt.status()) {
             fill_status::<SLAVES, _>(&st, cycles_to_ns, out);

@@ -47,6 +47,8 @@ pub struct Machine {
     rt: Runtime<Law, AXES, 0>,
     fcfg: FollowerConfig<AXES>,
     limits: TableLimits<AXES>,
+    /// The boot configuration (`fcfg`, `limits` before any SetParam).
+    boot: (FollowerConfig<AXES>, TableLimits<AXES>),
     plant: HydraulicAxis,
     master: MasterProfile,
     master_res_deg: f64,
@@ -115,6 +117,7 @@ impl Machine {
             rt: Runtime::new(rcoeffs, None, BootCause::Normal),
             fcfg,
             limits,
+            boot: (fcfg, limits),
             plant,
             master: scn.master_profile()?,
             master_res_deg: scn.master.resolution_deg,
@@ -253,6 +256,13 @@ impl Device<AXES, CAPACITY> for Machine {
         }
         self.fcfg = f;
         self.limits = lim;
+        Ok(())
+    }
+    fn reset_params(&mut self) -> Result<(), Nak> {
+        if self.rt.law().is_some() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        (self.fcfg, self.limits) = self.boot;
         Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {

@@ -73,6 +73,12 @@ pub trait Device<const S: usize, const N: usize> {
     fn command(&mut self, m: Motion) -> Result<(), Nak>;
     /// Sets one parameter (validated; typed error).
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak>;
+    /// Restores every parameter [`Device::set_param`] can change to the board's boot
+    /// configuration. [`Handler::boot`] calls it when a slot's table is refused, before
+    /// it tries the older slot, so no parameter of a refused slot stays applied. Only
+    /// needed (and only allowed) while no table is installed: otherwise
+    /// [`NakCode::NotIdle`] and nothing changes.
+    fn reset_params(&mut self) -> Result<(), Nak>;
     /// Fills state, faults, timing, master and per-axis fields of a status.
     fn status(&self, out: &mut StatusMsg);
 }
@@ -141,9 +147,11 @@ impl<const S: usize, const N: usize> Handler<S, N> {
 
     /// Loads the newest valid flash slot: applies its parameters through
     /// [`Device::set_param`] (a record the device refuses now is skipped), then installs its
-    /// table if it passes the [`CamTable`] rules with the resulting limits; otherwise the
-    /// older slot the same way (its parameters applied on top). Returns the header of the
-    /// slot whose table runs.
+    /// table if it passes the [`CamTable`] rules with the resulting limits; otherwise it
+    /// undoes that slot's parameters ([`Device::reset_params`]) and tries the older slot
+    /// the same way — a slot is a table *and* its parameters, never half of one. Returns
+    /// the header of the slot whose table runs (`None`: no table, boot configuration —
+    /// also if the device cannot undo a refused slot's parameters).
     pub fn boot<D: Device<S, N>, F: NorFlash>(
         &mut self,
         dev: &mut D,
@@ -177,6 +185,9 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 self.active_id = h.id;
                 return Some(h);
             }
+            // Refused: back to the boot configuration before the older slot.
+            dev.reset_params().ok()?;
+            self.overrides.clear();
         }
         None
     }

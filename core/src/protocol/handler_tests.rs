@@ -30,6 +30,10 @@ struct Mock {
     kp: f32,
     /// Refuse every table (as a device whose law cannot be built).
     refuse: bool,
+    /// Narrower table limits (µm), as after a firmware update; 0: the default 500 mm.
+    max_um: i32,
+    /// `reset_params` fails (a device that cannot undo parameters).
+    no_reset: bool,
 }
 
 impl Device<S, N> for Mock {
@@ -44,7 +48,11 @@ impl Device<S, N> for Mock {
             master_speed_per_s: MasterRate::from_num(1000),
             axes: [AxisLimits {
                 min_um: PosUm::from_num(0),
-                max_um: PosUm::from_num(500_000),
+                max_um: PosUm::from_num(if self.max_um > 0 {
+                    self.max_um
+                } else {
+                    500_000
+                }),
                 max_speed_um_per_s: VelUmPerS::from_num(1_000_000),
             }],
         }
@@ -91,6 +99,13 @@ impl Device<S, N> for Mock {
             }
             _ => Err(Nak::with(NakCode::ParamRange, u16::from(axis), p as u8)),
         }
+    }
+    fn reset_params(&mut self) -> Result<(), Nak> {
+        if self.table.is_some() || self.no_reset {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        self.kp = 0.0;
+        Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {
         out.state = u8::from(self.running);
@@ -339,6 +354,55 @@ fn saved_parameters_come_back_at_boot() {
         .unwrap();
     assert_eq!(hd.generation, 4, "a new slot was written");
     assert_eq!(dev4.kp, 0.75);
+}
+
+/// A slot is a table and its parameters: when the newest slot's table is refused at boot
+/// (here: limits narrowed by a firmware update), its parameters are undone before the
+/// older slot boots — the board never runs one slot's table with another's gains.
+#[test]
+fn a_refused_slot_leaves_none_of_its_parameters() {
+    let mut r = Rig::new();
+    assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
+    // Slot 1: table 1 (1.0 … 1.9 mm), no parameter.
+    r.upload(1, &nodes(10, 100)).unwrap();
+    r.ack(&Request::Activate { id: 1 });
+    r.ack(&Request::Save);
+    // Slot 2: kp 0.75 and table 2 (1 … 28 mm).
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: 0.75,
+    });
+    r.upload(2, &nodes(10, 3000)).unwrap();
+    r.ack(&Request::Activate { id: 2 });
+    r.ack(&Request::Save);
+    let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
+    // Same board: slot 2 with its parameter.
+    let mut dev = Mock::default();
+    let hd = Handler::<S, N>::new(store)
+        .boot(&mut dev, &mut r.flash)
+        .unwrap();
+    assert_eq!((hd.id, hd.params, dev.kp), (2, 1, 0.75));
+    // Limits narrowed to 20 mm: slot 2's table is refused, slot 1 boots with the boot kp.
+    let mut dev = Mock {
+        max_um: 20_000,
+        ..Mock::default()
+    };
+    let mut h = Handler::<S, N>::new(store);
+    let hd = h.boot(&mut dev, &mut r.flash).unwrap();
+    assert_eq!((hd.id, hd.params), (1, 0));
+    assert_eq!(dev.kp, 0.0, "slot 2's kp must not stay applied");
+    assert_eq!(dev.table.as_ref().map(|t| t.len()), Some(10));
+    // A device that cannot undo parameters boots no table rather than a mix.
+    let mut dev = Mock {
+        max_um: 20_000,
+        no_reset: true,
+        ..Mock::default()
+    };
+    assert!(Handler::<S, N>::new(store)
+        .boot(&mut dev, &mut r.flash)
+        .is_none());
+    assert!(dev.table.is_none());
 }
 
 #[test]
