@@ -34,7 +34,7 @@ include!(concat!(env!("OUT_DIR"), "/die_table.rs"));
 /// The table with `S` columns: column 0 is the die curve scaled to 20…480 mm over
 /// 0…90° (PLANT.md, [`DIE_UM`]), column `i` the same curve with its stroke above 20 mm
 /// scaled by 1 − i/16 (integer arithmetic: no floating point on the target).
-fn table<const S: usize>() -> Option<CamTable<S, NODES>> {
+pub(crate) fn table<const S: usize>() -> Option<CamTable<S, NODES>> {
     let mut nodes = [Node {
         master: Master::ZERO,
         slave_um: [PosUm::ZERO; S],
@@ -59,7 +59,7 @@ fn table<const S: usize>() -> Option<CamTable<S, NODES>> {
 }
 
 /// Gains of the reference tangent cylinder (every term of the law non-zero).
-fn axis(mode: ControlMode) -> AxisConfig {
+pub(crate) fn axis(mode: ControlMode) -> AxisConfig {
     AxisConfig {
         mode,
         kp_lsb_per_um: 0.4,

@@ -21,6 +21,7 @@ mod clock;
 mod contour;
 mod follower;
 mod harness;
+mod install;
 mod npid;
 mod out;
 mod scurve;
@@ -205,6 +206,7 @@ fn main() -> ! {
     // The X–Y cross-coupled tick with estimation (SPEC §C + §D).
     r.run("xy_cross_coupled_estimated", xy::XyEstimated::new());
     r.run("xy_contour_part", xy::XyContourPart::new());
+    r.run("runtime_install_law", install::InstallLaw::new());
 
     let ok = r.ok;
     let _ = writeln!(r.o, "DONE ok={ok}");
