@@ -1,9 +1,13 @@
 //! Table activation as the firmware's critical section pays it (docs/firmware.md):
 //! [`Runtime::install`] of the board's law type, `Follower<2, 256>`
 //! (`firmware/src/program.rs`), at a safe point (Idle). The tick waits for this once per
-//! activation. Each call swaps two laws built on the reference table: the new law moved
-//! in, the old one moved out and kept for the next call (the firmware drops the old one
-//! instead, so this is the slightly larger case: one more copy of the law).
+//! activation.
+//!
+//! The firmware runs its law from one of two static buffers (`firmware/src/laws.rs`), so
+//! the runtime holds a `&'static mut Law` and the install swaps references; the law was
+//! written into the spare buffer before, outside the section. Each call here swaps the
+//! two buffers back and forth. (By value — the law moved into the runtime and the old
+//! one out — the same install was 119 448 instructions at 67685ae.)
 
 use crate::follower::{axis, table, NODES};
 use crate::harness::Figure;
@@ -11,36 +15,42 @@ use core::hint::black_box;
 use hydra_core::axis::ControlMode;
 use hydra_core::follower::{Follower, FollowerConfig};
 use hydra_core::runtime::{BootCause, Runtime, RuntimeConfig};
+use static_cell::StaticCell;
 
 /// The firmware's law: two slave axes, 256 table nodes.
 type Law = Follower<2, NODES>;
 /// The firmware's pressure channels (`firmware/src/board.rs`).
 const PRESSURES: usize = 4;
+/// A law in a static buffer, as the firmware's runtime holds it.
+type LawRef = &'static mut Law;
+
+static LAW_A: StaticCell<Law> = StaticCell::new();
+static LAW_B: StaticCell<Law> = StaticCell::new();
 
 /// The measured call: the install inside the critical section.
 #[inline(never)]
-fn install(rt: &mut Runtime<Law, 2, PRESSURES>, law: Law) -> Option<Law> {
+fn install(rt: &mut Runtime<LawRef, 2, PRESSURES>, law: LawRef) -> Option<LawRef> {
     rt.install(law).ok().flatten()
 }
 
 /// `runtime_install_law`.
 pub struct InstallLaw {
-    rt: Runtime<Law, 2, PRESSURES>,
-    /// The law the next call installs (the one the last call took out).
-    spare: Option<Law>,
+    rt: Runtime<LawRef, 2, PRESSURES>,
+    /// The buffer the next call installs (the one the last call took out).
+    spare: Option<LawRef>,
     /// Every install was accepted and gave the old law back.
     ok: bool,
 }
 
 impl InstallLaw {
-    /// A runtime at rest with one law and a second law ready.
+    /// A runtime at rest running the law in one buffer, the other buffer ready.
     pub fn new() -> Option<Self> {
         let cfg = FollowerConfig {
             axes: [axis(ControlMode::Feedforward); 2],
             ..FollowerConfig::default()
         };
-        let running = Follower::new(&cfg, table::<2>()?).ok()?;
-        let next = Follower::new(&cfg, table::<2>()?).ok()?;
+        let running = LAW_A.try_init(Follower::new(&cfg, table::<2>()?).ok()?)?;
+        let next = LAW_B.try_init(Follower::new(&cfg, table::<2>()?).ok()?)?;
         let coeffs = RuntimeConfig::<2>::default().build().ok()?;
         Some(Self {
             rt: Runtime::new(coeffs, Some(running), BootCause::Normal),
@@ -66,10 +76,5 @@ impl Figure for InstallLaw {
 
     fn healthy(&self) -> bool {
         self.ok
-    }
-
-    /// Nothing settles; each traced call copies ≈ 40 KiB (QEMU logs every instruction).
-    fn profile_warm_up(&self) -> u32 {
-        2
     }
 }

@@ -28,6 +28,7 @@ use hydra_core::runtime::State;
 use hydra_core::table::{CamTable, TableLimits};
 
 use crate::board::{SLAVES, SYSCLK_HZ};
+use crate::laws::{self, LawRef};
 use crate::link::LinkIo;
 use crate::program::{Law, PERIOD_US, TABLE_NODES};
 use crate::tick;
@@ -64,6 +65,8 @@ pub struct DeviceState {
     pub limits: TableLimits<SLAVES>,
     /// Copy of the table inside the running law.
     pub active: Option<Table>,
+    /// The law buffer not in use by the runtime (see [`install`]).
+    pub spare: Option<LawRef>,
 }
 
 impl DeviceState {
@@ -73,6 +76,7 @@ impl DeviceState {
             fcfg: crate::program::follower_config(),
             limits: crate::program::table_limits(),
             active: None,
+            spare: None,
         }
     }
 
@@ -99,17 +103,38 @@ pub struct BoardDevice<'a, 'b> {
 }
 
 /// Installs `law` (and its null codes for the panic handler) if the tick runs; `false`
-/// if the runtime refused it (not at a safe point).
-fn install(law: Law) -> bool {
+/// if the runtime is not at a safe point. The law is first written into the spare law
+/// buffer (outside the critical section); the section only swaps references
+/// (`crate::laws`), and the buffer of the law that ran becomes the spare.
+fn install(st: &mut DeviceState, law: Law) -> bool {
     let nulls = hydra_core::runtime::Controller::null_codes(&law);
-    tick::with_runtime(|rt| match rt.install(law) {
-        Ok(_) => {
-            ValveBank::publish_safe_codes(&nulls);
+    let Some(new) = laws::place(law, st.spare.take()) else {
+        defmt::error!("no free law buffer");
+        return false;
+    };
+    let mut new = Some(new);
+    // Checked and installed in one section: `install` cannot then refuse, so the
+    // reference is never dropped (a dropped one would leave no spare buffer).
+    let swapped = tick::with_runtime(|rt| {
+        if !rt.at_safe_point() {
+            return None;
+        }
+        let old = rt.install(new.take()?).ok()?;
+        ValveBank::publish_safe_codes(&nulls);
+        Some(old)
+    })
+    .flatten();
+    match swapped {
+        Some(old) => {
+            // `None` at the first activation: the other buffer is still unused.
+            st.spare = old;
             true
         }
-        Err(_) => false,
-    })
-    .unwrap_or(false)
+        None => {
+            st.spare = new;
+            false
+        }
+    }
 }
 
 fn cycles_to_ns(c: u32) -> u32 {
@@ -147,7 +172,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         };
         // Before the tick starts (boot) `main` builds the law from `st.active` itself.
         let running = tick::with_runtime(|_| ()).is_some();
-        if !running || install(law) {
+        if !running || install(self.st, law) {
             self.st.active = Some(table);
             defmt::info!(
                 "table installed ({} rows)",
@@ -194,7 +219,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         // Rebuild the law if one runs.
         if let Some(t) = self.st.active.clone() {
             let law = Law::new(&f, t).map_err(|_| range)?;
-            if !install(law) {
+            if !install(self.st, law) {
                 return Err(Nak::new(NakCode::NotIdle));
             }
         }

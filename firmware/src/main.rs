@@ -25,6 +25,7 @@ mod encoders;
 mod flash;
 #[cfg(not(feature = "console"))]
 mod framed;
+mod laws;
 mod link;
 mod panic;
 mod pressure;
@@ -93,6 +94,8 @@ async fn main(spawner: Spawner) {
         ValveBank::publish_safe_codes(&n);
         board.io.valves.write(&n);
     }
+    // Into the first of the two law buffers (activation swaps references: `laws`).
+    let law = law.and_then(|l| laws::place(l, None));
     let coeffs = match program::runtime_coeffs() {
         Ok(c) => c,
         Err(e) => defmt::panic!("runtime configuration rejected: {}", e),

@@ -36,10 +36,11 @@ use hydra_core::runtime::{Command, CommandError, Runtime, Status};
 use static_cell::StaticCell;
 
 use crate::board::{BoardIo, PRESSURES, SLAVES, SYSCLK_HZ};
-use crate::program::Law;
+use crate::laws::LawRef;
 
-/// The runtime as this board runs it.
-pub type BoardRuntime = Runtime<Law, SLAVES, PRESSURES>;
+/// The runtime as this board runs it: the law in one of the two static law buffers
+/// (`crate::laws`), so installing one swaps a reference.
+pub type BoardRuntime = Runtime<LawRef, SLAVES, PRESSURES>;
 /// The status snapshot of this board.
 pub type BoardStatus = Status<SLAVES, PRESSURES>;
 

@@ -530,3 +530,29 @@ fn closed_loop_on_a_virtual_board_crosses_16_bit_wrap() {
     assert!(!b.enable);
     assert_eq!(r.status().fault.unwrap().fault, Fault::EStop);
 }
+
+/// A runtime over `&mut` laws (the board's static law buffers) runs them like owned
+/// ones, and `install` swaps the references: the old law comes back untouched.
+#[test]
+fn laws_by_reference_run_and_swap() {
+    let cfg = RuntimeConfig::<2>::default().build().unwrap();
+    let (mut a, mut b) = (MockLaw::<2>::new(), MockLaw::<2>::new());
+    b.gain = 3;
+    let mut owned = rt();
+    let mut r: Runtime<&mut MockLaw<2>, 2, 1> = Runtime::new(cfg, Some(&mut a), BootCause::Normal);
+    for (k, cmd) in [(0, None), (0, Some(Command::Start)), (5, None), (9, None)] {
+        let o1 = owned.step(&sample(k, [0, 0]), cmd);
+        let o2 = r.step(&sample(k, [0, 0]), cmd);
+        assert_eq!((o1.dac, o1.reply), (o2.dac, o2.reply));
+    }
+    // Not at a safe point while following: refused.
+    assert!(r.install(&mut b).is_err());
+    r.step(&sample(9, [9, 9]), Some(Command::Stop));
+    let mut b2 = MockLaw::<2>::new();
+    b2.gain = 3;
+    let old = r.install(&mut b2).unwrap().unwrap();
+    assert_eq!(old.restarts, 1, "the old law comes back as it ran");
+    r.step(&sample(9, [0, 0]), Some(Command::Start));
+    // The new law (gain 3) runs: error 9 µm → null + 27.
+    assert_eq!(r.step(&sample(9, [0, 0]), None).dac[0].get(), 7 + 27);
+}
