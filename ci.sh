@@ -24,6 +24,7 @@ step "clippy (thumbv7em: core + firmware + bench-m4)"
 RUSTFLAGS="-D warnings" cargo clippy -p hydra-core -p firmware -p bench-m4 --release --target "$TARGET" -- -D warnings
 
 step "host tests"
+mkdir -p target # the log lives here even when CARGO_TARGET_DIR points elsewhere
 cargo test --release --no-fail-fast 2>&1 | tee target/host-tests.log | grep -E '^(test result|running|error|failures|---- )' || true
 if grep -qE '^test result: FAILED|^error' target/host-tests.log || ! grep -q '^test result: ok' target/host-tests.log; then
   echo "host tests FAILED"; tail -80 target/host-tests.log; exit 1
