@@ -24,6 +24,7 @@ mod harness;
 mod install;
 mod npid;
 mod out;
+mod runtime;
 mod scurve;
 mod semihost;
 mod xy;
@@ -207,6 +208,7 @@ fn main() -> ! {
     r.run("xy_cross_coupled_estimated", xy::XyEstimated::new());
     r.run("xy_contour_part", xy::XyContourPart::new());
     r.run("runtime_install_law", install::InstallLaw::new());
+    r.run("runtime_step_2axes", runtime::RuntimeStep::new());
 
     let ok = r.ok;
     let _ = writeln!(r.o, "DONE ok={ok}");
