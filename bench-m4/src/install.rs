@@ -9,18 +9,11 @@
 //! two buffers back and forth. (By value — the law moved into the runtime and the old
 //! one out — the same install was 119 448 instructions at 67685ae.)
 
-use crate::follower::{axis, table, NODES};
 use crate::harness::Figure;
+use crate::runtime::{board_law, board_runtime, BoardRuntime, Law};
 use core::hint::black_box;
-use hydra_core::axis::ControlMode;
-use hydra_core::follower::{Follower, FollowerConfig};
-use hydra_core::runtime::{BootCause, Runtime, RuntimeConfig};
 use static_cell::StaticCell;
 
-/// The firmware's law: two slave axes, 256 table nodes.
-type Law = Follower<2, NODES>;
-/// The firmware's pressure channels (`firmware/src/board.rs`).
-const PRESSURES: usize = 4;
 /// A law in a static buffer, as the firmware's runtime holds it.
 type LawRef = &'static mut Law;
 
@@ -29,13 +22,13 @@ static LAW_B: StaticCell<Law> = StaticCell::new();
 
 /// The measured call: the install inside the critical section.
 #[inline(never)]
-fn install(rt: &mut Runtime<LawRef, 2, PRESSURES>, law: LawRef) -> Option<LawRef> {
+fn install(rt: &mut BoardRuntime, law: LawRef) -> Option<LawRef> {
     rt.install(law).ok().flatten()
 }
 
 /// `runtime_install_law`.
 pub struct InstallLaw {
-    rt: Runtime<LawRef, 2, PRESSURES>,
+    rt: BoardRuntime,
     /// The buffer the next call installs (the one the last call took out).
     spare: Option<LawRef>,
     /// Every install was accepted and gave the old law back.
@@ -45,15 +38,10 @@ pub struct InstallLaw {
 impl InstallLaw {
     /// A runtime at rest running the law in one buffer, the other buffer ready.
     pub fn new() -> Option<Self> {
-        let cfg = FollowerConfig {
-            axes: [axis(ControlMode::Feedforward); 2],
-            ..FollowerConfig::default()
-        };
-        let running = LAW_A.try_init(Follower::new(&cfg, table::<2>()?).ok()?)?;
-        let next = LAW_B.try_init(Follower::new(&cfg, table::<2>()?).ok()?)?;
-        let coeffs = RuntimeConfig::<2>::default().build().ok()?;
+        let running = board_law(&LAW_A)?;
+        let next = board_law(&LAW_B)?;
         Some(Self {
-            rt: Runtime::new(coeffs, Some(running), BootCause::Normal),
+            rt: board_runtime(running)?,
             spare: Some(next),
             ok: true,
         })

@@ -20,12 +20,30 @@ use hydra_core::runtime::{
 use hydra_core::units::{Counts, Master, PressureBar};
 use static_cell::StaticCell;
 
-/// The firmware's law: two slave axes, 256 table nodes.
-type Law = Follower<2, NODES>;
-/// The firmware's pressure channels.
-const PRESSURES: usize = 4;
-/// The firmware's runtime.
-type BoardRuntime = Runtime<&'static mut Law, 2, PRESSURES>;
+/// The firmware's law: two slave axes, 256 table nodes (`firmware/src/program.rs`).
+pub(crate) type Law = Follower<2, NODES>;
+/// The firmware's pressure channels (`firmware/src/board.rs`).
+pub(crate) const PRESSURES: usize = 4;
+/// The firmware's runtime: the law in a static buffer (`firmware/src/laws.rs`).
+pub(crate) type BoardRuntime = Runtime<&'static mut Law, 2, PRESSURES>;
+
+/// The firmware's law on the reference table (both slaves Feedforward, the follower
+/// figures' gains), in the static buffer `cell`; `None` if the core rejects the set-up
+/// or the buffer is already used.
+pub(crate) fn board_law(cell: &'static StaticCell<Law>) -> Option<&'static mut Law> {
+    let cfg = FollowerConfig {
+        axes: [axis(ControlMode::Feedforward); 2],
+        ..FollowerConfig::default()
+    };
+    cell.try_init(Follower::new(&cfg, table::<2>()?).ok()?)
+}
+
+/// The firmware's runtime (its configuration: `RuntimeConfig::default()`, 1 ms) at rest,
+/// running `law`.
+pub(crate) fn board_runtime(law: &'static mut Law) -> Option<BoardRuntime> {
+    let coeffs = RuntimeConfig::<2>::default().build().ok()?;
+    Some(Runtime::new(coeffs, Some(law), BootCause::Normal))
+}
 
 static LAW: StaticCell<Law> = StaticCell::new();
 
@@ -52,11 +70,7 @@ pub struct RuntimeStep {
 impl RuntimeStep {
     /// The runtime following the reference table from 5°.
     pub fn new() -> Option<Self> {
-        let cfg = FollowerConfig {
-            axes: [axis(ControlMode::Feedforward); 2],
-            ..FollowerConfig::default()
-        };
-        let law = LAW.try_init(Follower::new(&cfg, table::<2>()?).ok()?)?;
+        let law = board_law(&LAW)?;
         // The slaves start on the table at the master start (a jump to it would be an
         // encoder fault).
         let mut cursor = 0;
@@ -65,8 +79,7 @@ impl RuntimeStep {
             .locate(&mut cursor, Master::from_num(MASTER_START));
         let at = |i| Counts(law.table().value(&lk, i).to_num::<i32>());
         let slaves = [at(0), at(1)];
-        let coeffs = RuntimeConfig::<2>::default().build().ok()?;
-        let mut rt = Runtime::new(coeffs, Some(law), BootCause::Normal);
+        let mut rt = board_runtime(law)?;
         let s = Sample {
             enc: EncoderSample {
                 master: Counts(MASTER_START),
