@@ -484,7 +484,7 @@ fn ff_lookup_inline<'a, const S: usize, const N: usize>(
     lead: i32,
 ) -> Option<FfRef<'a, S>> {
     let ahead = filter.ahead(mf, lead);
-    let lk = t.locate(cursor, ahead.pos);
+    let lk = t.locate_segment(cursor, ahead.pos);
     Some(FfRef {
         lead,
         span: t.span(&lk)?,

@@ -321,14 +321,37 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     pub fn locate(&self, cursor: &mut usize, m: Master) -> Lookup {
         let m = m.to_bits();
         if let Some(s) = self.segs.get(*cursor) {
-            if let Some(d) = m.checked_sub(s.m0) {
-                if (d as u64) < u64::from(s.len) {
-                    return Lookup {
-                        seg: *cursor,
-                        frac_q32: frac_q32(d as u32, s.recip),
-                        beyond: Beyond::Inside,
-                    };
-                }
+            // θ − θ_j modulo 2^64 (the master's own arithmetic, see
+            // [`crate::master::MasterFilter::update`]): in [0, len_j) exactly when θ is in
+            // the segment (a table spans far less than 2^63 raw).
+            let d = m.wrapping_sub(s.m0) as u64;
+            if d < u64::from(s.len) {
+                return Lookup {
+                    seg: *cursor,
+                    // d < len < 2^32.
+                    frac_q32: frac_q32(d as u32, s.recip),
+                    beyond: Beyond::Inside,
+                };
+            }
+        }
+        self.locate_walk(cursor, m)
+    }
+
+    /// [`CamTable::locate`] for a caller that needs only the segment (and which end the
+    /// master is beyond), not the fraction: the feed-forward's rates. Its fast path skips
+    /// the fraction's product; `frac_q32` is then 0 (off the fast path it is the true
+    /// fraction).
+    #[inline]
+    pub fn locate_segment(&self, cursor: &mut usize, m: Master) -> Lookup {
+        let m = m.to_bits();
+        if let Some(s) = self.segs.get(*cursor) {
+            // As in `locate`.
+            if (m.wrapping_sub(s.m0) as u64) < u64::from(s.len) {
+                return Lookup {
+                    seg: *cursor,
+                    frac_q32: 0,
+                    beyond: Beyond::Inside,
+                };
             }
         }
         self.locate_walk(cursor, m)

@@ -129,7 +129,7 @@ pub struct AxisCoeffs {
     /// ka, LSB/(µm/s²), `I0F32` raw.
     pub ka: i32,
     /// Feed-forward aim after the sampling instant, ticks, Q16 (1.5·T + valve lag;
-    /// below 32 768 ticks).
+    /// below 16 384 ticks, the master filter's extrapolation limit).
     pub lead_q16: i32,
     /// Following-error limit, µm, `I24F8` raw.
     pub fe_limit: i32,
@@ -174,7 +174,8 @@ impl AxisConfig {
         )?);
         let valve = self.valve.build().map_err(E::Valve)?;
         let lead_ticks = 1.5 + lag / f64::from(period_us);
-        if lead_ticks >= 32_767.0 {
+        // Below the master filter's extrapolation limit (2^14 ticks).
+        if lead_ticks >= 16_384.0 {
             return Err(E::ValveLag);
         }
         let ki_tick = fit::<I8F24>(ki * t, E::Ki)?.to_bits();

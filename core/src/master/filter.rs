@@ -14,8 +14,10 @@
 //! constant acceleration with zero steady-state error, so it adds no lag to a smoothly
 //! moving master, and its −3 dB bandwidth is about f_b.
 //!
-//! Formats: position `I48F16` master counts (`i64`); velocity `I32F32` counts/tick (`i64`,
-//! resolution 2.3e-10 counts/tick); acceleration `I0F32` counts/tick² in an `i32`
+//! Formats: position `I48F16` master counts (`i64`, modulo 2^64 raw: the master is a
+//! counter on a circle of 2^48 counts, followed through a wrap); velocity `I32F32`
+//! counts/tick (`i64`, resolution 2.3e-10 counts/tick, clamped to ±2^14 counts/tick);
+//! acceleration `I0F32` counts/tick² in an `i32`
 //! (resolution 2.3e-10, range ±0.5 counts/tick² = ±5·10⁵ counts/s² at 1 kHz, saturated);
 //! gains `g` and `2k` as Q1.31 and `h` (≤ 1.5) as Q2.30 in `i32`, so every gain product is
 //! one 32×32→64-bit multiply of the residual (an `i32` after its clamp); speed and
@@ -23,7 +25,7 @@
 //! residual is clamped to ±2^14 counts (±2^30 raw) before the gain products, so every
 //! product is below 2^62; a clamped residual is reported as a master jump.
 
-use crate::q::{mul_shr, sat_i32};
+use crate::q::mul_shr;
 use crate::units::{Master, MasterRate};
 
 /// Filter configuration in engineering units.
@@ -66,6 +68,26 @@ pub struct MasterFilterCoeffs {
 
 /// Largest residual accepted before the clamp, raw `I48F16` bits (2^14 counts).
 const MAX_RESIDUAL: i64 = 1 << 30;
+
+/// Largest extrapolation lead of [`MasterFilter::ahead`], ticks Q16 (2^14 ticks).
+pub const MAX_LEAD_Q16: i32 = 1 << 30;
+
+/// Largest filtered speed, raw Q32 counts/tick (2^14 counts/tick).
+const MAX_VEL: i64 = 1 << 46;
+
+/// Clamps a speed below 2^48 in magnitude to ±[`MAX_VEL`]: one test of the high word
+/// (in range exactly when bits 46…63 are all equal).
+#[inline(always)]
+fn clamp_vel(v: i64) -> i64 {
+    let hi = (v >> 32) as i32;
+    if hi >> 14 == hi >> 31 {
+        v
+    } else if v < 0 {
+        MAX_VEL.wrapping_neg()
+    } else {
+        MAX_VEL
+    }
+}
 
 impl MasterFilterConfig {
     /// Validates the configuration for a control period in µs.
@@ -148,6 +170,12 @@ pub struct MasterAhead {
 impl MasterFilter {
     /// Feeds one measurement. Returns `true` if the residual had to be clamped (the
     /// measurement jumped by more than 2^14 counts from the prediction).
+    ///
+    /// Positions are computed modulo 2^64 raw (`wrapping_*`): the master is a counter on
+    /// the `I48F16` circle of 2^48 counts, so a counter that wraps is followed through the
+    /// wrap, and no position sum needs a 64-bit saturation. The speed is clamped to
+    /// ±2^46 raw (Q32: ±16 384 counts/tick, 1.6·10⁷ counts/s at 1 kHz), which keeps
+    /// every later conversion of it to 32 bits exact.
     #[inline]
     pub fn update(&mut self, c: &MasterFilterCoeffs, meas: Master) -> bool {
         let m = meas.to_bits();
@@ -160,26 +188,38 @@ impl MasterFilter {
             };
             return false;
         }
-        // Predict one tick: step = (θ̇ + ½θ̈) >> 16 (Q32 → Q16 counts), formed exactly
-        // without a 64-bit saturation as (θ̇ >> 16) + ((θ̇ mod 2^16) + ½θ̈) >> 16: the
-        // first term is below 2^47, the second below 2^15.
+        // Predict one tick: step = (θ̇ + ½θ̈) >> 16 (Q32 → Q16 counts), formed exactly as
+        // (θ̇ >> 16) + ((θ̇ mod 2^16) + ½θ̈) >> 16: |θ̇| ≤ 2^46, so |step| < 2^31.
         let step = (self.vel >> 16)
             .wrapping_add(((self.vel & 0xFFFF).wrapping_add(i64::from(self.acc >> 1))) >> 16);
-        let r_raw = m.saturating_sub(self.pos).saturating_sub(step);
-        // |r| ≤ 2^30: an i32.
-        let r = r_raw.clamp(-MAX_RESIDUAL, MAX_RESIDUAL) as i32;
+        // The residual modulo 2^64; |r| ≤ 2^30 unless the master jumped.
+        let r_raw = m.wrapping_sub(self.pos).wrapping_sub(step);
+        let jump = (r_raw.wrapping_add(MAX_RESIDUAL) as u64) > (2 * MAX_RESIDUAL) as u64;
+        let r = if jump {
+            if r_raw < 0 {
+                MAX_RESIDUAL.wrapping_neg() as i32
+            } else {
+                MAX_RESIDUAL as i32
+            }
+        } else {
+            r_raw as i32
+        };
         // |r| ≤ 2^30 and gains < 2^31: every product is below 2^61.
         // r (Q16) · g (Q31) >> 31 = Q16;  r (Q16) · h (Q30) >> 14 = Q32;
         // r (Q16) · 2k (Q31) >> 15 = Q32.
         let r64 = i64::from(r);
-        // θ = θ + step + g·r: the two small terms (< 2^48) added first, one saturation.
+        // θ = θ + step + g·r (mod 2^64).
         let dpos = step.wrapping_add(r64.wrapping_mul(i64::from(c.g_q31)) >> 31);
-        // θ̇ = θ̇ + θ̈ + h·r: both terms below 2^47.
-        let dvel = i64::from(self.acc).wrapping_add(r64.wrapping_mul(i64::from(c.h_q30)) >> 14);
-        self.pos = self.pos.saturating_add(dpos);
-        self.vel = self.vel.saturating_add(dvel);
+        self.pos = self.pos.wrapping_add(dpos);
+        // θ̇ = θ̇ + θ̈ + h·r: |θ̇| ≤ 2^46, |θ̈| < 2^31, |h·r| < 2^47: the sum is below 2^48,
+        // then clamped to ±2^46.
+        let vel = self
+            .vel
+            .wrapping_add(i64::from(self.acc))
+            .wrapping_add(r64.wrapping_mul(i64::from(c.h_q30)) >> 14);
+        self.vel = clamp_vel(vel);
         self.acc = self.acc.saturating_add(mul_shr(r, c.k2_q31, 15));
-        i64::from(r) != r_raw
+        jump
     }
 
     /// The estimate `lead_q16 / 2^16` ticks after the last measurement, in the loop's
@@ -189,22 +229,26 @@ impl MasterFilter {
     /// θ(n) = θ + θ̇·n + ½θ̈·n²,   θ̇(n) = θ̇ + θ̈·n   (n in ticks)
     /// ```
     ///
-    /// Every product is 32×32→64 bits: the velocity enters as Q16 counts/tick (|θ̇| <
-    /// 32 768 counts/tick, saturated), the acceleration as Q32 counts/tick² (±0.5), the lead
-    /// as Q16 ticks (0 … 32 767), ticks/s as Q16 (≤ 20 kHz).
+    /// Every product is 32×32→64 bits: the velocity enters as Q16 counts/tick (|θ̇| ≤
+    /// 2^14 counts/tick, kept so by [`MasterFilter::update`]), the acceleration as Q32
+    /// counts/tick² (±0.5), the lead as Q16 ticks (clamped to 0 … 2^14 ticks; a validated
+    /// axis lead is below 2^14), ticks/s as Q16 (≤ 20 kHz). The position is modulo 2^64
+    /// raw like the filter's.
     #[inline]
     pub fn ahead(&self, c: &MasterFilterCoeffs, lead_q16: i32) -> MasterAhead {
-        let n = i64::from(lead_q16.max(0));
-        let v16 = i64::from(sat_i32(self.vel >> 16));
-        // acc·n: Q32·Q16 = Q48 → Q32 (|·| < 2^46).
+        let n = i64::from(lead_q16.clamp(0, MAX_LEAD_Q16));
+        // |θ̇| ≤ 2^46: θ̇ >> 16 fits 31 bits exactly.
+        let v16 = i64::from((self.vel >> 16) as i32);
+        // acc·n: Q32·Q16 = Q48 → Q32 (|·| ≤ 2^31·2^30 >> 16 = 2^45).
         let acc_n = i64::from(self.acc).wrapping_mul(n) >> 16;
-        // ½acc·n²: (acc·n as Q16, |·| < 2^30) · n = Q32 → >> 17 = Q16 with the ½ (< 2^61).
+        // ½acc·n²: (acc·n as Q16, |·| ≤ 2^29) · n = Q32 → >> 17 = Q16 with the ½ (< 2^59).
         let half_acc_n2 = i64::from((acc_n >> 16) as i32).wrapping_mul(n) >> 17;
-        // θ̇·n: Q16·Q16 >> 16 = Q16 (< 2^46); the sum of the two terms < 2^47.
+        // θ̇·n: Q16·Q16 >> 16 = Q16 (< 2^44); the sum of the two terms < 2^45.
         let pos = self
             .pos
-            .saturating_add((v16.wrapping_mul(n) >> 16).wrapping_add(half_acc_n2));
-        let v_ahead = sat_i32(self.vel.saturating_add(acc_n) >> 16);
+            .wrapping_add((v16.wrapping_mul(n) >> 16).wrapping_add(half_acc_n2));
+        // |θ̇ + θ̈·n| ≤ 2^46 + 2^45 < 2^47: the Q16 speed fits an i32 exactly.
+        let v_ahead = (self.vel.wrapping_add(acc_n) >> 16) as i32;
         MasterAhead {
             pos: Master::from_bits(pos),
             rate_q8: self.rate_q8(c, v_ahead),
@@ -241,7 +285,8 @@ impl MasterFilter {
     /// extrapolation's products.
     #[inline]
     pub fn estimate_now(&self, c: &MasterFilterCoeffs) -> MasterEstimate {
-        let rate_q8 = self.rate_q8(c, sat_i32(self.vel >> 16));
+        // |θ̇| ≤ 2^46: θ̇ >> 16 fits an i32 exactly.
+        let rate_q8 = self.rate_q8(c, (self.vel >> 16) as i32);
         MasterEstimate {
             pos: Master::from_bits(self.pos),
             rate_per_s: MasterRate::from_bits(i64::from(rate_q8) << 8),
@@ -258,10 +303,14 @@ impl MasterFilter {
     /// The sign of the filtered master speed: 1 moving up, −1 moving down, 0 at rest.
     #[inline]
     pub fn direction(&self) -> i8 {
-        match self.vel.signum() {
-            1 => 1,
-            -1 => -1,
-            _ => 0,
+        // From the high word (and the low word only when the high word is 0).
+        let hi = (self.vel >> 32) as i32;
+        if hi < 0 {
+            -1
+        } else if hi > 0 || self.vel as u32 != 0 {
+            1
+        } else {
+            0
         }
     }
 

@@ -62,22 +62,24 @@ impl Predictor {
         self.predict()
     }
 
-    /// θ̂(k+1) from the stored history.
+    /// θ̂(k+1) from the stored history, modulo 2^64 raw like the master filter
+    /// ([`crate::master::MasterFilter::update`]): the differences of a counter that
+    /// wraps are its true increments.
     #[inline]
     pub fn predict(&self) -> Master {
         let [t0, t1, t2] = self.hist;
-        let d1 = t0.saturating_sub(t1);
-        let d2 = t1.saturating_sub(t2);
+        let d1 = t0.wrapping_sub(t1);
+        let d2 = t1.wrapping_sub(t2);
         let next = match self.filled {
             0 | 1 => t0,
-            2 => t0.saturating_add(d1),
+            2 => t0.wrapping_add(d1),
             _ => {
-                let dd = d1.saturating_sub(d2);
+                let dd = d1.wrapping_sub(d2);
                 let curv = match self.kind {
                     PredictorKind::Eq4 => dd >> 1,
                     PredictorKind::Quadratic => dd,
                 };
-                t0.saturating_add(d1).saturating_add(curv)
+                t0.wrapping_add(d1).wrapping_add(curv)
             }
         };
         Master::from_bits(next)
