@@ -145,6 +145,8 @@ pub struct Follower<const S: usize, const N: usize> {
     cur_ff: usize,
     /// Whether any axis runs the Paper law (only then is the prediction looked up).
     any_paper: bool,
+    /// Whether every axis runs one law (the tick then takes that law's specialised path).
+    modes: Modes,
     /// The lead of the first Feedforward axis (its lookup is taken before the axis loop).
     ff_lead0: Option<i32>,
     /// Whether the Feedforward axes have different leads (only then does the axis loop
@@ -187,6 +189,13 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             cur_pred: 0,
             cur_ff: 0,
             any_paper: cfg.axes.iter().any(|a| a.mode == ControlMode::Paper),
+            modes: if cfg.axes.iter().all(|a| a.mode == ControlMode::Feedforward) {
+                Modes::Feedforward
+            } else if cfg.axes.iter().all(|a| a.mode == ControlMode::Paper) {
+                Modes::Paper
+            } else {
+                Modes::Mixed
+            },
             ff_leads_differ: axes
                 .iter()
                 .filter(|a| a.mode == ControlMode::Feedforward)
@@ -237,7 +246,12 @@ impl<const S: usize, const N: usize> Follower<S, N> {
     /// acceleration now). Computed on demand — for telemetry and the host tools — rather
     /// than by every tick: the loop itself never needs it in these formats.
     pub fn master_estimate(&self) -> MasterEstimate {
-        self.filter.estimate_now(&self.mf)
+        if self.modes == Modes::Paper {
+            // Every axis Paper: no tracking filter runs; the predictor's differences.
+            self.pred.estimate(self.mf.tps_q16())
+        } else {
+            self.filter.estimate_now(&self.mf)
+        }
     }
 
     /// Whether the end-of-table latch is set.
@@ -264,8 +278,28 @@ impl<const S: usize, const N: usize> Follower<S, N> {
     /// [`Follower::tick`] writing into the caller's outputs (no copy of the outputs:
     /// the form the firmware's tick uses).
     pub fn tick_into(&mut self, inp: &FollowerInputs<S>, out: &mut FollowerOutputs<S>) {
-        let master_jump = self.filter.update(&self.mf, inp.master);
-        let dir = self.filter.direction();
+        // One law on every axis: that law's path, with the per-axis dispatch resolved at
+        // compile time (each path out of line, with its own register allocation).
+        match self.modes {
+            Modes::Feedforward => self.tick_path::<MODE_FF>(inp, out),
+            Modes::Paper => self.tick_path::<MODE_PAPER>(inp, out),
+            Modes::Mixed => self.tick_path::<MODE_MIXED>(inp, out),
+        }
+    }
+
+    /// Steps 3–8 for laws `M` (`MODE_*`).
+    #[inline(never)]
+    fn tick_path<const M: u8>(&mut self, inp: &FollowerInputs<S>, out: &mut FollowerOutputs<S>) {
+        // Every axis Paper: the paper's own predictor is the master estimate (SPEC §A
+        // has no tracking filter); otherwise the tracking filter.
+        let (master_jump, dir) = if M == MODE_PAPER {
+            self.pred.observe(inp.master)
+        } else {
+            (
+                self.filter.update(&self.mf, inp.master),
+                self.filter.direction(),
+            )
+        };
         let t = &self.table;
         if !self.ended
             && ((dir > 0 && inp.master >= t.master_last())
@@ -274,21 +308,63 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             self.ended = true;
             self.end_high = dir > 0;
         }
+        out.end_of_table = self.ended;
+        out.master_jump = master_jump;
+        if M != MODE_MIXED && self.ended {
+            self.tick_ended(inp, out, dir);
+        } else if M == MODE_PAPER {
+            // Measured: the Paper path is cheaper inlined, the others out of line.
+            self.tick_mode::<M>(inp, out, dir);
+        } else {
+            self.tick_mode_outlined::<M>(inp, out, dir);
+        }
+    }
+
+    /// [`Follower::tick_mode`] out of line (its own register allocation).
+    #[inline(never)]
+    fn tick_mode_outlined<const M: u8>(
+        &mut self,
+        inp: &FollowerInputs<S>,
+        out: &mut FollowerOutputs<S>,
+        dir: i8,
+    ) {
+        self.tick_mode::<M>(inp, out, dir);
+    }
+
+    /// Steps 3–5 of an ended table (every slave holds its end), out of line.
+    #[inline(never)]
+    fn tick_ended(&mut self, inp: &FollowerInputs<S>, out: &mut FollowerOutputs<S>, dir: i8) {
+        self.tick_mode::<MODE_MIXED>(inp, out, dir);
+    }
+
+    /// Steps 3–5 after the master's update, for laws `M` (`MODE_*`; `MODE_FF` and
+    /// `MODE_PAPER` only while the table has not ended).
+    #[inline(always)]
+    fn tick_mode<const M: u8>(
+        &mut self,
+        inp: &FollowerInputs<S>,
+        out: &mut FollowerOutputs<S>,
+        dir: i8,
+    ) {
+        let t = &self.table;
         // Where the feedback looks: the filtered master now, or the end it stopped at.
         let m_now = match (self.ended, self.end_high) {
+            // Paper path: the sampled master θ(k) itself (no tracking filter runs).
+            (false, _) if M == MODE_PAPER => inp.master,
             (false, _) => self.filter.pos(),
             (true, true) => t.master_last(),
             (true, false) => t.master_first(),
         };
         let lk_now = t.locate(&mut self.cur_now, m_now);
-        let lk_pred = if self.any_paper && !self.ended {
+        let lk_pred = if M == MODE_PAPER {
+            // `observe` has pushed θ(k): the prediction θ̂(k+1) from the history.
+            t.locate(&mut self.cur_pred, self.pred.predict())
+        } else if M != MODE_FF && self.any_paper && !self.ended {
             let predicted = self.pred.update(inp.master);
             t.locate(&mut self.cur_pred, predicted)
         } else {
             lk_now
         };
-        out.end_of_table = self.ended;
-        out.master_jump = master_jump;
         let (Some(now), Some(pred)) = (t.span(&lk_now), t.span(&lk_pred)) else {
             // Unreachable: `locate` only returns segments of this table.
             out.dac = self.safe_outputs();
@@ -296,8 +372,8 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         };
         // Feed-forward lookup, shared by the axes with the same lead (taken here for the
         // first Feedforward axis' lead, again only for an axis with another lead).
-        let ff = match (self.ff_lead0, self.ended) {
-            (Some(lead), false) => {
+        let ff = match (M != MODE_PAPER, self.ff_lead0, self.ended) {
+            (true, Some(lead), false) => {
                 ff_lookup_inline(&self.filter, &self.mf, t, &mut self.cur_ff, lead).unwrap_or(
                     FfRef {
                         lead,
@@ -327,7 +403,8 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             else {
                 continue;
             };
-            if self.ff_leads_differ
+            if M != MODE_PAPER
+                && self.ff_leads_differ
                 && c.mode == ControlMode::Feedforward
                 && !ctx.ended
                 && c.lead_q16 != ctx.ff.lead
@@ -339,13 +416,31 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             }
             if S == 1 {
                 // One axis: no loop to keep registers for, so no call.
-                axis_step_inline(&ctx, c, rt, x.to_bits(), i, out);
+                axis_step_inline::<S, M>(&ctx, c, rt, x.to_bits(), i, out);
             } else {
-                axis_step(&ctx, c, rt, x.to_bits(), i, out);
+                axis_step::<S, M>(&ctx, c, rt, x.to_bits(), i, out);
             }
         }
     }
 }
+
+/// Which laws the axes run (chosen once, at [`Follower::new`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Modes {
+    /// Every axis `Feedforward`.
+    Feedforward,
+    /// Every axis `Paper`.
+    Paper,
+    /// Any other mix.
+    Mixed,
+}
+
+/// `tick_mode` / `axis_step` law selector: every axis `Feedforward`, table not ended.
+const MODE_FF: u8 = 0;
+/// Every axis `Paper`, table not ended.
+const MODE_PAPER: u8 = 1;
+/// Any laws, ended or not: the per-axis `match`.
+const MODE_MIXED: u8 = 2;
 
 /// What every axis of one tick reads.
 struct TickCtx<'a, const S: usize> {
@@ -365,7 +460,7 @@ struct TickCtx<'a, const S: usize> {
 /// following-error check, written into `out[i]`. Kept out of line so the axis loop does
 /// not spill the shared state around every axis.
 #[inline(never)]
-fn axis_step<const S: usize>(
+fn axis_step<const S: usize, const M: u8>(
     ctx: &TickCtx<'_, S>,
     c: &AxisCoeffs,
     rt: &mut AxisRt,
@@ -373,12 +468,12 @@ fn axis_step<const S: usize>(
     i: usize,
     out: &mut FollowerOutputs<S>,
 ) {
-    axis_step_inline(ctx, c, rt, x, i, out);
+    axis_step_inline::<S, M>(ctx, c, rt, x, i, out);
 }
 
 /// [`axis_step`]'s body.
 #[inline(always)]
-fn axis_step_inline<const S: usize>(
+fn axis_step_inline<const S: usize, const M: u8>(
     ctx: &TickCtx<'_, S>,
     c: &AxisCoeffs,
     rt: &mut AxisRt,
@@ -399,7 +494,12 @@ fn axis_step_inline<const S: usize>(
     let (u, code) = if rt.fault.is_some() {
         (0, c.valve.null_code())
     } else {
-        let u = match (c.mode, ctx.ended) {
+        let mode = match M {
+            MODE_FF => (ControlMode::Feedforward, false),
+            MODE_PAPER => (ControlMode::Paper, false),
+            _ => (c.mode, ctx.ended),
+        };
+        let u = match mode {
             (ControlMode::Paper, true) => paper_law_bits(c, &mut rt.st, err),
             (ControlMode::Paper, false) => {
                 let e = ctx.pred.value_bits(i).saturating_sub(x);
@@ -429,7 +529,8 @@ fn axis_step_inline<const S: usize>(
                 positional_law_bits(c, &mut rt.st, err, 0, 0)
             }
         };
-        (u, c.valve.output(CmdLsb::from_bits(u)))
+        // The laws clamp u to the valve's clamp: the output stage need not again.
+        (u, c.valve.output_within_clamp(CmdLsb::from_bits(u)))
     };
     if let Some(o) = out.dac.get_mut(i) {
         *o = code;

@@ -182,6 +182,19 @@ impl ValveCoeffs {
         }
     }
 
+    /// [`ValveCoeffs::output`] for a command the caller has already limited to
+    /// ±[`ValveCoeffs::clamp_lsb`] (the axis laws do): the identity fast path skips its
+    /// clamp. Crate-private: the range is the caller's proof.
+    #[inline(always)]
+    pub(crate) fn output_within_clamp(&self, u: CmdLsb) -> DacCode {
+        if self.identity {
+            // |u| ≤ clamp ≤ 2047·2^16 (the caller's proof): as in `output`.
+            DacCode::from_in_range(u.to_bits().wrapping_add(1 << 15) >> 16)
+        } else {
+            self.output_calibrated(u)
+        }
+    }
+
     /// [`ValveCoeffs::output`] through the full calibration (out of line: the identity
     /// fast path is the one inlined into the loop).
     #[inline(never)]

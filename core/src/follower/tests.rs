@@ -478,3 +478,44 @@ fn master_estimate_on_demand_tracks_a_constant_speed_master() {
     assert!((rate - 3000.0).abs() < 30.0, "rate {rate}");
     assert!(e.acc_per_s2.to_num::<f64>().abs() < 300.0);
 }
+
+/// Every axis Paper: the master estimate is the predictor's (no tracking filter runs), the
+/// table end still latches, and the following error is taken at the sampled master.
+#[test]
+fn paper_only_follower_uses_the_predictor() {
+    let axis = AxisConfig {
+        mode: ControlMode::Paper,
+        ..ff_axis()
+    };
+    let cfg = FollowerConfig {
+        axes: [axis],
+        ..FollowerConfig::default()
+    };
+    let nodes = sine_nodes();
+    let t = table1(&nodes);
+    let mut f = Follower::new(&cfg, t.clone()).unwrap();
+    let mut m = 0.0;
+    let mut o = FollowerOutputs::default();
+    for _ in 0..2000 {
+        m += 3.0;
+        o = f.tick(&inputs(m, 20_000.0));
+    }
+    let e = f.master_estimate();
+    assert_eq!(e.pos, Master::from_num(m));
+    assert_eq!(e.rate_per_s, MasterRate::from_num(3000));
+    assert_eq!(e.acc_per_s2, MasterRate::ZERO);
+    let mut c = 0;
+    assert_eq!(
+        o.target_um[0],
+        t.value(&t.locate(&mut c, Master::from_num(m)), 0)
+    );
+    // Past the last node moving up: ended.
+    let last = nodes[nodes.len() - 1].0;
+    let mut m = last - 6.0;
+    while m <= last + 6.0 {
+        o = f.tick(&inputs(m, 20_000.0));
+        m += 3.0;
+    }
+    assert!(o.end_of_table && f.ended());
+    assert!(f.tick(&inputs(last + 100_000.0, 20_000.0)).master_jump);
+}

@@ -89,6 +89,13 @@ fn clamp_vel(v: i64) -> i64 {
     }
 }
 
+impl MasterFilterCoeffs {
+    /// Ticks per second, Q16 (the period's reciprocal).
+    pub fn tps_q16(&self) -> i32 {
+        self.tps_q16
+    }
+}
+
 impl MasterFilterConfig {
     /// Validates the configuration for a control period in µs.
     pub fn build(&self, period_us: u32) -> Result<MasterFilterCoeffs, MasterFilterError> {

@@ -13,7 +13,9 @@
 //! [`Master`] (`I48F16`, master counts). The ½ is an arithmetic shift (rounds toward −∞,
 //! an error ≤ 2^-17 count).
 
-use crate::units::Master;
+use super::MasterEstimate;
+use crate::q::mul64_shr;
+use crate::units::{Master, MasterRate};
 
 /// Which 3-point extrapolation the predictor uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -62,6 +64,58 @@ impl Predictor {
         self.predict()
     }
 
+    /// Pushes θ(k) when the predictor is the follower's only master estimate (every axis
+    /// in `Paper` mode): returns whether θ(k) is more than 2^14 counts from the
+    /// prediction θ̂(k) made a tick earlier (a master jump, as the tracking filter
+    /// reports one), and the direction of motion, the sign of θ(k) − θ(k−1) (0 until two
+    /// samples exist).
+    #[inline]
+    pub fn observe(&mut self, theta: Master) -> (bool, i8) {
+        let m = theta.to_bits();
+        // θ(k) − θ̂(k) modulo 2^64; a jump when outside ±2^30 raw (2^14 counts).
+        let residual = m.wrapping_sub(self.predict().to_bits());
+        let jump = self.filled > 0 && (residual.wrapping_add(1 << 30) as u64) > (1u64 << 31);
+        let [h0, h1, _] = self.hist;
+        self.hist = [m, h0, h1];
+        let dir = if self.filled == 0 {
+            0
+        } else {
+            match m.wrapping_sub(h0) {
+                d if d > 0 => 1,
+                d if d < 0 => -1,
+                _ => 0,
+            }
+        };
+        if self.filled < 3 {
+            self.filled = self.filled.saturating_add(1);
+        }
+        (jump, dir)
+    }
+
+    /// The master now and its speed and acceleration from the stored differences:
+    /// θ(k), [θ(k) − θ(k−1)]/T and [θ(k) − 2θ(k−1) + θ(k−2)]/T² (0 until the samples
+    /// exist), for telemetry. `tps_q16` is ticks per second, Q16.
+    pub fn estimate(&self, tps_q16: i32) -> MasterEstimate {
+        let [t0, t1, t2] = self.hist;
+        let d1 = if self.filled >= 2 {
+            t0.wrapping_sub(t1)
+        } else {
+            0
+        };
+        let dd = if self.filled >= 3 {
+            d1.wrapping_sub(t1.wrapping_sub(t2))
+        } else {
+            0
+        };
+        let tps = i64::from(tps_q16);
+        MasterEstimate {
+            pos: Master::from_bits(t0),
+            // counts/tick (Q16) · ticks/s (Q16) >> 16 = counts/s (Q16); twice for /T².
+            rate_per_s: MasterRate::from_bits(mul64_shr(d1, tps, 16)),
+            acc_per_s2: MasterRate::from_bits(mul64_shr(mul64_shr(dd, tps, 16), tps, 16)),
+        }
+    }
+
     /// θ̂(k+1) from the stored history, modulo 2^64 raw like the master filter
     /// ([`crate::master::MasterFilter::update`]): the differences of a counter that
     /// wraps are its true increments.
@@ -105,6 +159,38 @@ mod tests {
         assert_eq!(p.update(Master::from_num(16)), Master::from_num(21));
     }
 
+    /// `observe` pushes like `update`, reports a measurement more than 2^14 counts from
+    /// the prediction as a jump, and gives the sign of the last difference.
+    #[test]
+    fn observe_reports_jumps_and_direction() {
+        let mut p = Predictor::default();
+        assert_eq!(p.observe(Master::from_num(10)), (false, 0));
+        assert_eq!(p.observe(Master::from_num(12)), (false, 1));
+        assert_eq!(p.predict(), Master::from_num(14));
+        assert_eq!(p.observe(Master::from_num(16)), (false, 1));
+        assert_eq!(p.predict(), Master::from_num(21));
+        // 21 predicted: 21 + 16 384 is the largest accepted, one count more is a jump.
+        let mut q = p;
+        assert_eq!(q.observe(Master::from_num(21 + 16_384)), (false, 1));
+        assert_eq!(p.observe(Master::from_num(21 + 16_385)), (true, 1));
+        assert_eq!(p.observe(Master::from_num(0)), (true, -1));
+    }
+
+    /// The telemetry estimate: position, speed and acceleration from the differences.
+    #[test]
+    fn estimate_from_the_differences() {
+        let mut p = Predictor::default();
+        let tps = 1000 << 16; // 1 kHz
+        for k in 0..3i64 {
+            p.observe(Master::from_num(100 + 3 * k + k * k));
+        }
+        // 100, 104, 110: d1 = 6 counts/tick, dd = 2 counts/tick².
+        let e = p.estimate(tps);
+        assert_eq!(e.pos, Master::from_num(110));
+        assert_eq!(e.rate_per_s, MasterRate::from_num(6000));
+        assert_eq!(e.acc_per_s2, MasterRate::from_num(2_000_000));
+    }
+
     proptest! {
         /// θ(k) = a + b·k + c·k² (c a multiple of 2^-15, so ½·Δ² is exact): the
         /// quadratic form predicts θ(k+1) exactly; eq. 4 is short by exactly ½·Δ²θ = c.
@@ -124,9 +210,15 @@ mod tests {
         }
 
         #[test]
-        fn never_panics(xs in proptest::collection::vec(any::<i64>(), 1..10)) {
+        fn never_panics(xs in proptest::collection::vec(any::<i64>(), 1..10), tps in any::<i32>()) {
             let mut p = Predictor::default();
-            for x in xs { let _ = p.update(Master::from_bits(x)); }
+            let mut o = Predictor::default();
+            for x in xs {
+                let _ = p.update(Master::from_bits(x));
+                let _ = o.observe(Master::from_bits(x));
+                prop_assert_eq!(o.predict(), p.predict());
+                let _ = o.estimate(tps);
+            }
         }
     }
 }
