@@ -38,6 +38,8 @@ pub struct Predictor {
     hist: [i64; 3],
     /// Samples seen, saturating at 3.
     filled: u8,
+    /// θ̂(k+1) from `hist`, raw `I48F16` (formed once per push).
+    next: i64,
 }
 
 impl Predictor {
@@ -47,6 +49,7 @@ impl Predictor {
             kind,
             hist: [0; 3],
             filled: 0,
+            next: 0,
         }
     }
 }
@@ -61,6 +64,7 @@ impl Predictor {
         if self.filled < 3 {
             self.filled = self.filled.saturating_add(1);
         }
+        self.next = self.extrapolate();
         self.predict()
     }
 
@@ -73,7 +77,7 @@ impl Predictor {
     pub fn observe(&mut self, theta: Master) -> (bool, i8) {
         let m = theta.to_bits();
         // θ(k) − θ̂(k) modulo 2^64; a jump when outside ±2^30 raw (2^14 counts).
-        let residual = m.wrapping_sub(self.predict().to_bits());
+        let residual = m.wrapping_sub(self.next);
         let jump = self.filled > 0 && (residual.wrapping_add(1 << 30) as u64) > (1u64 << 31);
         let [h0, h1, _] = self.hist;
         self.hist = [m, h0, h1];
@@ -89,6 +93,7 @@ impl Predictor {
         if self.filled < 3 {
             self.filled = self.filled.saturating_add(1);
         }
+        self.next = self.extrapolate();
         (jump, dir)
     }
 
@@ -116,11 +121,17 @@ impl Predictor {
         }
     }
 
-    /// θ̂(k+1) from the stored history, modulo 2^64 raw like the master filter
-    /// ([`crate::master::MasterFilter::update`]): the differences of a counter that
-    /// wraps are its true increments.
+    /// θ̂(k+1), the prediction formed at the last push (θ(k) itself before any push).
     #[inline]
     pub fn predict(&self) -> Master {
+        Master::from_bits(self.next)
+    }
+
+    /// θ̂(k+1) from the stored history (with `kind`), modulo 2^64 raw like the master
+    /// filter ([`crate::master::MasterFilter::update`]): the differences of a counter
+    /// that wraps are its true increments.
+    #[inline(always)]
+    fn extrapolate(&self) -> i64 {
         let [t0, t1, t2] = self.hist;
         let d1 = t0.wrapping_sub(t1);
         let d2 = t1.wrapping_sub(t2);
@@ -136,7 +147,7 @@ impl Predictor {
                 t0.wrapping_add(d1).wrapping_add(curv)
             }
         };
-        Master::from_bits(next)
+        next
     }
 
     /// Clears the history (after a master fault or a new table).
