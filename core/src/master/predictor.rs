@@ -135,7 +135,7 @@ impl Predictor {
         let [t0, t1, t2] = self.hist;
         let d1 = t0.wrapping_sub(t1);
         let d2 = t1.wrapping_sub(t2);
-        let next = match self.filled {
+        match self.filled {
             0 | 1 => t0,
             2 => t0.wrapping_add(d1),
             _ => {
@@ -146,8 +146,7 @@ impl Predictor {
                 };
                 t0.wrapping_add(d1).wrapping_add(curv)
             }
-        };
-        next
+        }
     }
 
     /// Clears the history (after a master fault or a new table).
