@@ -295,10 +295,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         let (master_jump, dir) = if M == MODE_PAPER {
             self.pred.observe(inp.master)
         } else {
-            (
-                self.filter.update(&self.mf, inp.master),
-                self.filter.direction(),
-            )
+            filter_step(&mut self.filter, &self.mf, inp.master)
         };
         let t = &self.table;
         if !self.ended
@@ -312,23 +309,9 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         out.master_jump = master_jump;
         if M != MODE_MIXED && self.ended {
             self.tick_ended(inp, out, dir);
-        } else if M == MODE_PAPER {
-            // Measured: the Paper path is cheaper inlined, the others out of line.
-            self.tick_mode::<M>(inp, out, dir);
         } else {
-            self.tick_mode_outlined::<M>(inp, out, dir);
+            self.tick_mode::<M>(inp, out, dir);
         }
-    }
-
-    /// [`Follower::tick_mode`] out of line (its own register allocation).
-    #[inline(never)]
-    fn tick_mode_outlined<const M: u8>(
-        &mut self,
-        inp: &FollowerInputs<S>,
-        out: &mut FollowerOutputs<S>,
-        dir: i8,
-    ) {
-        self.tick_mode::<M>(inp, out, dir);
     }
 
     /// Steps 3–5 of an ended table (every slave holds its end), out of line.
@@ -596,3 +579,10 @@ fn ff_lookup_inline<'a, const S: usize, const N: usize>(
 
 #[cfg(test)]
 mod tests;
+
+/// The tracking filter's update and direction, out of line (measured: the Feedforward
+/// path is cheaper with the filter's registers freed before the lookups).
+#[inline(never)]
+fn filter_step(f: &mut MasterFilter, c: &MasterFilterCoeffs, m: Master) -> (bool, i8) {
+    (f.update(c, m), f.direction())
+}
