@@ -180,6 +180,10 @@ fn main() -> ! {
         FollowerFig::<1>::new(ControlMode::Feedforward),
     );
     r.run(
+        "follower_ff_2axes",
+        FollowerFig::<2>::new(ControlMode::Feedforward),
+    );
+    r.run(
         "follower_ff_4axes",
         FollowerFig::<4>::new(ControlMode::Feedforward),
     );

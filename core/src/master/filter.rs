@@ -22,10 +22,10 @@
 //! gains `g` and `2k` as Q1.31 and `h` (≤ 1.5) as Q2.30 in `i32`, so every gain product is
 //! one 32×32→64-bit multiply of the residual (an `i32` after its clamp); speed and
 //! acceleration handed to the loop in Q24.8 counts/s and counts/s² ([`MasterAhead`]). The
-//! residual is clamped to ±2^14 counts (±2^30 raw) before the gain products, so every
-//! product is below 2^62; a clamped residual is reported as a master jump.
+//! residual is saturated to ±2^15 counts (±2^31 raw, an `i32`) before the gain products,
+//! so every product is below 2^62; a saturated residual is reported as a master jump.
 
-use crate::q::mul_shr;
+use crate::q::{mul_shr, sat_i32};
 use crate::units::{Master, MasterRate};
 
 /// Filter configuration in engineering units.
@@ -66,16 +66,13 @@ pub struct MasterFilterCoeffs {
     tps_q16: i32,
 }
 
-/// Largest residual accepted before the clamp, raw `I48F16` bits (2^14 counts).
-const MAX_RESIDUAL: i64 = 1 << 30;
-
 /// Largest extrapolation lead of [`MasterFilter::ahead`], ticks Q16 (2^14 ticks).
 pub const MAX_LEAD_Q16: i32 = 1 << 30;
 
 /// Largest filtered speed, raw Q32 counts/tick (2^14 counts/tick).
 const MAX_VEL: i64 = 1 << 46;
 
-/// Clamps a speed below 2^48 in magnitude to ±[`MAX_VEL`]: one test of the high word
+/// Clamps a speed to ±[`MAX_VEL`]: one test of the high word
 /// (in range exactly when bits 46…63 are all equal).
 #[inline(always)]
 fn clamp_vel(v: i64) -> i64 {
@@ -176,7 +173,7 @@ pub struct MasterAhead {
 
 impl MasterFilter {
     /// Feeds one measurement. Returns `true` if the residual had to be clamped (the
-    /// measurement jumped by more than 2^14 counts from the prediction).
+    /// measurement jumped by 2^15 counts or more from the prediction).
     ///
     /// Positions are computed modulo 2^64 raw (`wrapping_*`): the master is a counter on
     /// the `I48F16` circle of 2^48 counts, so a counter that wraps is followed through the
@@ -199,27 +196,20 @@ impl MasterFilter {
         // (θ̇ >> 16) + ((θ̇ mod 2^16) + ½θ̈) >> 16: |θ̇| ≤ 2^46, so |step| < 2^31.
         let step = (self.vel >> 16)
             .wrapping_add(((self.vel & 0xFFFF).wrapping_add(i64::from(self.acc >> 1))) >> 16);
-        // The residual modulo 2^64; |r| ≤ 2^30 unless the master jumped.
+        // The residual modulo 2^64; a jump when it does not fit an i32 (|r| ≥ 2^15
+        // counts), then saturated to ±2^31 raw. One test of the high word.
         let r_raw = m.wrapping_sub(self.pos).wrapping_sub(step);
-        let jump = (r_raw.wrapping_add(MAX_RESIDUAL) as u64) > (2 * MAX_RESIDUAL) as u64;
-        let r = if jump {
-            if r_raw < 0 {
-                MAX_RESIDUAL.wrapping_neg() as i32
-            } else {
-                MAX_RESIDUAL as i32
-            }
-        } else {
-            r_raw as i32
-        };
-        // |r| ≤ 2^30 and gains < 2^31: every product is below 2^61.
+        let jump = (r_raw >> 32) as i32 != (r_raw as i32) >> 31;
+        let r = sat_i32(r_raw);
+        // |r| ≤ 2^31 and gains < 2^31: every product is below 2^62.
         // r (Q16) · g (Q31) >> 31 = Q16;  r (Q16) · h (Q30) >> 14 = Q32;
         // r (Q16) · 2k (Q31) >> 15 = Q32.
         let r64 = i64::from(r);
         // θ = θ + step + g·r (mod 2^64).
         let dpos = step.wrapping_add(r64.wrapping_mul(i64::from(c.g_q31)) >> 31);
         self.pos = self.pos.wrapping_add(dpos);
-        // θ̇ = θ̇ + θ̈ + h·r: |θ̇| ≤ 2^46, |θ̈| < 2^31, |h·r| < 2^47: the sum is below 2^48,
-        // then clamped to ±2^46.
+        // θ̇ = θ̇ + θ̈ + h·r: |θ̇| ≤ 2^46, |θ̈| < 2^31, |h·r| < 1.5·2^47: the sum is below
+        // 2^49, then clamped to ±2^46.
         let vel = self
             .vel
             .wrapping_add(i64::from(self.acc))

@@ -69,16 +69,17 @@ impl Predictor {
     }
 
     /// Pushes θ(k) when the predictor is the follower's only master estimate (every axis
-    /// in `Paper` mode): returns whether θ(k) is more than 2^14 counts from the
+    /// in `Paper` mode): returns whether θ(k) is 2^15 counts or more from the
     /// prediction θ̂(k) made a tick earlier (a master jump, as the tracking filter
     /// reports one), and the direction of motion, the sign of θ(k) − θ(k−1) (0 until two
     /// samples exist).
     #[inline]
     pub fn observe(&mut self, theta: Master) -> (bool, i8) {
         let m = theta.to_bits();
-        // θ(k) − θ̂(k) modulo 2^64; a jump when outside ±2^30 raw (2^14 counts).
+        // θ(k) − θ̂(k) modulo 2^64; a jump when it does not fit an i32 (2^15 counts), as
+        // in the tracking filter.
         let residual = m.wrapping_sub(self.next);
-        let jump = self.filled > 0 && (residual.wrapping_add(1 << 30) as u64) > (1u64 << 31);
+        let jump = self.filled > 0 && (residual >> 32) as i32 != (residual as i32) >> 31;
         let [h0, h1, _] = self.hist;
         self.hist = [m, h0, h1];
         let dir = if self.filled == 0 {
@@ -179,10 +180,11 @@ mod tests {
         assert_eq!(p.predict(), Master::from_num(14));
         assert_eq!(p.observe(Master::from_num(16)), (false, 1));
         assert_eq!(p.predict(), Master::from_num(21));
-        // 21 predicted: 21 + 16 384 is the largest accepted, one count more is a jump.
+        // 21 predicted: 2^15 counts less 2^-16 above it is the largest accepted, 2^15 a jump.
         let mut q = p;
-        assert_eq!(q.observe(Master::from_num(21 + 16_384)), (false, 1));
-        assert_eq!(p.observe(Master::from_num(21 + 16_385)), (true, 1));
+        let edge = Master::from_num(21 + 32_768) - Master::DELTA;
+        assert_eq!(q.observe(edge), (false, 1));
+        assert_eq!(p.observe(Master::from_num(21 + 32_768)), (true, 1));
         assert_eq!(p.observe(Master::from_num(0)), (true, -1));
     }
 
