@@ -380,16 +380,16 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             dir,
             ended: self.ended,
         };
+        // Whether an axis may need a lookup of its own (decided once, outside the loop).
+        let check_leads = M != MODE_PAPER && self.ff_leads_differ && !self.ended;
         for i in 0..S {
             let (Some(c), Some(rt), Some(x)) =
                 (self.axes.get(i), self.rt.get_mut(i), inp.pos_um.get(i))
             else {
                 continue;
             };
-            if M != MODE_PAPER
-                && self.ff_leads_differ
-                && c.mode == ControlMode::Feedforward
-                && !ctx.ended
+            if check_leads
+                && (M == MODE_FF || c.mode == ControlMode::Feedforward)
                 && c.lead_q16 != ctx.ff.lead
             {
                 if let Some(f) = ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, c.lead_q16)
