@@ -30,7 +30,7 @@ use super::fal::{fal, FalCoeffs, FalConfig};
 use super::fhan::FhanConfig;
 use super::fxmath::mul_bounded_shr;
 use super::td::{Td, TdCoeffs, TdConfig};
-use super::{q16_from_pos, ErrorLaw, NpidError};
+use super::{ErrorLaw, NpidError};
 use crate::units::{CmdLsb, PosUm};
 
 /// Nonlinear PID parameters in engineering units (validated by [`NpidConfig::build`]).
@@ -184,10 +184,9 @@ pub struct Npid {
 impl Npid {
     /// Both TDs at rest at `position_um`, integral zero.
     pub fn at_rest(position_um: PosUm) -> Self {
-        let p = q16_from_pos(position_um);
         Self {
-            td_ref: Td::at_rest(p),
-            td_meas: Td::at_rest(p),
+            td_ref: Td::at_rest(position_um),
+            td_meas: Td::at_rest(position_um),
             e0_q32: 0,
             sat: 0,
         }
@@ -203,10 +202,9 @@ impl Npid {
         &self.td_meas
     }
 
-    /// `u` from `e1` (µm Q16, |e1| ≤ 2⁴²) and `e2` (µm/s Q16, |e2| ≤ 2⁴⁰), integrating
-    /// `e0` first.
+    /// `u` from `e1` (µm Q8) and `e2` (µm/s Q8), integrating `e0` first.
     #[inline(always)]
-    fn law(&mut self, c: &NpidCoeffs, e1: i64, e2: i64) -> CmdLsb {
+    fn law(&mut self, c: &NpidCoeffs, e1_q8: i32, e2_q8: i32) -> CmdLsb {
         let [f0, f1, f2] = &c.fal;
         let [b0, b1, b2] = c.beta_q24;
         let [m0, m1, m2] = c.fal_max_q16;
@@ -214,21 +212,25 @@ impl Npid {
         // Conditional integration: not while the output is clamped and e1 pushes further
         // into the clamp (e1 = 0 adds nothing either way).
         let push = if self.sat > 0 {
-            e1 > 0
+            e1_q8 > 0
         } else if self.sat < 0 {
-            e1 < 0
+            e1_q8 < 0
         } else {
             false
         };
         if !push {
-            // Q16·Q24 >> 8 = Q32; |e1·h_q24| ≤ 2^42·2^18 = 2^60.
-            let de0 = mul_bounded_shr(e1, c.td_ref.h_q24(), 8);
+            // Q8·Q32 >> 8 = Q32: one `smull`, |e1·h| < 2^31·2^26.
+            let de0 = i64::from(e1_q8)
+                .wrapping_mul(i64::from(c.td_ref.h_q32()))
+                .wrapping_shr(8);
             // |e0| ≤ 2^52 before the add: no overflow.
             self.e0_q32 = self
                 .e0_q32
                 .wrapping_add(de0)
                 .clamp(c.e0_max_q32.wrapping_neg(), c.e0_max_q32);
         }
+        let e1 = i64::from(e1_q8).wrapping_shl(8);
+        let e2 = i64::from(e2_q8).wrapping_shl(8);
         // β·fal with |fal| ≤ 2^62/β: each product ≤ 2^62, each term ≤ 2^38 (Q16), the
         // sum ≤ 3·2^38.
         let term = |k: TermMode, f: &FalCoeffs, e: i64, b: i64, m: i64| {
@@ -266,27 +268,19 @@ impl ErrorLaw for Npid {
     /// One period of the axis law: TD-I on the reference, TD-II on the measurement.
     #[inline]
     fn track(&mut self, c: &NpidCoeffs, reference_um: PosUm, measured_um: PosUm) -> CmdLsb {
-        self.td_ref.step_pos(&c.td_ref, reference_um);
-        self.td_meas.step_pos(&c.td_meas, measured_um);
-        // |z1| ≤ 2^41, |z2| ≤ 2^39 (TD clamps): the differences cannot overflow.
-        let e1 = self
-            .td_ref
-            .position_um_q16()
-            .wrapping_sub(self.td_meas.position_um_q16());
-        let e2 = self
-            .td_ref
-            .velocity_um_per_s_q16()
-            .wrapping_sub(self.td_meas.velocity_um_per_s_q16());
+        self.td_ref.step(&c.td_ref, reference_um);
+        self.td_meas.step(&c.td_meas, measured_um);
+        // Saturating (±8.4 m); |z2| ≤ 2^30 (TD clamp): the velocity difference fits.
+        let e1 = self.td_ref.z1_q8().saturating_sub(self.td_meas.z1_q8());
+        let e2 = self.td_ref.z2_q8().saturating_sub(self.td_meas.z2_q8());
         self.law(c, e1, e2)
     }
 
     /// One period of the law on an error signal (TD-I only).
     #[inline]
     fn regulate(&mut self, c: &NpidCoeffs, error_um: PosUm) -> CmdLsb {
-        self.td_ref.step_pos(&c.td_ref, error_um);
-        let e1 = self.td_ref.position_um_q16();
-        let e2 = self.td_ref.velocity_um_per_s_q16();
-        self.law(c, e1, e2)
+        self.td_ref.step(&c.td_ref, error_um);
+        self.law(c, self.td_ref.z1_q8(), self.td_ref.z2_q8())
     }
 
     fn reset(&mut self, position_um: PosUm) {
@@ -340,7 +334,8 @@ mod tests {
             Err(NpidError::Fal(2, super::super::FalError::Alpha))
         );
         let mut c = config();
-        c.td_measurement.h0_s = 1e-4;
+        // h0 = 0.5 ms < h (d0 = r·h0² = 5 µm is still valid).
+        c.td_measurement.h0_s = 5e-4;
         assert_eq!(
             c.build(),
             Err(NpidError::TdMeasurement(
@@ -406,11 +401,11 @@ mod tests {
         // and the clamped term still saturates the output with the right sign.
         for (coeffs, errs) in [
             (&c, [3i64 << 16, -(70 << 16), 12 << 16]),
-            (&big, [0, -(1 << 40), 1 << 20]),
-            (&big, [0, 1 << 40, -(1 << 20)]),
+            (&big, [0, -(1 << 38), 1 << 20]),
+            (&big, [0, 1 << 38, -(1 << 20)]),
         ] {
             let mut n = Npid::at_rest(PosUm::ZERO);
-            let u = n.law(coeffs, errs[1], errs[2]);
+            let u = n.law(coeffs, (errs[1] >> 8) as i32, (errs[2] >> 8) as i32);
             let mut wide: i128 = 0;
             for (i, e) in [n.e0_q32 >> 16, errs[1], errs[2]].into_iter().enumerate() {
                 let f = fal(&coeffs.fal[i], e);
