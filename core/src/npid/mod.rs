@@ -43,6 +43,7 @@ mod fxmath;
 pub mod npid;
 pub mod pid;
 pub mod td;
+mod term;
 pub mod xy_loop;
 
 pub use ccc::{Ccc, Cnp, CrossCoupled, XyCoeffs, XyOutput};
