@@ -222,7 +222,7 @@ pub(crate) fn exp2_q24_sat_i32(l: i32) -> i32 {
     let n = l.wrapping_shr(24); // floor, −128 … 127
     let f = (l & 0xFF_FFFF) as u32;
     let v = interp(&EXP2_TAB, f.wrapping_shr(18) as usize, f & 0x3_FFFF, 18); // [2^30, 2^31]
-    // value = v·2^(n − 30).
+                                                                              // value = v·2^(n − 30).
     let sh = n.wrapping_sub(30);
     if sh > 0 {
         i32::MAX

@@ -26,10 +26,10 @@
 //! **Cost.** Every product is one 32 × 32 → 64-bit `smull`, every sum a saturating
 //! 32-bit `qadd`: `e0 += e1·h` rounded to nearest (no drift from a floored increment;
 //! increments below ½ LSB, |e1| < 2 nm at 1 ms, are lost), each term fused with its gain
-//! ([`super::term`]: one log/exp for a power law with β in the exponent, one `smull` by
+//! (`term.rs`: one log/exp for a power law with β in the exponent, one `smull` by
 //! the small-signal slope in the linear zone and for α = 1). The build decides per term:
 //! β = 0 skips it, α = 1 skips the power law. Each term saturates at ±2¹⁵ LSB (16 × the
-//! DAC range) before the sum (see [`super::term`]).
+//! DAC range) before the sum (see `term.rs`).
 
 use super::fal::FalConfig;
 use super::fhan::FhanConfig;

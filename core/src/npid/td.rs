@@ -86,10 +86,7 @@ impl TdConfig {
             >> 24;
         // h/h0 from the quantised h0 (≥ 42 950) and h (h_q32 < 2^26, << 30 < 2^56);
         // h ≤ h0 up to the quantisation: at most 2^30 + 1.
-        let h_over_h0_q30 = (h_q32 << 30)
-            .checked_div(h0_q32)
-            .unwrap_or(0)
-            .min(1 << 30);
+        let h_over_h0_q30 = (h_q32 << 30).checked_div(h0_q32).unwrap_or(0).min(1 << 30);
         Ok(TdCoeffs {
             fhan,
             h_q32: h_q32 as i32,
@@ -158,8 +155,7 @@ impl Td {
             c.rh_q8
         } else {
             // |a| ≤ d ≤ 2^29, h/h0 ≤ 2^30 (Q30): below 2^59.
-            (i64::from(a).wrapping_mul(i64::from(c.h_over_h0_q30)) >> 30)
-                .wrapping_neg() as i32
+            (i64::from(a).wrapping_mul(i64::from(c.h_over_h0_q30)) >> 30).wrapping_neg() as i32
         };
         // Q8·Q32 = Q40, exact (`smlal`); |z2·h| ≤ 2^30·0.01·2^32 < 2^56 and |z1| ≤
         // Z1_MAX·2^32 before: no wrap. Then the clamp on the high word.

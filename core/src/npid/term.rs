@@ -67,7 +67,8 @@ pub(crate) struct TermCoeffs {
 /// below 10⁻¹⁵).
 fn log2_f64(x: f64) -> f64 {
     let bits = x.to_bits();
-    let exp = ((bits >> 52) & 0x7FF) as i32 - 1023;
+    // The biased exponent is 0 … 2047: the difference is within ±1024.
+    let exp = (((bits >> 52) & 0x7FF) as i32).wrapping_sub(1023);
     let m = f64::from_bits((bits & 0x000F_FFFF_FFFF_FFFF) | 0x3FF0_0000_0000_0000);
     let z = (m - 1.0) / (m + 1.0);
     let z2 = z * z;
@@ -85,7 +86,7 @@ fn log2_f64(x: f64) -> f64 {
 /// `(k_m, k_sh)` with `k = k_m·2^−k_sh`, `k_m` ∈ [2³⁰, 2³¹) where `k_sh` ≤ 63 allows;
 /// `k ≥ 2³¹` gives `(2³¹ − 1, 0)` (see the module docs), `k = 0` `(0, 63)`.
 fn slope_parts(k: f64) -> (i32, u32) {
-    if !(k > 0.0) {
+    if k.is_nan() || k <= 0.0 {
         return (0, 63);
     }
     if k >= 2_147_483_647.0 {
@@ -114,7 +115,7 @@ impl TermCoeffs {
     /// The term `β·fal(e, α, δ)` for an input in Q(`frac`) (`frac` 8 or 16) and β ∈
     /// [0, 10⁶] (validated by the caller), α and δ from the validated `fal`.
     pub(crate) fn new(beta: f64, fal: &FalCoeffs, frac: u32) -> Self {
-        if !(beta > 0.0) {
+        if beta.is_nan() || beta <= 0.0 {
             return Self::default();
         }
         let alpha_q16 = fal.alpha_q16().min(2 << 16) as i32;
@@ -146,9 +147,11 @@ impl TermCoeffs {
         };
         // The slope from the hot path's own power at δ (continuous at ±δ), evaluated
         // 2^-sh lower where β·δ^α itself would saturate: exponent p = α·log2 δ + off.
-        let p = (i64::from(log2_q24_u32(delta)) * i64::from(alpha_q16) >> 16)
+        let p = i64::from(log2_q24_u32(delta))
+            .saturating_mul(i64::from(alpha_q16))
+            .wrapping_shr(16)
             .saturating_add(i64::from(log_off_q24))
-            >> 24;
+            .wrapping_shr(24);
         let sh = p.saturating_sub(29).clamp(0, 100) as i32;
         let lowered = Self {
             log_off_q24: log_off_q24.saturating_sub(sh.saturating_mul(1 << 24)),

@@ -15,7 +15,7 @@
 //! [`EstimatedXy::tick`] is the per-period entry point: no allocation, no float, no
 //! panic. Its cost is the interpolator's (1 + h path evaluations), the estimator's (N
 //! squared distances, three segment distances, ⌈log₂(H + 1)⌉ bisection steps) and three
-//! nonlinear PIDs (four TD steps, nine `fal`).
+//! nonlinear PIDs (five TD steps, up to nine `β·fal` terms).
 
 use super::ccc::{Cnp, XyCoeffs, XyOutput};
 use super::contour_model::PathFrame;
@@ -212,14 +212,7 @@ mod tests {
         for k in 0..300 {
             let ripple = PosUm::from_bits((k % 7 - 3) << 8);
             let pa = a.tick(&ic, &c, &path, feed, m);
-            let pb = b.tick_with_feedforward(
-                &ic,
-                &c,
-                &[VelocityFfCoeffs::NONE; 2],
-                &path,
-                feed,
-                m,
-            );
+            let pb = b.tick_with_feedforward(&ic, &c, &[VelocityFfCoeffs::NONE; 2], &path, feed, m);
             assert_eq!(pa, pb);
             assert_eq!(a.ctl, b.ctl);
             assert_eq!(a.ff, b.ff);
