@@ -21,7 +21,7 @@
 //! |---|---|---|---|---|
 //! | `z1` | µm | Q40 (`i64`; its high word is µm Q8) | 9·10⁻¹³ µm | ±(2²³ − 2¹⁹) µm = ±7.86 m (clamped) |
 //! | input `v` | µm | Q8 ([`PosUm`] bits) | 3.9·10⁻³ µm | ±2²³ µm = ±8.4 m |
-//! | `z2` | µm/s | Q8 ([`VelUmPerS`] bits) | 3.9·10⁻³ µm/s | ±[`super::V_MAX_UM_PER_S`] = ±4.2 m/s (clamped) |
+//! | `z2` | µm/s | Q8 ([`VelUmPerS`] bits) | 3.9·10⁻³ µm/s | [−2²², 2²² − 2⁻⁸] µm/s = ±4.2 m/s ([`super::V_MAX_UM_PER_S`], clamped) |
 //! | `h` | s | Q32 | 2.3·10⁻¹⁰ s | 10 µs … 10 ms |
 //! | `r·h` | µm/s | Q8 | 3.9·10⁻³ µm/s | ≤ d ≤ 2²¹ µm/s |
 //! | `h/h0` | 1 | Q30 | 9.3·10⁻¹⁰ | ≤ 1 |
@@ -162,16 +162,14 @@ impl Td {
         let z1 = self
             .z1_um_q40
             .wrapping_add(i64::from(z2).wrapping_mul(i64::from(c.h_q32)));
-        let hi = (z1 >> 32) as i32;
-        self.z1_um_q40 = if hi > Z1_MAX_Q8 {
-            i64::from(Z1_MAX_Q8) << 32
-        } else if hi < -Z1_MAX_Q8 {
-            i64::from(-Z1_MAX_Q8) << 32
-        } else {
-            z1
-        };
-        // |dz2| ≤ r·h ≤ d ≤ 2^29 and |z2| ≤ 2^30: no overflow before the clamp.
-        self.z2_um_per_s_q8 = z2.saturating_add(dz2).clamp(-V_MAX_Q8, V_MAX_Q8);
+        // The high word clamped, the low word (a fraction of 2^-8 µm) kept.
+        let hi = ((z1 >> 32) as i32).clamp(-Z1_MAX_Q8, Z1_MAX_Q8);
+        self.z1_um_q40 = (i64::from(hi) << 32) | i64::from(z1 as u32);
+        // |dz2| ≤ r·h ≤ d ≤ 2^29 and |z2| ≤ 2^30: no overflow before the clamp to
+        // [−2^30, 2^30 − 1] (one `ssat`).
+        self.z2_um_per_s_q8 = z2
+            .saturating_add(dz2)
+            .clamp(-V_MAX_Q8, V_MAX_Q8.wrapping_sub(1));
     }
 
     /// Tracked position z1, µm.
