@@ -20,7 +20,7 @@
 //! |---|---|---|---|
 //! | input e | µm·s, µm, µm/s | Q(f) `i32`, f = 16 (e0) or 8 (e1, e2) | the `i32` range |
 //! | output | DAC LSB | Q16 `i32` | ±2¹⁵ LSB (saturated) |
-//! | slope k | LSB Q16 per input LSB | `k_m·2^−k_sh`, `k_m` ∈ [2³⁰, 2³¹) | 2⁻³³ … 2³¹ |
+//! | slope k | LSB Q16 per input LSB | `k_m·2^−k_sh`, `k_sh` ≤ 31, `k_m` ∈ [2³⁰, 2³¹) for k ≥ ½ | 0 … 2³¹ (resolution 2⁻³¹) |
 //! | α | 1 | Q16 | 0 … 2 |
 //! | exponent offset `log2 β + 16 − α·f` | 1 | Q24 `i32` | ±60 |
 //!
@@ -52,9 +52,11 @@ pub(crate) struct TermCoeffs {
     pub(crate) mode: TermMode,
     /// δ in input LSB (≥ 1).
     delta: u32,
-    /// Slope mantissa, [2³⁰, 2³¹) (smaller only when `k_sh` is capped at 63).
+    /// Slope mantissa, [2³⁰, 2³¹) (smaller only when `k_sh` is capped at 31, k < ½:
+    /// the rounding of `k_m` then moves the output by ≤ ½ LSB of Q16 over the whole
+    /// `i32` input).
     k_m: i32,
-    /// Slope shift, 0 … 63.
+    /// Slope shift, 0 … 31 (a 64-bit shift below 32: no second word to test).
     k_sh: u32,
     /// α, Q16 (0 … 2¹⁷).
     alpha_q16: i32,
@@ -83,18 +85,18 @@ fn log2_f64(x: f64) -> f64 {
     f64::from(exp) + 2.0 * sum / core::f64::consts::LN_2
 }
 
-/// `(k_m, k_sh)` with `k = k_m·2^−k_sh`, `k_m` ∈ [2³⁰, 2³¹) where `k_sh` ≤ 63 allows;
-/// `k ≥ 2³¹` gives `(2³¹ − 1, 0)` (see the module docs), `k = 0` `(0, 63)`.
+/// `(k_m, k_sh)` with `k = k_m·2^−k_sh`, `k_m` ∈ [2³⁰, 2³¹) where `k_sh` ≤ 31 allows;
+/// `k ≥ 2³¹` gives `(2³¹ − 1, 0)` (see the module docs), `k = 0` `(0, 31)`.
 fn slope_parts(k: f64) -> (i32, u32) {
     if k.is_nan() || k <= 0.0 {
-        return (0, 63);
+        return (0, 31);
     }
     if k >= 2_147_483_647.0 {
         return (i32::MAX, 0);
     }
     let mut m = k;
     let mut sh = 0u32;
-    while m < 1_073_741_824.0 && sh < 63 {
+    while m < 1_073_741_824.0 && sh < 31 {
         m *= 2.0;
         sh = sh.saturating_add(1);
     }
@@ -141,7 +143,7 @@ impl TermCoeffs {
             mode: TermMode::Power,
             delta,
             k_m: 0,
-            k_sh: 63,
+            k_sh: 31,
             alpha_q16,
             log_off_q24,
         };
@@ -167,11 +169,11 @@ impl TermCoeffs {
     /// `k·e`, LSB Q16, saturated.
     #[inline(always)]
     fn linear(&self, e: i32) -> i32 {
-        // |e·k_m| < 2^62.
+        // |e·k_m| < 2^62; k_sh < 32.
         crate::q::sat_i32(
             i64::from(e)
                 .wrapping_mul(i64::from(self.k_m))
-                .wrapping_shr(self.k_sh),
+                .wrapping_shr(self.k_sh & 31),
         )
     }
 
