@@ -203,7 +203,7 @@ pub(crate) fn fhan_a(c: &FhanCoeffs, x1: i32, x2: i32) -> i32 {
             x2.saturating_add(half)
         }
     } else {
-        // |y| ≤ d0 = d·h0: |y_q8·inv_h0_q14| ≤ 2^29·0.1·2^14/h0·h0… < 2^57, and
+        // |y| ≤ d0 = d·h0: |y_q8·inv_h0_q14| ≈ |y/h0|·2^22 ≤ d_q8·2^14 ≤ 2^43, and
         // |y/h0| ≤ d ≤ 2^29 (Q8).
         let lin = (i64::from(y).wrapping_mul(i64::from(c.inv_h0_q14)) >> 14) as i32;
         x2.saturating_add(lin)
