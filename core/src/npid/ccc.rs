@@ -93,6 +93,20 @@ fn distribute(u: CmdLsb, g_q30: i64, uc: CmdLsb) -> CmdLsb {
     )
 }
 
+/// [`distribute`] for a unit gain (`|g| ≤ 2³⁰`, Q30: sin/cos of the foot frame) on
+/// 32-bit words: `|g·u_c| ≤ 2³⁰·2³¹`, shifted `|corr| ≤ 2³¹` only for |u_c| near the
+/// `i32` limit (saturated), the sum a `qadd`, then the ±2047 LSB clamp. Same value as
+/// [`distribute`].
+#[inline(always)]
+fn distribute_unit(u: CmdLsb, g_q30: i32, uc: CmdLsb) -> CmdLsb {
+    let corr = crate::q::mul_shr(g_q30, uc.to_bits(), 30);
+    CmdLsb::from_bits(
+        u.to_bits()
+            .saturating_add(corr)
+            .clamp((U_MAX_Q16 as i32).wrapping_neg(), U_MAX_Q16 as i32),
+    )
+}
+
 impl<L: ErrorLaw> CrossCoupled<L> {
     /// All three laws at rest (axes at `position_um`, contour law at 0).
     pub fn at_rest(mut x: L, mut y: L, mut contour: L, position_um: [PosUm; 2]) -> Self {
@@ -190,8 +204,8 @@ impl<L: ErrorLaw> CrossCoupled<L> {
         let uc = self.contour.regulate(&c.contour, contour_error_um);
         XyOutput {
             command: [
-                distribute(u1, i64::from(foot_frame.sin_q30).saturating_neg(), uc),
-                distribute(u2, i64::from(foot_frame.cos_q30), uc),
+                distribute_unit(u1, foot_frame.sin_q30.saturating_neg(), uc),
+                distribute_unit(u2, foot_frame.cos_q30, uc),
             ],
             contour_error_um,
             contour_command: uc,

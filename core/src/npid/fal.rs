@@ -87,6 +87,14 @@ impl FalConfig {
 }
 
 impl FalCoeffs {
+    /// α in Q16.
+    pub(crate) fn alpha_q16(&self) -> u32 {
+        self.alpha_q16
+    }
+    /// δ in Q16 of the unit of e (2⁶ … 2³¹).
+    pub(crate) fn delta_q16(&self) -> i64 {
+        self.delta_q16
+    }
     /// The identity `fal(e, 1, δ) = e` (for linear laws built from the same parts).
     pub fn identity() -> Self {
         Self {

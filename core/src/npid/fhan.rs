@@ -12,33 +12,51 @@
 //! `a` scaled by `h0`, `fsg` switching functions) is the same function: the tests check
 //! one against the other in `f64`.
 //!
-//! **Formats.** `x1`: µm in Q16 (`i64`, resolution 1.5·10⁻⁵ µm); `x2`: µm/s in Q16,
-//! clamped on entry to ±[`V_MAX_UM_PER_S`]; result µm/s² in Q16. `r` is an integer number
-//! of µm/s² (its rounding is < 5·10⁻⁴ relative for r ≥ 10³ µm/s²), `h0` a Q24 number of
-//! seconds (6·10⁻⁸ s), `1/h0` a Q16 number of 1/s computed from the same quantised `h0`.
+//! **Formats (32-bit).** `x1`: µm in Q8 (`i32`, the bits of [`crate::units::PosUm`]:
+//! ±8.4 m, resolution 3.9·10⁻³ µm); `x2`: µm/s in Q8 (`i32`, the bits of
+//! [`crate::units::VelUmPerS`]), clamped on entry to ±[`V_MAX_UM_PER_S`] (4.2 m/s);
+//! result µm/s² in Q8 (`i64`; |fhan| ≤ r ≤ 10⁹ µm/s²). `r` is an integer number of
+//! µm/s² (its rounding is < 5·10⁻⁴ relative for r ≥ 10³ µm/s²), `h0` a Q32 number of
+//! seconds (2.3·10⁻¹⁰ s), `1/h0` a Q14 number of 1/s from the same quantised `h0`,
+//! `d = r·h0` µm/s Q8 (≤ 2²¹ µm/s = 2.1 m/s), `d0 = h0·d` µm Q8 (≥ 2 µm, so the Q8
+//! rounding of `y` — ≤ ½ LSB = 2·10⁻³ µm — moves fhan's linear zone by ≤ 10⁻³·r).
 //!
-//! **Square root.** `a0 = √(d² + 8·r·|y|)` is formed from the argument in Q2 (µm/s)²
-//! (`u64`, below 2⁶³ for the validated ranges) by [`super::fxmath`]'s table + one Newton
-//! step: relative error ≤ 2·10⁻⁸ (measured 0.9·10⁻⁸), plus the argument's quantisation
-//! (< 1 LSB of Q2 on ≥ 9·d² ≥ 9·10⁴ (µm/s)², i.e. < 3·10⁻⁶) and `d`'s (1.5·10⁻⁵ µm/s):
-//! a0's relative error is below 5·10⁻⁶, two hundred times under the 10⁻³ budget.
+//! **Square root.** `a0 = √(d² + 8·r·|y|)` is formed from the argument in Q6 (µm/s)²
+//! (`u64`: `64·d² + 2·r·|y_q8|` < 2⁶³ for the validated ranges) by [`super::fxmath`]'s
+//! table + one Newton step: relative error ≤ 2·10⁻⁸ (measured 0.9·10⁻⁸). `a0` is kept
+//! in Q8 as a `u32` saturated at 2³² − 1 (16.8 m/s): where it saturates, `(a0 − d)/2 ≥
+//! 1.75·2³⁰ − 1` exceeds `|x2| + d ≤ 1.5·2³⁰`, so `a` keeps the sign of `y` and `|a| > d`
+//! — fhan's value there (−r·sign(y)) is exact.
 //!
-//! **Cost.** No `i128` and no 64-bit division on the per-tick path: every product is an
-//! `i64` product bounded below 2⁶³ by the validated ranges (each line states the bound),
-//! the square root is a table lookup, a `umull` residual and one 32-bit `sdiv`. The
-//! internal [`fhan_bounded`] (used by the TD, whose state is already in range) skips the
-//! entry clamps of the public [`fhan`].
+//! **Cost.** No `i128` and no 64-bit division on the per-tick path: `y` and `a` are
+//! saturating 32-bit sums (`qadd`), `h0·x2` the high word of one `smull`, the linear
+//! zone's `y/h0` one `smull`; the square root's argument is one `umull` and one 64-bit
+//! addition, the root a table lookup, a `umull` residual and one 32-bit `sdiv`.
 
-use super::fxmath::{mul_bounded_shr, mul_shr, sqrt_u64};
+use super::fxmath::sqrt_u64;
 use super::TdError;
 
-/// Largest |velocity| the TD state and `fhan` accept, µm/s (2²³ µm/s ≈ 8.4 m/s).
-pub const V_MAX_UM_PER_S: i64 = 1 << 23;
-/// Same bound in Q16.
-pub(crate) const V_MAX_Q16: i64 = V_MAX_UM_PER_S << 16;
-/// Largest |x1| [`fhan_bounded`] accepts, µm Q16 (2⁴² = 2²⁶ µm ≈ 67 m, eight times
-/// the ±8.4 m of [`crate::units::PosUm`]); [`fhan`] clamps to it.
-pub(crate) const X1_MAX_Q16: i64 = 1 << 42;
+/// Largest |velocity| the TD state and `fhan` accept, µm/s (2²² µm/s ≈ 4.2 m/s: twice
+/// the fastest hydraulic axis this controller is meant for).
+pub const V_MAX_UM_PER_S: i32 = 1 << 22;
+/// Same bound in Q8 (2³⁰).
+pub(crate) const V_MAX_Q8: i32 = V_MAX_UM_PER_S << 8;
+/// Largest `d = r·h0`, µm/s Q8 (2²¹ µm/s ≈ 2.1 m/s).
+const D_MAX_Q8: i64 = 1 << 29;
+/// Smallest `d = r·h0`, µm/s Q8 (100 µm/s).
+const D_MIN_Q8: i64 = 100 << 8;
+/// Smallest `d0 = r·h0²`, µm Q8 (2 µm).
+const D0_MIN_Q8: i64 = 2 << 8;
+
+/// `(a·b + 2³¹) >> 32`: `a·b/2³²` rounded to nearest (one `smlal` on a constant).
+#[inline(always)]
+pub(crate) fn mul_hi_round(a: i32, b: i32) -> i32 {
+    // |a·b| ≤ 2^62: adding 2^31 cannot overflow, the high word is an i32.
+    (i64::from(a)
+        .wrapping_mul(i64::from(b))
+        .wrapping_add(1 << 31)
+        >> 32) as i32
+}
 
 /// Parameters of `fhan` in engineering units (validated by [`FhanConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,26 +72,26 @@ pub struct FhanConfig {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FhanCoeffs {
-    /// r, µm/s² (integer).
-    r: i64,
-    /// h0, s, Q24.
-    h0_q24: i64,
-    /// 1/h0, 1/s, Q16.
-    inv_h0_q16: i64,
-    /// d = r·h0, µm/s, Q16.
-    d_q16: i64,
-    /// d0 = h0·d, µm, Q16.
-    d0_q16: i64,
-    /// r, µm/s², Q16 (|fhan| in the saturated zone).
-    r_q16: i64,
-    /// d², (µm/s)², Q2 (from the quantised `d_q16`).
-    d2_q2: u64,
+    /// r, µm/s² (integer, 10³ … 10⁹).
+    r: u32,
+    /// 2·r, µm/s² (< 2³¹).
+    two_r: u32,
+    /// h0, s, Q32 (≤ 0.1·2³² < 2²⁹).
+    h0_q32: i32,
+    /// 1/h0, 1/s, Q14 (≤ 10⁵·2¹⁴ < 2³¹).
+    inv_h0_q14: i32,
+    /// d = r·h0, µm/s, Q8 (100·2⁸ … 2²⁹).
+    d_q8: i32,
+    /// d0 = h0·d, µm, Q8 (≥ 2·2⁸).
+    d0_q8: u32,
+    /// 64·d², (µm/s)² Q6 (< 2⁶⁴·2⁻⁶: from the quantised `d_q8`).
+    d2_q6: u64,
 }
 
 impl FhanConfig {
     /// Validates `r` and `h0` and quantises them. Besides the ranges of each field,
-    /// `d = r·h0` must lie in 100 µm/s … 2²² µm/s and `d0 = r·h0²` must be ≥ 0.05 µm
-    /// (both keep the square root's relative error under 10⁻³).
+    /// `d = r·h0` must lie in 100 µm/s … 2²¹ µm/s (2.1 m/s) and `d0 = r·h0²` must be
+    /// ≥ 2 µm (the Q8 state's rounding stays under 10⁻³ of fhan's linear zone).
     pub fn build(&self) -> Result<FhanCoeffs, TdError> {
         let r = self.r_um_per_s2;
         if !(r.is_finite() && (1e3..=1e9).contains(&r)) {
@@ -84,25 +102,25 @@ impl FhanConfig {
             return Err(TdError::FilterFactor);
         }
         let r_int = (r + 0.5) as i64;
-        let h0_q24 = (h0 * 16_777_216.0 + 0.5) as i64;
-        let d_q16 = mul_shr(r_int, h0_q24, 8);
-        let d0_q16 = mul_shr(d_q16, h0_q24, 24);
-        if !((100 << 16)..=(1 << 38)).contains(&d_q16) || d0_q16 < 3277 {
+        let h0_q32 = (h0 * 4_294_967_296.0 + 0.5) as i64;
+        // r < 2^30, h0_q32 < 2^29: < 2^59.
+        let d_q8 = r_int.saturating_mul(h0_q32) >> 24;
+        let d0_q8 = d_q8.saturating_mul(h0_q32) >> 32;
+        if !(D_MIN_Q8..=D_MAX_Q8).contains(&d_q8) || d0_q8 < D0_MIN_Q8 {
             return Err(TdError::Boundary);
         }
-        // 2^40 / h0_q24 = (1/h0) in Q16; h0_q24 ≥ 167.
-        let inv_h0_q16 = (1i64 << 40).checked_div(h0_q24).unwrap_or(i64::MAX);
-        // d ≤ 2^22 µm/s: d_q16² < 2^76, so square d in Q8 (d_q16 >> 8 < 2^30) → Q16, >> 14.
-        let d_q8 = d_q16 >> 8;
-        let d2_q2 = (d_q8 as u64).wrapping_mul(d_q8 as u64) >> 14;
+        // 2^46 / h0_q32 = (1/h0) in Q14; h0_q32 ≥ 42 950.
+        let inv_h0_q14 = (1i64 << 46).checked_div(h0_q32).unwrap_or(i64::MAX);
+        // d_q8 ≤ 2^29: d_q8² < 2^58, Q16 → Q6.
+        let d2_q6 = (d_q8 as u64).saturating_mul(d_q8 as u64) >> 10;
         Ok(FhanCoeffs {
-            r: r_int,
-            h0_q24,
-            inv_h0_q16,
-            d_q16,
-            d0_q16,
-            r_q16: r_int << 16,
-            d2_q2,
+            r: r_int as u32,
+            two_r: (r_int as u32).saturating_mul(2),
+            h0_q32: h0_q32 as i32,
+            inv_h0_q14: inv_h0_q14 as i32,
+            d_q8: d_q8 as i32,
+            d0_q8: d0_q8 as u32,
+            d2_q6,
         })
     }
 }
@@ -110,86 +128,85 @@ impl FhanConfig {
 impl FhanCoeffs {
     /// The quantised speed factor r, µm/s².
     pub fn r_um_per_s2(&self) -> f64 {
-        self.r as f64
+        f64::from(self.r)
     }
     /// The quantised filter factor h0, s.
     pub fn h0_s(&self) -> f64 {
-        self.h0_q24 as f64 / 16_777_216.0
+        f64::from(self.h0_q32) / 4_294_967_296.0
     }
-    /// d = r·h0 in Q16 µm/s (> 0).
-    pub(crate) fn d_q16(&self) -> i64 {
-        self.d_q16
+    /// d = r·h0 in Q8 µm/s (> 0).
+    #[inline(always)]
+    pub(crate) fn d_q8(&self) -> i32 {
+        self.d_q8
     }
-    /// 1/h0 in Q16 1/s.
-    pub(crate) fn inv_h0_q16_raw(&self) -> i64 {
-        self.inv_h0_q16
+    /// h0 in Q32 s.
+    pub(crate) fn h0_q32(&self) -> i32 {
+        self.h0_q32
     }
-    /// r in Q16 µm/s².
-    pub(crate) fn r_q16_raw(&self) -> i64 {
-        self.r_q16
+    /// r as an integer number of µm/s².
+    pub(crate) fn r_raw(&self) -> u32 {
+        self.r
     }
-    /// r in Q16 µm/s².
+    /// r in Q8 µm/s².
     #[cfg(test)]
-    pub(crate) fn r_q16(&self) -> i64 {
-        self.r_q16
+    pub(crate) fn r_q8(&self) -> i64 {
+        i64::from(self.r) << 8
     }
 }
 
-/// `fhan(x1, x2, r, h0)`: µm (Q16) and µm/s (Q16) in, µm/s² (Q16) out, |result| ≤ r.
-/// `x1` is clamped to ±2²⁶ µm and `x2` to ±[`V_MAX_UM_PER_S`] first.
+/// `fhan(x1, x2, r, h0)`: µm (Q8) and µm/s (Q8) in, µm/s² (Q8) out, |result| ≤ r.
+/// `x2` is clamped to ±[`V_MAX_UM_PER_S`] first; `x1` takes the whole `i32` (±8.4 m).
 #[inline]
-pub fn fhan(c: &FhanCoeffs, x1_um_q16: i64, x2_um_per_s_q16: i64) -> i64 {
-    fhan_bounded(
-        c,
-        x1_um_q16.clamp(-X1_MAX_Q16, X1_MAX_Q16),
-        x2_um_per_s_q16.clamp(-V_MAX_Q16, V_MAX_Q16),
-    )
-}
-
-/// [`fhan`] for `|x1| ≤ 2⁴²` (µm Q16, [`X1_MAX_Q16`]) and `|x2| ≤` [`V_MAX_Q16`]: the
-/// bounds below hold only then (larger inputs wrap, they never panic).
-#[inline(always)]
-fn fhan_bounded(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
-    let a = fhan_a(c, x1, x2);
-    if a > c.d_q16 {
-        c.r_q16.wrapping_neg()
-    } else if a < c.d_q16.wrapping_neg() {
-        c.r_q16
+pub fn fhan(c: &FhanCoeffs, x1_um_q8: i32, x2_um_per_s_q8: i32) -> i64 {
+    let a = fhan_a(c, x1_um_q8, x2_um_per_s_q8.clamp(-V_MAX_Q8, V_MAX_Q8));
+    let r_q8 = i64::from(c.r) << 8;
+    if a > c.d_q8 {
+        r_q8.wrapping_neg()
+    } else if a < c.d_q8.wrapping_neg() {
+        r_q8
     } else {
-        // |a| ≤ d = r·h0: |a_q16·inv_h0_q16| ≤ r·2^32 < 2^62.
-        mul_bounded_shr(a, c.inv_h0_q16, 16).wrapping_neg()
+        // |a| ≤ d ≤ 2^29, 1/h0 < 2^31 (Q14): below 2^60.
+        (i64::from(a).wrapping_mul(i64::from(c.inv_h0_q14)) >> 14).wrapping_neg()
     }
 }
 
-/// The switching variable `a` of `fhan` (µm/s Q16) for the ranges of [`fhan_bounded`]:
+/// The switching variable `a` of `fhan` (µm/s Q8) for `|x2| ≤` [`V_MAX_Q8`] (any `x1`):
 /// `fhan = −r·sign(a)` if `|a| > d`, else `−a/h0` (the TD scales that by `h` itself).
+/// Where `|a|` would exceed the `i32` range it saturates, keeping its sign.
 #[inline(always)]
-pub(crate) fn fhan_a(c: &FhanCoeffs, x1: i64, x2: i64) -> i64 {
-    // |x2·h0_q24| ≤ 2^39·0.1·2^24 < 2^60; |y| ≤ 2^42 + 2^36 < 2^43.
-    let y = x1.wrapping_add(mul_bounded_shr(x2, c.h0_q24, 24));
+pub(crate) fn fhan_a(c: &FhanCoeffs, x1: i32, x2: i32) -> i32 {
+    // |x2·h0| ≤ 2^30·0.1 < 2^27 (Q8), rounded to nearest (½ LSB: see `D0_MIN_Q8`); y
+    // saturates at ±8.4 m.
+    let y = x1.saturating_add(mul_hi_round(x2, c.h0_q32));
     let ay = y.unsigned_abs();
-    // d0 > 0 (validated).
-    if ay > c.d0_q16 as u64 {
-        // Q2 (µm/s)²: d² + 8·r·|y| = d² + r·|y_q16| >> 11, split at bit 16 of |y| so
-        // both products stay in 64 bits: r < 2^30, |y| >> 16 < 2^27 → (·) << 5 < 2^62;
-        // (|y| & 0xFFFF)·r < 2^46. Sum < 2^63.
-        // r < 2^30 and both halves of |y| fit a u32: two `umull`.
-        let r = c.r as u32;
-        let ry_hi = u64::from(r).wrapping_mul(u64::from((ay >> 16) as u32));
-        let ry_lo = u64::from(r).wrapping_mul(u64::from(ay as u32 & 0xFFFF));
-        let arg = c.d2_q2.wrapping_add(ry_hi << 5).wrapping_add(ry_lo >> 11);
-        // √(Q2) = Q1 = s·2^(1−k); in Q16: s·2^(16−k). s ≤ 2^31: < 2^47.
+    if ay > c.d0_q8 {
+        // Q6 (µm/s)²: 64·(d² + 8·r·|y|) = d2_q6 + 2r·|y_q8|: 2r < 2^31, |y_q8| ≤ 2^31,
+        // one `umull` below 2^62; d2_q6 < 2^52. Sum < 2^63.
+        let arg = c
+            .d2_q6
+            .wrapping_add(u64::from(c.two_r).wrapping_mul(u64::from(ay)));
+        // √(Q6) = Q3 = s·2^(1−k); in Q8: s·2^(6−k), s ∈ [2^30, 2^31].
         let (s, k) = sqrt_u64(arg);
-        let a0_q16 = (i64::from(s) << 16).wrapping_shr(k);
-        let half = a0_q16.wrapping_sub(c.d_q16).wrapping_shr(1);
-        if y < 0 {
-            x2.wrapping_sub(half)
+        let a0 = if k >= 6 {
+            s.wrapping_shr(k.wrapping_sub(6))
+        } else if k == 5 {
+            s.saturating_mul(2)
         } else {
-            x2.wrapping_add(half)
+            // a0 ≥ 2^32 (Q8): saturated, see the module docs.
+            u32::MAX
+        };
+        // a0 ≥ d up to the square root's rounding (saturating); (a0 − d)/2 < 2^31.
+        let half = (a0.saturating_sub(c.d_q8 as u32) >> 1) as i32;
+        if y < 0 {
+            x2.saturating_sub(half)
+        } else {
+            x2.saturating_add(half)
         }
     } else {
-        // |y| ≤ d0 and d0·(1/h0) = d ≤ 2^22 µm/s: |y_q16·inv_h0_q16| ≤ 2^54.
-        x2.wrapping_add(mul_bounded_shr(y, c.inv_h0_q16, 16))
+        // |y| ≤ d0 = d·h0: |y_q8·inv_h0_q14| ≈ |y/h0|·2^22 ≤ d_q8·2^14 ≤ 2^43, and
+        // |y/h0| ≤ d ≤ 2^29 (Q8).
+        let lin = (i64::from(y).wrapping_mul(i64::from(c.inv_h0_q14)) >> 14) as i32;
+        x2.saturating_add(lin)
     }
 }
 
@@ -247,8 +264,8 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn q16(x: f64) -> i64 {
-        (x * 65536.0).round() as i64
+    fn q8(x: f64) -> i32 {
+        (x * 256.0).round() as i32
     }
 
     #[test]
@@ -295,7 +312,7 @@ mod tests {
 
     #[test]
     fn fixed_point_matches_reference_on_a_grid() {
-        for &(r, h0) in &[(1e7, 1e-3), (2e5, 1e-3), (2e6, 5e-3), (5e8, 1e-4)] {
+        for &(r, h0) in &[(1e7, 1e-3), (2.5e6, 1e-3), (2e6, 5e-3), (5e8, 1e-4)] {
             let c = FhanConfig {
                 r_um_per_s2: r,
                 h0_s: h0,
@@ -309,10 +326,10 @@ mod tests {
                 for j in -200..=200 {
                     let x1 = f64::from(i) * d0 * 0.173;
                     let x2 = f64::from(j) * d * 0.0611;
-                    let x1q = q16(x1) as f64 / 65536.0;
-                    let x2q = q16(x2) as f64 / 65536.0;
+                    let x1q = f64::from(q8(x1)) / 256.0;
+                    let x2q = f64::from(q8(x2)) / 256.0;
                     let want = fhan_old(x1q, x2q, rq, hq);
-                    let got = fhan(&c, q16(x1), q16(x2)) as f64 / 65536.0;
+                    let got = fhan(&c, q8(x1), q8(x2)) as f64 / 256.0;
                     assert!(
                         (got - want).abs() <= 1e-3 * rq,
                         "r {r} h0 {h0} x1 {x1} x2 {x2}: {got} vs {want}"
@@ -341,27 +358,55 @@ mod tests {
             h0_s: 1e-3,
         };
         assert_eq!(tiny_d.build(), Err(TdError::Boundary));
+        // d0 = r·h0² = 0.2 µm < 2 µm (the Q8 state's floor).
+        let tiny_d0 = FhanConfig {
+            r_um_per_s2: 2e5,
+            h0_s: 1e-3,
+        };
+        assert_eq!(tiny_d0.build(), Err(TdError::Boundary));
+        // d = r·h0 = 2.5 m/s > 2^21 µm/s.
+        let big_d = FhanConfig {
+            r_um_per_s2: 2.5e8,
+            h0_s: 1e-2,
+        };
+        assert_eq!(big_d.build(), Err(TdError::Boundary));
     }
 
     proptest! {
         #[test]
-        fn bounded_and_odd(x1 in any::<i64>(), x2 in any::<i64>()) {
+        fn bounded_and_odd(x1 in any::<i32>(), x2 in any::<i32>()) {
             let c = FhanConfig { r_um_per_s2: 3e6, h0_s: 2e-3 }.build().unwrap();
             let f = fhan(&c, x1, x2);
-            prop_assert!(f.abs() <= c.r_q16());
-            if x1 > i64::MIN && x2 > i64::MIN {
+            prop_assert!(f.abs() <= c.r_q8());
+            if x1 > i32::MIN && x2 > i32::MIN {
                 // fhan(−x) = −fhan(x) up to the floor of the shifts.
                 let g = fhan(&c, -x1, -x2);
-                prop_assert!((f + g).abs() <= c.r_q16() / 500 + 2);
+                prop_assert!((f + g).abs() <= c.r_q8() / 500 + 2);
+            }
+        }
+
+        #[test]
+        fn saturated_a0_keeps_fhan_exact(
+            x1 in any::<i32>(), x2 in -(1i32 << 30)..(1i32 << 30),
+            r in 1e3f64..1e9, h0 in 1e-5f64..0.1,
+        ) {
+            // Over the whole validated range (where it builds), including |y| near 8 m
+            // where a0 saturates: against the f64 reference on the same inputs.
+            if let Ok(c) = (FhanConfig { r_um_per_s2: r, h0_s: h0 }).build() {
+                let want = fhan_old(f64::from(x1) / 256.0, f64::from(x2) / 256.0,
+                    c.r_um_per_s2(), c.h0_s());
+                let got = fhan(&c, x1, x2) as f64 / 256.0;
+                prop_assert!((got - want).abs() <= 1e-3 * c.r_um_per_s2(),
+                    "{got} vs {want}");
             }
         }
 
         #[test]
         fn matches_reference_random(x1 in -5e5f64..5e5, x2 in -2e6f64..2e6) {
             let c = FhanConfig { r_um_per_s2: 3e6, h0_s: 2e-3 }.build().unwrap();
-            let want = fhan_old(q16(x1) as f64 / 65536.0, q16(x2) as f64 / 65536.0,
+            let want = fhan_old(f64::from(q8(x1)) / 256.0, f64::from(q8(x2)) / 256.0,
                 c.r_um_per_s2(), c.h0_s());
-            let got = fhan(&c, q16(x1), q16(x2)) as f64 / 65536.0;
+            let got = fhan(&c, q8(x1), q8(x2)) as f64 / 256.0;
             prop_assert!((got - want).abs() <= 1e-3 * c.r_um_per_s2());
         }
     }

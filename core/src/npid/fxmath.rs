@@ -196,6 +196,45 @@ pub(crate) fn exp2_q24(l: i32, out_frac: u32) -> i64 {
     }
 }
 
+/// `log2(x)` in Q24 for a `u32` `x > 0` (`x = 0` returns `i32::MIN / 4`, "−∞"): the
+/// 32-bit form of [`log2_q24`] (one `clz`, one `umull`). Range `[0, 32)`, absolute error
+/// ≤ 4.5·10⁻⁵.
+#[inline(always)]
+pub(crate) fn log2_q24_u32(x: u32) -> i32 {
+    if x == 0 {
+        return i32::MIN / 4;
+    }
+    let lz = x.leading_zeros();
+    let msb = 31u32.wrapping_sub(lz);
+    // Leading one at bit 31; the next 6 bits index the table, the 25 below interpolate.
+    let top = x.wrapping_shl(lz);
+    let idx = (top.wrapping_shr(25) & 63) as usize;
+    let frac_q30 = interp(&LOG2_TAB, idx, top.wrapping_shl(7), 32);
+    (msb as i32)
+        .wrapping_shl(24)
+        .wrapping_add(frac_q30.wrapping_shr(6) as i32)
+}
+
+/// `2^(l / 2^24)` as an integer, saturated to `[0, i32::MAX]`: the 32-bit form of
+/// [`exp2_q24`] with `out_frac = 0`. Relative error ≤ 3·10⁻⁵ (plus one LSB).
+#[inline(always)]
+pub(crate) fn exp2_q24_sat_i32(l: i32) -> i32 {
+    let n = l.wrapping_shr(24); // floor, −128 … 127
+    let f = (l & 0xFF_FFFF) as u32;
+    let v = interp(&EXP2_TAB, f.wrapping_shr(18) as usize, f & 0x3_FFFF, 18); // [2^30, 2^31]
+                                                                              // value = v·2^(n − 30).
+    let sh = n.wrapping_sub(30);
+    if sh > 0 {
+        i32::MAX
+    } else if sh == 0 {
+        v.min(i32::MAX as u32) as i32
+    } else if sh > -32 {
+        v.wrapping_shr(sh.unsigned_abs()) as i32
+    } else {
+        0
+    }
+}
+
 /// `|x|^α` for `x` in Q16 (any unit) and `α` in Q16 (0 ≤ α ≤ 2): the result is in Q16
 /// of unit^α, saturated to `i64::MAX`. `0^α = 0` (also for α = 0, where the caller's
 /// linear zone takes over anyway).
@@ -318,6 +357,19 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn u32_forms_match_the_u64_forms() {
+        for k in 0..20_000u32 {
+            let x = 1 + k.wrapping_mul(2_654_435_761) % (u32::MAX - 1);
+            assert_eq!(log2_q24_u32(x), log2_q24(u64::from(x), 0), "{x}");
+            let l = (k as i32 - 10_000) * 60_000; // ±36 in log2
+            let want = exp2_q24(l, 0).min(i64::from(i32::MAX));
+            assert_eq!(i64::from(exp2_q24_sat_i32(l)), want, "{l}");
+        }
+        assert_eq!(exp2_q24_sat_i32(31 << 24), i32::MAX);
+        assert_eq!(exp2_q24_sat_i32(-40 << 24), 0);
     }
 
     #[test]

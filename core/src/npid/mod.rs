@@ -2,10 +2,11 @@
 //!
 //! | file | what |
 //! |---|---|
-//! | [`fxmath`] (private) | bounded 64-bit products (no `i128`), √ by table + one Newton step (≤ 2·10⁻⁸ relative), `|x|^α` by base-2 log/exp tables (≤ 1.3·10⁻⁴ relative) |
-//! | [`fhan`] | Han's time-optimal synthesis function (a0 within 5·10⁻⁶ relative) |
+//! | [`fxmath`] (private) | bounded 64-bit products (no `i128`), √ by table + one Newton step (≤ 2·10⁻⁸ relative), `|x|^α` by base-2 log/exp tables (≤ 1.3·10⁻⁴ relative), their 32-bit forms |
+//! | [`fhan`] | Han's time-optimal synthesis function on 32-bit words (a0 within 5·10⁻⁶ relative) |
 //! | [`td`] | the discrete tracking differentiator |
 //! | [`fal`] | the power law with a linear zone |
+//! | `term` (private) | one law term `β·fal(e)` fused on 32-bit words (β in the power's exponent, one `smull` in the linear zone) |
 //! | [`feedforward`] | velocity feed-forward per axis from the interpolated reference (direction-dependent gain, lead) |
 //! | [`npid`] | the single-axis nonlinear PID (TD-I on the reference, TD-II on the measurement) |
 //! | [`pid`] | the linear PID of the classic CCC |
@@ -18,17 +19,21 @@
 //! units are validated once by `build()`, which returns a small `Copy` error naming the
 //! bad parameter; the per-tick methods cannot fail, never allocate and use no float.
 //!
-//! Fixed-point formats (all `i64` raw unless stated):
+//! Fixed-point formats of the nonlinear PID (32-bit words except `z1`; the linear PID,
+//! the contour model and the feed-forward document theirs):
 //!
 //! | quantity | unit | format | resolution | range |
 //! |---|---|---|---|---|
-//! | TD position z1, errors e1, E, ε | µm | Q16 | 1.5·10⁻⁵ µm | ±2²⁵ µm = ±33.5 m (TD z1 clamped; `fhan`'s position input ±67 m) |
-//! | TD velocity z2, e2 | µm/s | Q16 | 1.5·10⁻⁵ µm/s | ±2²³ µm/s (clamped) |
-//! | `fhan` | µm/s² | Q16 | 1.5·10⁻⁵ µm/s² | ±r ≤ 10⁹ µm/s² |
-//! | integral e0 | µm·s | Q32 | 2.3·10⁻¹⁰ µm·s | ±integral limit ≤ 10⁶ |
-//! | h, h0 | s | Q24 | 6·10⁻⁸ s | 10⁻⁵ … 0.1 s |
-//! | β, kp, ki·h, kd/h | LSB per unit^α | Q24 | 6·10⁻⁸ | 0 … 10⁶ |
+//! | TD position z1 | µm | Q40 `i64` (high word µm Q8) | 9·10⁻¹³ µm | ±7.86 m (clamped) |
+//! | TD input, fhan's x1, y, errors e1, ε | µm | Q8 `i32` ([`PosUm`] bits) | 3.9·10⁻³ µm | ±8.4 m (saturating) |
+//! | TD velocity z2, fhan's x2 and a, e2 | µm/s | Q8 `i32` | 3.9·10⁻³ µm/s | ±2²² µm/s = ±4.2 m/s (z2 clamped) |
+//! | `fhan` (public form) | µm/s² | Q8 `i64` | 3.9·10⁻³ µm/s² | ±r ≤ 10⁹ µm/s² |
+//! | d = r·h0, d0 = r·h0² | µm/s, µm | Q8 `i32` | 3.9·10⁻³ | d 100 µm/s … 2²¹ µm/s, d0 ≥ 2 µm |
+//! | integral e0 | µm·s | Q16 `i32` | 1.5·10⁻⁵ µm·s | ±integral limit ≤ 32 767 µm·s |
+//! | h, h0 | s | Q32 `i32` | 2.3·10⁻¹⁰ s | h 10 µs … 10 ms, h0 10 µs … 0.1 s |
+//! | β | LSB per unit^α | `f64` at build → a slope mantissa/shift and a Q24 `log2 β` | 6·10⁻⁸ relative | 0 … 10⁶ |
 //! | α | 1 | Q16 | 1.5·10⁻⁵ | 0 … 2 |
+//! | each term β·fal, u | DAC LSB | Q16 `i32` | 1.5·10⁻⁵ LSB | term ±2¹⁵ (saturated), u ±2047 |
 //! | sin θ, cos θ, C1, C2 | 1 | Q30 | 9.3·10⁻¹⁰ | ±2³³ |
 //! | κ | 1/µm | Q48 | 3.6·10⁻¹⁵ 1/µm | ±0.1 (R ≥ 10 µm) |
 //! | outputs | DAC LSB | [`CmdLsb`] (I16F16) | 1.5·10⁻⁵ LSB | ±2047 |
@@ -43,6 +48,7 @@ mod fxmath;
 pub mod npid;
 pub mod pid;
 pub mod td;
+mod term;
 pub mod xy_loop;
 
 pub use ccc::{Ccc, Cnp, CrossCoupled, XyCoeffs, XyOutput};
@@ -81,7 +87,7 @@ pub enum TdError {
     Step,
     /// h0 below the step h.
     FilterBelowStep,
-    /// d = r·h0 outside 100 µm/s … 2²² µm/s, or d0 = r·h0² below 0.05 µm.
+    /// d = r·h0 outside 100 µm/s … 2²¹ µm/s (2.1 m/s), or d0 = r·h0² below 2 µm.
     Boundary,
 }
 
@@ -111,7 +117,7 @@ pub enum NpidError {
     Period,
     /// Derivative filter time constant outside 0 … 1 s.
     DerivativeFilter,
-    /// Integral limit out of range.
+    /// Integral limit out of range (NPID: 0 … 32 767 µm·s).
     IntegralLimit,
     /// Output limit outside 1 … 2047 LSB.
     OutputLimit,

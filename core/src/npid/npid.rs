@@ -14,23 +14,28 @@
 //! For the contour loop ([`super::ccc`]) the same law runs on an error signal: TD-I
 //! tracks ε(k) (`e1 = z11`, `e2 = z12`) and TD-II is not used ([`Npid::regulate`]).
 //!
-//! Formats: TD states µm and µm/s in Q16 (`i64`, |z1| ≤ 2⁴¹, |z2| ≤ 2³⁹), `e0` µm·s in
-//! Q32 (`i64`, ≤ 10⁶·2³² < 2⁵²), β in Q24 (≤ 10⁶·2²⁴ < 2⁴⁴), the output [`CmdLsb`].
+//! Formats (all `i32`; the TD's in [`super::td`]):
 //!
-//! **Cost.** Every product is an `i64` product bounded below 2⁶³ (no `i128` routine on
-//! the Cortex-M4): `e1·h` by the TD clamps, `β·fal` by clamping each `fal` value to
-//! `|fal| ≤ 2⁶²/β_q24` first, i.e. each term to ±2²² LSB. That clamp only acts when a
-//! single term alone exceeds 2²² LSB (2000 × the DAC range), where the old `i128` form
-//! would have given the same clamped output unless the other terms cancelled more than
-//! 4·10⁶ LSB of it. The build decides per term (`TermMode`): a term with β = 0 is
-//! skipped, and the clamp is left out where `|fal|` over the term's whole input range
-//! (`|e0| ≤` integral limit, `|e1| ≤ 2⁴²`, `|e2| ≤ 2⁴⁰` in Q16) cannot reach it.
+//! | quantity | unit | format | resolution | range |
+//! |---|---|---|---|---|
+//! | e1 = z11 − z21 | µm | Q8 | 3.9·10⁻³ µm | ±8.4 m (saturating) |
+//! | e2 = z12 − z22 | µm/s | Q8 | 3.9·10⁻³ µm/s | ±8.4 m/s (TD velocities ±4.2 m/s) |
+//! | e0 | µm·s | Q16 | 1.5·10⁻⁵ µm·s | ±integral limit ≤ 32 767 µm·s |
+//! | each term β·fal, u | DAC LSB | Q16 | 1.5·10⁻⁵ LSB | ±2¹⁵ LSB (term), ±output limit (u) |
+//!
+//! **Cost.** Every product is one 32 × 32 → 64-bit `smull`, every sum a saturating
+//! 32-bit `qadd`: `e0 += e1·h` rounded to nearest (no drift from a floored increment;
+//! increments below ½ LSB, |e1| < 2 nm at 1 ms, are lost), each term fused with its gain
+//! (`term.rs`: one log/exp for a power law with β in the exponent, one `smull` by
+//! the small-signal slope in the linear zone and for α = 1). The build decides per term:
+//! β = 0 skips it, α = 1 skips the power law. Each term saturates at ±2¹⁵ LSB (16 × the
+//! DAC range) before the sum (see `term.rs`).
 
-use super::fal::{fal, FalCoeffs, FalConfig};
+use super::fal::FalConfig;
 use super::fhan::FhanConfig;
-use super::fxmath::mul_bounded_shr;
 use super::td::{Td, TdCoeffs, TdConfig};
-use super::{q16_from_pos, ErrorLaw, NpidError};
+use super::term::TermCoeffs;
+use super::{ErrorLaw, NpidError};
 use crate::units::{CmdLsb, PosUm};
 
 /// Nonlinear PID parameters in engineering units (validated by [`NpidConfig::build`]).
@@ -55,7 +60,7 @@ pub struct NpidConfig {
     pub fal1: FalConfig,
     /// `fal` of the derivative term (e2 in µm/s).
     pub fal2: FalConfig,
-    /// Clamp of |e0|, µm·s (0 … 10⁶).
+    /// Clamp of |e0|, µm·s (0 … 32 767: the Q16 `i32` integral).
     pub integral_limit_um_s: f64,
     /// Clamp of |u|, LSB (1 … 2047).
     pub output_limit_lsb: f64,
@@ -67,35 +72,17 @@ pub struct NpidConfig {
 pub struct NpidCoeffs {
     td_ref: TdCoeffs,
     td_meas: TdCoeffs,
-    /// β0, β1, β2 in Q24.
-    beta_q24: [i64; 3],
-    /// Clamp of each `fal` value before its product, Q16: `2⁶²/β_q24` (`i64::MAX` for
-    /// β = 0), so `|β·fal|` ≤ 2⁶² in Q40.
-    fal_max_q16: [i64; 3],
-    /// How each term is evaluated.
-    mode: [TermMode; 3],
-    fal: [FalCoeffs; 3],
-    /// e0 clamp, µm·s Q32.
-    e0_max_q32: i64,
-    /// Output clamp, LSB Q16.
-    u_max_q16: i64,
+    /// β0·fal0 (input e0 µm·s Q16), β1·fal1 (e1 µm Q8), β2·fal2 (e2 µm/s Q8).
+    terms: [TermCoeffs; 3],
+    /// e0 clamp, µm·s Q16 (≤ 32 767·2¹⁶).
+    e0_max_q16: i32,
+    /// Output clamp, LSB Q16 (≤ 2047·2¹⁶).
+    u_max_q16: i32,
 }
 
-/// How a term `β·fal(e)` of the law is evaluated (chosen by [`NpidConfig::build`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-enum TermMode {
-    /// β = 0: the term is zero.
-    Off,
-    /// `|fal|` over the whole input range stays below the clamp: plain product.
-    Direct,
-    /// `fal` clamped to `±2⁶²/β_q24` before the product.
-    Clamped,
-}
-
-fn gain_q24(b: f64, term: u8) -> Result<i64, NpidError> {
+fn gain(b: f64, term: u8) -> Result<f64, NpidError> {
     if b.is_finite() && (0.0..=1e6).contains(&b) {
-        Ok((b * 16_777_216.0 + 0.5) as i64)
+        Ok(b)
     } else {
         Err(NpidError::Gain(term))
     }
@@ -121,50 +108,31 @@ impl NpidConfig {
             self.fal1.build().map_err(|e| NpidError::Fal(1, e))?,
             self.fal2.build().map_err(|e| NpidError::Fal(2, e))?,
         ];
-        let beta_q24 = [
-            gain_q24(self.beta0, 0)?,
-            gain_q24(self.beta1, 1)?,
-            gain_q24(self.beta2, 2)?,
+        let beta = [
+            gain(self.beta0, 0)?,
+            gain(self.beta1, 1)?,
+            gain(self.beta2, 2)?,
         ];
         let il = self.integral_limit_um_s;
-        if !(il.is_finite() && (0.0..=1e6).contains(&il)) {
+        if !(il.is_finite() && (0.0..=32_767.0).contains(&il)) {
             return Err(NpidError::IntegralLimit);
         }
         let ol = self.output_limit_lsb;
         if !(ol.is_finite() && (1.0..=2047.0).contains(&ol)) {
             return Err(NpidError::OutputLimit);
         }
-        let fal_max = |b: i64| (1i64 << 62).checked_div(b).unwrap_or(i64::MAX);
-        let [b0, b1, b2] = beta_q24;
-        let e0_max_q32 = (il * 4_294_967_296.0) as i64;
-        // Largest |input| of each term, Q16: e0 (the integral limit), e1 (2^42: two TD
-        // positions of ±2^41), e2 (2^40: two TD velocities of ±2^39).
-        let bounds = [e0_max_q32 >> 16, 1i64 << 42, 1i64 << 40];
-        let mode = |i: usize| {
-            let b = beta_q24.get(i).copied().unwrap_or(0);
-            let (Some(f), Some(&e)) = (fal.get(i), bounds.get(i)) else {
-                return TermMode::Clamped;
-            };
-            // fal is odd and (up to 2^-12 relative, see its tests) monotone: the largest
-            // |fal| is at the bound; keep a 1/256 margin.
-            let out = super::fal::fal(f, e).unsigned_abs();
-            if b == 0 {
-                TermMode::Off
-            } else if out.saturating_add(out >> 8).saturating_add(1) <= fal_max(b) as u64 {
-                TermMode::Direct
-            } else {
-                TermMode::Clamped
-            }
-        };
+        let [f0, f1, f2] = &fal;
+        let [b0, b1, b2] = beta;
         Ok(NpidCoeffs {
             td_ref,
             td_meas,
-            beta_q24,
-            fal_max_q16: [fal_max(b0), fal_max(b1), fal_max(b2)],
-            mode: [mode(0), mode(1), mode(2)],
-            fal,
-            e0_max_q32,
-            u_max_q16: (ol * 65536.0) as i64,
+            terms: [
+                TermCoeffs::new(b0, f0, 16),
+                TermCoeffs::new(b1, f1, 8),
+                TermCoeffs::new(b2, f2, 8),
+            ],
+            e0_max_q16: (il * 65536.0) as i32,
+            u_max_q16: (ol * 65536.0) as i32,
         })
     }
 }
@@ -175,8 +143,8 @@ impl NpidConfig {
 pub struct Npid {
     td_ref: Td,
     td_meas: Td,
-    /// e0, µm·s Q32.
-    e0_q32: i64,
+    /// e0, µm·s Q16.
+    e0_q16: i32,
     /// −1/0/+1: the output was clamped at −limit / not clamped / +limit.
     sat: i8,
 }
@@ -184,11 +152,10 @@ pub struct Npid {
 impl Npid {
     /// Both TDs at rest at `position_um`, integral zero.
     pub fn at_rest(position_um: PosUm) -> Self {
-        let p = q16_from_pos(position_um);
         Self {
-            td_ref: Td::at_rest(p),
-            td_meas: Td::at_rest(p),
-            e0_q32: 0,
+            td_ref: Td::at_rest(position_um),
+            td_meas: Td::at_rest(position_um),
+            e0_q16: 0,
             sat: 0,
         }
     }
@@ -203,49 +170,37 @@ impl Npid {
         &self.td_meas
     }
 
-    /// `u` from `e1` (µm Q16, |e1| ≤ 2⁴²) and `e2` (µm/s Q16, |e2| ≤ 2⁴⁰), integrating
-    /// `e0` first.
+    /// `u` from `e1` (µm Q8) and `e2` (µm/s Q8), integrating `e0` first.
     #[inline(always)]
-    fn law(&mut self, c: &NpidCoeffs, e1: i64, e2: i64) -> CmdLsb {
-        let [f0, f1, f2] = &c.fal;
-        let [b0, b1, b2] = c.beta_q24;
-        let [m0, m1, m2] = c.fal_max_q16;
-        let [k0, k1, k2] = c.mode;
+    fn law(&mut self, c: &NpidCoeffs, e1_q8: i32, e2_q8: i32) -> CmdLsb {
+        let [t0, t1, t2] = &c.terms;
         // Conditional integration: not while the output is clamped and e1 pushes further
         // into the clamp (e1 = 0 adds nothing either way).
         let push = if self.sat > 0 {
-            e1 > 0
+            e1_q8 > 0
         } else if self.sat < 0 {
-            e1 < 0
+            e1_q8 < 0
         } else {
             false
         };
         if !push {
-            // Q16·Q24 >> 8 = Q32; |e1·h_q24| ≤ 2^42·2^18 = 2^60.
-            let de0 = mul_bounded_shr(e1, c.td_ref.h_q24(), 8);
-            // |e0| ≤ 2^52 before the add: no overflow.
-            self.e0_q32 = self
-                .e0_q32
-                .wrapping_add(de0)
-                .clamp(c.e0_max_q32.wrapping_neg(), c.e0_max_q32);
+            // Q8·Q32 = Q40, rounded to Q16 (`smlal` on 2^23): |e1·h| < 2^31·2^26, the sum
+            // below 2^58; saturated to 32 bits (only |e1|·h > 32 767 µm·s does).
+            let de0 = crate::q::sat_i32(
+                i64::from(e1_q8)
+                    .wrapping_mul(i64::from(c.td_ref.h_q32()))
+                    .wrapping_add(1 << 23)
+                    .wrapping_shr(24),
+            );
+            self.e0_q16 = self
+                .e0_q16
+                .saturating_add(de0)
+                .clamp(c.e0_max_q16.wrapping_neg(), c.e0_max_q16);
         }
-        // β·fal with |fal| ≤ 2^62/β: each product ≤ 2^62, each term ≤ 2^38 (Q16), the
-        // sum ≤ 3·2^38.
-        let term = |k: TermMode, f: &FalCoeffs, e: i64, b: i64, m: i64| {
-            if k == TermMode::Off {
-                return 0;
-            }
-            let v = fal(f, e);
-            let v = if k == TermMode::Clamped {
-                v.clamp(m.wrapping_neg(), m)
-            } else {
-                v
-            };
-            mul_bounded_shr(v, b, 24)
-        };
-        let u = term(k0, f0, self.e0_q32.wrapping_shr(16), b0, m0)
-            .wrapping_add(term(k1, f1, e1, b1, m1))
-            .wrapping_add(term(k2, f2, e2, b2, m2));
+        let u = t0
+            .eval(self.e0_q16)
+            .saturating_add(t1.eval(e1_q8))
+            .saturating_add(t2.eval(e2_q8));
         let lim = c.u_max_q16;
         let (u, sat) = if u > lim {
             (lim, 1)
@@ -255,8 +210,7 @@ impl Npid {
             (u, 0)
         };
         self.sat = sat;
-        // |u| ≤ 2047·2^16 < 2^31.
-        CmdLsb::from_bits(u as i32)
+        CmdLsb::from_bits(u)
     }
 }
 
@@ -266,27 +220,19 @@ impl ErrorLaw for Npid {
     /// One period of the axis law: TD-I on the reference, TD-II on the measurement.
     #[inline]
     fn track(&mut self, c: &NpidCoeffs, reference_um: PosUm, measured_um: PosUm) -> CmdLsb {
-        self.td_ref.step_pos(&c.td_ref, reference_um);
-        self.td_meas.step_pos(&c.td_meas, measured_um);
-        // |z1| ≤ 2^41, |z2| ≤ 2^39 (TD clamps): the differences cannot overflow.
-        let e1 = self
-            .td_ref
-            .position_um_q16()
-            .wrapping_sub(self.td_meas.position_um_q16());
-        let e2 = self
-            .td_ref
-            .velocity_um_per_s_q16()
-            .wrapping_sub(self.td_meas.velocity_um_per_s_q16());
+        self.td_ref.step(&c.td_ref, reference_um);
+        self.td_meas.step(&c.td_meas, measured_um);
+        // Saturating (±8.4 m); |z2| ≤ 2^30 (TD clamp): the velocity difference fits.
+        let e1 = self.td_ref.z1_q8().saturating_sub(self.td_meas.z1_q8());
+        let e2 = self.td_ref.z2_q8().saturating_sub(self.td_meas.z2_q8());
         self.law(c, e1, e2)
     }
 
     /// One period of the law on an error signal (TD-I only).
     #[inline]
     fn regulate(&mut self, c: &NpidCoeffs, error_um: PosUm) -> CmdLsb {
-        self.td_ref.step_pos(&c.td_ref, error_um);
-        let e1 = self.td_ref.position_um_q16();
-        let e2 = self.td_ref.velocity_um_per_s_q16();
-        self.law(c, e1, e2)
+        self.td_ref.step(&c.td_ref, error_um);
+        self.law(c, self.td_ref.z1_q8(), self.td_ref.z2_q8())
     }
 
     fn reset(&mut self, position_um: PosUm) {
@@ -340,7 +286,8 @@ mod tests {
             Err(NpidError::Fal(2, super::super::FalError::Alpha))
         );
         let mut c = config();
-        c.td_measurement.h0_s = 1e-4;
+        // h0 = 0.5 ms < h (d0 = r·h0² = 5 µm is still valid).
+        c.td_measurement.h0_s = 5e-4;
         assert_eq!(
             c.build(),
             Err(NpidError::TdMeasurement(
@@ -384,41 +331,49 @@ mod tests {
             assert!(u.abs() <= CmdLsb::from_num(300));
         }
         // The integral stopped growing while the output was at its limit.
-        assert!(n.e0_q32.abs() <= c.e0_max_q32);
-        assert!(n.e0_q32 < c.e0_max_q32);
+        assert!(n.e0_q16.abs() <= c.e0_max_q16);
+        assert!(n.e0_q16 < c.e0_max_q16);
     }
 
     #[test]
-    fn term_modes_match_wide_reference() {
-        // β = 0 → Off; small gains → Direct; a huge β1 with α = 1 → Clamped.
-        let mut cfg = config();
-        cfg.beta2 = 0.0;
-        let c = cfg.build().unwrap();
-        assert_eq!(c.mode, [TermMode::Direct, TermMode::Direct, TermMode::Off]);
-        cfg.beta1 = 5e5;
-        cfg.fal1 = FalConfig {
-            alpha: 1.0,
-            delta: 1.0,
-        };
-        let big = cfg.build().unwrap();
-        assert_eq!(big.mode[1], TermMode::Clamped);
-        // Against an i128 evaluation of the same law: identical while the clamp is idle,
-        // and the clamped term still saturates the output with the right sign.
-        for (coeffs, errs) in [
-            (&c, [3i64 << 16, -(70 << 16), 12 << 16]),
-            (&big, [0, -(1 << 40), 1 << 20]),
-            (&big, [0, 1 << 40, -(1 << 20)]),
-        ] {
-            let mut n = Npid::at_rest(PosUm::ZERO);
-            let u = n.law(coeffs, errs[1], errs[2]);
-            let mut wide: i128 = 0;
-            for (i, e) in [n.e0_q32 >> 16, errs[1], errs[2]].into_iter().enumerate() {
-                let f = fal(&coeffs.fal[i], e);
-                wide += (i128::from(f) * i128::from(coeffs.beta_q24[i])) >> 24;
+    fn law_matches_the_f64_equation() {
+        // Against β0·fal0(e0) + β1·fal1(e1) + β2·fal2(e2) in f64 on the integrated e0,
+        // through the clamp; the test config has α1 = 0.7 (power law) and β2 ≠ 0.
+        let c = config().build().unwrap();
+        let cfg = config();
+        let f = |e: f64, a: f64, d: f64| {
+            if e.abs() > d {
+                e.abs().powf(a) * e.signum()
+            } else {
+                e / d.powf(1.0 - a)
             }
-            let lim = i128::from(coeffs.u_max_q16);
-            let want = wide.clamp(-lim, lim) as i64;
-            assert!((i64::from(u.to_bits()) - want).abs() <= 1, "{u} vs {want}");
+        };
+        let mut n = Npid::at_rest(PosUm::ZERO);
+        let mut k: i32 = 0;
+        for e1 in [-3000i32, -70, -5, 0, 3, 20, 90, 4000] {
+            for e2 in [-20_000i32, -40, 0, 7, 30_000] {
+                k += 1;
+                let (e1q, e2q) = ((e1 << 8) + k, (e2 << 8) - k);
+                let u = f64::from(n.law(&c, e1q, e2q).to_bits()) / 65536.0;
+                let e0 = f64::from(n.e0_q16) / 65536.0;
+                let want = cfg.beta0 * f(e0, 1.0, 1.0)
+                    + cfg.beta1 * f(f64::from(e1q) / 256.0, 0.7, 20.0)
+                    + cfg.beta2 * f(f64::from(e2q) / 256.0, 1.0, 1.0);
+                let want = want.clamp(-2047.0, 2047.0);
+                assert!(
+                    (u - want).abs() <= 2e-4 * want.abs() + 1e-3,
+                    "e1 {e1} e2 {e2}: {u} vs {want}"
+                );
+            }
         }
+    }
+
+    #[test]
+    fn integral_limit_range() {
+        let mut c = config();
+        c.integral_limit_um_s = 32_767.0;
+        assert!(c.build().is_ok());
+        c.integral_limit_um_s = 40_000.0;
+        assert_eq!(c.build(), Err(NpidError::IntegralLimit));
     }
 }

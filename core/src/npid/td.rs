@@ -15,18 +15,26 @@
 //! i.e. `z1 − v = −2·h0·z2`): the nonlinear PID runs the same TD on reference and
 //! measurement so the lags cancel in `e1 = z11 − z21`.
 //!
-//! Formats: `z1` µm Q16 (`i64`) clamped to ±2⁴¹ (±2²⁵ µm ≈ 33.5 m, four times the
-//! ±8.4 m of [`crate::units::PosUm`]), `z2` µm/s Q16 clamped to
-//! ±[`super::V_MAX_UM_PER_S`], `h` a Q24 number of seconds. With these clamps every
-//! product of a step is an `i64` product bounded below 2⁶³ (stated at each line): no
-//! `i128` routine on a 32-bit CPU.
+//! Formats (all `i32`):
+//!
+//! | quantity | unit | format | resolution | range |
+//! |---|---|---|---|---|
+//! | `z1` | µm | Q40 (`i64`; its high word is µm Q8) | 9·10⁻¹³ µm | ±(2²³ − 2¹⁹) µm = ±7.86 m (clamped) |
+//! | input `v` | µm | Q8 ([`PosUm`] bits) | 3.9·10⁻³ µm | ±2²³ µm = ±8.4 m |
+//! | `z2` | µm/s | Q8 ([`VelUmPerS`] bits) | 3.9·10⁻³ µm/s | [−2²², 2²² − 2⁻⁸] µm/s = ±4.2 m/s ([`super::V_MAX_UM_PER_S`], clamped) |
+//! | `h` | s | Q32 | 2.3·10⁻¹⁰ s | 10 µs … 10 ms |
+//! | `r·h` | µm/s | Q8 | 3.9·10⁻³ µm/s | ≤ d ≤ 2²¹ µm/s |
+//! | `h/h0` | 1 | Q30 | 9.3·10⁻¹⁰ | ≤ 1 |
+//!
+//! **Cost.** `z1 += h·z2` is one `smlal` (Q8 × Q32 = Q40, exact: `z1` has no rounding
+//! drift), fhan reads only `z1`'s high word (µm Q8), `a·h/h0` is one `smull`, every other
+//! sum a saturating 32-bit `qadd`/`qsub`; `z1` is clamped on its high word alone (a step
+//! moves it by ≤ |z2|·h ≤ 2³⁰·0.01 Q8 = 42 mm, far less than the 520 mm margin to the
+//! `i64` range, so it never wraps).
 
-use super::fhan::{fhan_a, FhanCoeffs, FhanConfig, V_MAX_Q16};
-use super::fxmath::{mul_bounded_shr, mul_shr};
+use super::fhan::{fhan_a, FhanCoeffs, FhanConfig, V_MAX_Q8};
 use super::TdError;
-
-/// Largest |z1| and |v| of a step, µm Q16 (2⁴¹).
-const Z1_MAX_Q16: i64 = 1 << 41;
+use crate::units::{PosUm, VelUmPerS};
 
 /// TD parameters in engineering units (validated by [`TdConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,12 +53,12 @@ pub struct TdConfig {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TdCoeffs {
     fhan: FhanCoeffs,
-    /// h, s, Q24.
-    h_q24: i64,
-    /// r·h, µm/s, Q16: the z2 step where fhan saturates (|a| > d).
-    rh_q16: i64,
-    /// h/h0, Q24 (≤ 1): the z2 step in fhan's linear zone is −a·h/h0.
-    h_over_h0_q24: i64,
+    /// h, s, Q32 (≤ 0.01·2³² < 2²⁶).
+    h_q32: i32,
+    /// r·h, µm/s, Q8 (≤ d ≤ 2²⁹): the z2 step where fhan saturates (|a| > d).
+    rh_q8: i32,
+    /// h/h0, Q30 (≤ 2³⁰): the z2 step in fhan's linear zone is −a·h/h0.
+    h_over_h0_q30: i32,
 }
 
 impl TdConfig {
@@ -68,17 +76,22 @@ impl TdConfig {
         if self.h0_s < h * (1.0 - 1e-9) {
             return Err(TdError::FilterBelowStep);
         }
-        let h_q24 = (h * 16_777_216.0 + 0.5) as i64;
-        // r_q16 < 2^46, h_q24 < 2^18; h_q24 < 2^18 so h_q24·2^24 < 2^42; h0_q24 ≥ 167.
-        let rh_q16 = mul_shr(fhan.r_q16_raw(), h_q24, 24);
-        // h/h0 as h·(1/h0) from fhan's own quantised 1/h0 (Q16), i.e. the same factor
-        // the step had as fhan·h; < 2^18·2^33 before the shift.
-        let h_over_h0_q24 = mul_shr(fhan.inv_h0_q16_raw(), h_q24, 16);
+        let h_q32 = (h * 4_294_967_296.0 + 0.5) as i64;
+        let h0_q32 = i64::from(fhan.h0_q32());
+        // r < 2^30, h_q32 < 2^26: < 2^56; r·h ≤ r·h0 = d ≤ 2^29 in Q8. Rounded to
+        // nearest: the saturated zone adds it every step.
+        let rh_q8 = i64::from(fhan.r_raw())
+            .saturating_mul(h_q32)
+            .saturating_add(1 << 23)
+            >> 24;
+        // h/h0 from the quantised h0 (≥ 42 950) and h (h_q32 < 2^26, << 30 < 2^56);
+        // h ≤ h0 up to the quantisation: at most 2^30 + 1.
+        let h_over_h0_q30 = (h_q32 << 30).checked_div(h0_q32).unwrap_or(0).min(1 << 30);
         Ok(TdCoeffs {
             fhan,
-            h_q24,
-            rh_q16,
-            h_over_h0_q24,
+            h_q32: h_q32 as i32,
+            rh_q8: rh_q8 as i32,
+            h_over_h0_q30: h_over_h0_q30 as i32,
         })
     }
 }
@@ -90,84 +103,95 @@ impl TdCoeffs {
     }
     /// The quantised step h, s.
     pub fn h_s(&self) -> f64 {
-        self.h_q24 as f64 / 16_777_216.0
+        f64::from(self.h_q32) / 4_294_967_296.0
     }
-    /// h in Q24 seconds.
-    pub(crate) fn h_q24(&self) -> i64 {
-        self.h_q24
+    /// h in Q32 seconds.
+    #[inline(always)]
+    pub(crate) fn h_q32(&self) -> i32 {
+        self.h_q32
     }
 }
 
-/// TD state: `z1` (µm, Q16) and `z2` (µm/s, Q16).
+/// Largest |z1|, µm Q8 (high word of the Q40 state): 2³¹ − 2²⁷, ±7.86 m.
+const Z1_MAX_Q8: i32 = i32::MAX - (1 << 27);
+
+/// TD state: `z1` (µm, Q40) and `z2` (µm/s, Q8).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Td {
-    z1_um_q16: i64,
-    z2_um_per_s_q16: i64,
+    z1_um_q40: i64,
+    z2_um_per_s_q8: i32,
 }
 
 impl Td {
-    /// A TD at rest at `z1_um_q16` (µm, Q16; clamped to ±2⁴¹, ±33.5 m).
-    pub const fn at_rest(z1_um_q16: i64) -> Self {
-        let z1 = if z1_um_q16 > Z1_MAX_Q16 {
-            Z1_MAX_Q16
-        } else if z1_um_q16 < -Z1_MAX_Q16 {
-            -Z1_MAX_Q16
+    /// A TD at rest at `position_um` (clamped to ±7.86 m).
+    pub const fn at_rest(position_um: PosUm) -> Self {
+        let p = position_um.to_bits();
+        let p = if p > Z1_MAX_Q8 {
+            Z1_MAX_Q8
+        } else if p < -Z1_MAX_Q8 {
+            -Z1_MAX_Q8
         } else {
-            z1_um_q16
+            p
         };
         Self {
-            z1_um_q16: z1,
-            z2_um_per_s_q16: 0,
+            z1_um_q40: (p as i64) << 32,
+            z2_um_per_s_q8: 0,
         }
     }
 
-    /// One step toward `v_um_q16` (µm, Q16; clamped to ±2⁴¹). Never fails.
-    #[inline]
-    pub fn step(&mut self, c: &TdCoeffs, v_um_q16: i64) {
-        self.step_bounded(c, v_um_q16.clamp(-Z1_MAX_Q16, Z1_MAX_Q16));
-    }
-
-    /// One step toward a position from [`crate::units::PosUm`] (|v| < 2²³ µm ≤ 2³⁹ in
-    /// Q16): no clamp needed on the input.
+    /// One step toward `v_um` (µm). Never fails.
     #[inline(always)]
-    pub(crate) fn step_pos(&mut self, c: &TdCoeffs, v: crate::units::PosUm) {
-        self.step_bounded(c, super::q16_from_pos(v));
-    }
-
-    /// The step for `|v| ≤ 2⁴¹` (µm Q16).
-    #[inline(always)]
-    fn step_bounded(&mut self, c: &TdCoeffs, v: i64) {
-        let (z1, z2) = (self.z1_um_q16, self.z2_um_per_s_q16);
-        // |z1|, |v| ≤ 2^41: |x1| ≤ 2^42 = fhan_bounded's range; |z2| ≤ V_MAX_Q16.
-        // h·fhan from fhan's switching variable a: −r·h·sign(a) if |a| > d, else
-        // −a·h/h0 (one product instead of fhan's and then h's).
-        let a = fhan_a(&c.fhan, z1.wrapping_sub(v), z2);
-        let d = c.fhan.d_q16();
+    pub fn step(&mut self, c: &TdCoeffs, v_um: PosUm) {
+        let (z1, z2) = (self.z1_q8(), self.z2_um_per_s_q8);
+        // |z2| ≤ V_MAX_Q8 (clamped below): fhan_a's range. h·fhan from fhan's switching
+        // variable a: −r·h·sign(a) if |a| > d, else −a·h/h0 (one product instead of
+        // fhan's and then h's).
+        let a = fhan_a(&c.fhan, z1.saturating_sub(v_um.to_bits()), z2);
+        let d = c.fhan.d_q8();
         let dz2 = if a > d {
-            c.rh_q16.wrapping_neg()
+            c.rh_q8.wrapping_neg()
         } else if a < d.wrapping_neg() {
-            c.rh_q16
+            c.rh_q8
         } else {
-            // |a| ≤ d ≤ 2^38 (Q16), h/h0 ≤ 1 (+1 LSB): |a·h_over_h0_q24| ≤ 2^62.
-            mul_bounded_shr(a.wrapping_neg(), c.h_over_h0_q24, 24)
+            // |a| ≤ d ≤ 2^29, h/h0 ≤ 2^30 (Q30): below 2^59.
+            (i64::from(a).wrapping_mul(i64::from(c.h_over_h0_q30)) >> 30).wrapping_neg() as i32
         };
-        // |z2·h_q24| ≤ 2^39·2^18 = 2^57 (h ≤ 10 ms < 2^18 in Q24).
-        let z1 = z1.wrapping_add(mul_bounded_shr(z2, c.h_q24, 24));
-        // |dz2| ≤ r·h ≤ r·h0 = d ≤ 2^22 µm/s (validated).
-        let z2 = z2.wrapping_add(dz2);
-        self.z1_um_q16 = z1.clamp(-Z1_MAX_Q16, Z1_MAX_Q16);
-        self.z2_um_per_s_q16 = z2.clamp(-V_MAX_Q16, V_MAX_Q16);
+        // Q8·Q32 = Q40, exact (`smlal`); |z2·h| ≤ 2^30·0.01·2^32 < 2^56 and |z1| ≤
+        // Z1_MAX·2^32 before: no wrap. Then the clamp on the high word.
+        let z1 = self
+            .z1_um_q40
+            .wrapping_add(i64::from(z2).wrapping_mul(i64::from(c.h_q32)));
+        // The high word clamped, the low word (a fraction of 2^-8 µm) kept.
+        let hi = ((z1 >> 32) as i32).clamp(-Z1_MAX_Q8, Z1_MAX_Q8);
+        self.z1_um_q40 = (i64::from(hi) << 32) | i64::from(z1 as u32);
+        // |dz2| ≤ r·h ≤ d ≤ 2^29 and |z2| ≤ 2^30: no overflow before the clamp to
+        // [−2^30, 2^30 − 1] (one `ssat`).
+        self.z2_um_per_s_q8 = z2
+            .saturating_add(dz2)
+            .clamp(-V_MAX_Q8, V_MAX_Q8.wrapping_sub(1));
     }
 
-    /// Tracked position z1, µm Q16.
-    pub const fn position_um_q16(&self) -> i64 {
-        self.z1_um_q16
+    /// Tracked position z1, µm.
+    pub const fn position_um(&self) -> PosUm {
+        PosUm::from_bits(self.z1_q8())
     }
 
-    /// Tracked derivative z2, µm/s Q16.
-    pub const fn velocity_um_per_s_q16(&self) -> i64 {
-        self.z2_um_per_s_q16
+    /// Tracked derivative z2, µm/s.
+    pub const fn velocity_um_per_s(&self) -> VelUmPerS {
+        VelUmPerS::from_bits(self.z2_um_per_s_q8)
+    }
+
+    /// z1, µm Q8 (raw).
+    #[inline(always)]
+    pub(crate) const fn z1_q8(&self) -> i32 {
+        (self.z1_um_q40 >> 32) as i32
+    }
+
+    /// z2, µm/s Q8 (raw).
+    #[inline(always)]
+    pub(crate) const fn z2_q8(&self) -> i32 {
+        self.z2_um_per_s_q8
     }
 }
 
@@ -190,21 +214,21 @@ mod tests {
     fn step_within_speed_bound_and_no_overshoot() {
         for &(r, h0, a) in &[(1e7, 1e-3, 1000.0), (1e6, 2e-3, 5e4), (5e7, 1e-3, 10.0)] {
             let c = coeffs(r, h0, 1e-3);
-            let mut td = Td::at_rest(0);
-            let v = (a * 65536.0) as i64;
+            let mut td = Td::at_rest(PosUm::ZERO);
+            let v = PosUm::from_num(a);
             let bound = (r * a).sqrt() + r * 1e-3;
             let mut vmax: f64 = 0.0;
-            let mut prev_z2 = 0i64;
+            let mut prev_z2 = 0i32;
             let t_settle = 2.0 * (a / r).sqrt() + 20e-3;
             let n = (t_settle / 1e-3) as usize + 50;
             for _ in 0..n {
                 td.step(&c, v);
-                let z2 = td.velocity_um_per_s_q16();
+                let z2 = td.z2_q8();
                 // |Δz2| ≤ r·h (+ rounding).
-                assert!(((z2 - prev_z2) as f64 / 65536.0).abs() <= r * 1e-3 + 1e-3);
+                assert!((f64::from(z2 - prev_z2) / 256.0).abs() <= r * 1e-3 + 1e-2);
                 prev_z2 = z2;
-                vmax = vmax.max(z2 as f64 / 65536.0);
-                let z1 = td.position_um_q16() as f64 / 65536.0;
+                vmax = vmax.max(f64::from(z2) / 256.0);
+                let z1 = td.position_um().to_num::<f64>();
                 assert!(z1 <= a * 1.001 + 1e-3, "overshoot {z1} > {a}");
             }
             assert!(vmax <= bound, "peak speed {vmax} > {bound}");
@@ -212,7 +236,7 @@ mod tests {
                 // Outside the linear zone the TD runs (nearly) bang-bang.
                 assert!(vmax >= 0.5 * (r * a).sqrt(), "too slow: {vmax}");
             }
-            let z1 = td.position_um_q16() as f64 / 65536.0;
+            let z1 = td.position_um().to_num::<f64>();
             assert!((z1 - a).abs() <= 1e-3 * a + 1e-3, "settled at {z1} for {a}");
         }
     }
@@ -221,18 +245,19 @@ mod tests {
     fn matches_f64_td() {
         let c = coeffs(2e6, 2e-3, 1e-3);
         let (r, h0, h) = (c.fhan().r_um_per_s2(), c.fhan().h0_s(), c.h_s());
-        let mut td = Td::at_rest(0);
+        let mut td = Td::at_rest(PosUm::ZERO);
         let (mut z1, mut z2) = (0.0f64, 0.0f64);
         let mut worst: f64 = 0.0;
         for k in 0..3000 {
             let t = k as f64 * 1e-3;
             let v = 20_000.0 * (2.0 * t).sin() + if t > 1.5 { 3000.0 } else { 0.0 };
-            let vq = (v * 65536.0).round() as i64;
+            let vq = PosUm::from_num(v);
             td.step(&c, vq);
-            let f = fhan_old(z1 - vq as f64 / 65536.0, z2, r, h0);
+            let f = fhan_old(z1 - vq.to_num::<f64>(), z2, r, h0);
             z1 += h * z2;
             z2 += h * f;
-            worst = worst.max((td.position_um_q16() as f64 / 65536.0 - z1).abs());
+            let e = (td.position_um().to_num::<f64>() - z1).abs();
+            worst = worst.max(e);
         }
         assert!(worst < 0.05, "TD diverges from f64 by {worst} µm");
     }
@@ -252,10 +277,11 @@ mod tests {
     #[test]
     fn rest_stays_at_rest() {
         let c = coeffs(1e7, 1e-3, 1e-3);
-        let mut td = Td::at_rest(123 << 16);
+        let p = PosUm::from_num(123);
+        let mut td = Td::at_rest(p);
         for _ in 0..100 {
-            td.step(&c, 123 << 16);
+            td.step(&c, p);
         }
-        assert_eq!(td, Td::at_rest(123 << 16));
+        assert_eq!(td, Td::at_rest(p));
     }
 }

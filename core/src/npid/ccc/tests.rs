@@ -234,3 +234,14 @@ proptest! {
         prop_assert!(eps < 5_000.0 && et < 20_000.0, "ε {} e {}", eps, et);
     }
 }
+
+proptest! {
+    /// The 32-bit distribution of `tick_estimated` equals the 64-bit one.
+    #[test]
+    fn distribute_unit_is_distribute(
+        u in any::<i32>(), g in -(1i32 << 30)..=(1i32 << 30), uc in any::<i32>(),
+    ) {
+        let (u, uc) = (CmdLsb::from_bits(u), CmdLsb::from_bits(uc));
+        prop_assert_eq!(distribute_unit(u, g, uc), distribute(u, i64::from(g), uc));
+    }
+}
