@@ -1,8 +1,10 @@
 //! The full X–Y cross-coupled tick with estimation (SPEC §C + §D):
-//! [`EstimatedXy::tick`] — one period of the interpolator (the ordinary point and its
-//! extra points into the window), the adaptive contour estimate of the measured point,
-//! and the cross-coupled nonlinear PID (two axis laws with TD-I/TD-II and three `fal`
-//! each, the contour law on ε, the distribution along the normal).
+//! [`EstimatedXy::tick_with_feedforward`] — one period of the interpolator (the ordinary
+//! point and its extra points into the window), the adaptive contour estimate of the
+//! measured point, the cross-coupled nonlinear PID (two axis laws with TD-I/TD-II and
+//! three `fal` each, the contour law on ε, the distribution along the normal) and the
+//! velocity feed-forward with friction compensation of both axes (host-sim's identified
+//! gains: every host-sim X–Y controller runs it).
 //!
 //! Set-up: host-sim's X–Y scenario (`host-sim/src/xy`): the parabola y = x²/(2·20 mm),
 //! x from −40 to +40 mm, feed 50 mm/s (50 µm per 1 ms period, 2 366 periods for the
@@ -25,7 +27,9 @@ use hydra_core::contour::{
     ContourEstimate, ContourWindow, InterpCoeffs, InterpConfig, Interpolator, Parabola,
     ParabolaSpec, Reference, Xy,
 };
-use hydra_core::npid::{CrossCoupled, EstimatedXy, NpidCoeffs, XyCoeffs, XyPeriod};
+use hydra_core::npid::{
+    CrossCoupled, EstimatedXy, NpidCoeffs, VelocityFfCoeffs, VelocityFfConfig, XyCoeffs, XyPeriod,
+};
 use hydra_core::units::{PosUm, VelUmPerS};
 
 /// Ordinary points in the window (host-sim `WINDOW_N`).
@@ -37,16 +41,43 @@ const FEED_UM_PER_S: i32 = 50_000;
 /// The measured point lags the reference by this many periods.
 const LAG: usize = 3;
 
-/// The measured call: one X–Y period.
+/// The measured call: one X–Y period, with the velocity feed-forward and friction
+/// compensation every host-sim X–Y controller runs.
 #[inline(never)]
 fn tick(
     xy: &mut EstimatedXy<N, H>,
     ic: &InterpCoeffs,
     c: &XyCoeffs<NpidCoeffs>,
+    ff: &[VelocityFfCoeffs; 2],
     path: &Parabola,
     measured: [PosUm; 2],
 ) -> XyPeriod {
-    xy.tick(ic, c, path, VelUmPerS::from_num(FEED_UM_PER_S), measured)
+    xy.tick_with_feedforward(
+        ic,
+        c,
+        ff,
+        path,
+        VelUmPerS::from_num(FEED_UM_PER_S),
+        measured,
+    )
+}
+
+/// host-sim's identified X–Y feed-forward (`host-sim/src/xy/gains.rs` defaults): extend /
+/// retract LSB per mm/s, friction deflection D_c µm; lead 2 ms, reversal band 4 mm/s.
+fn feedforward() -> Option<[VelocityFfCoeffs; 2]> {
+    let ff = |k: [f64; 2], d_c: f64| {
+        VelocityFfConfig {
+            period_s: 1e-3,
+            extend_lsb_per_mm_s: k[0],
+            retract_lsb_per_mm_s: k[1],
+            lead_s: 0.002,
+            friction_deflection_um: d_c,
+            friction_speed_mm_s: 4.0,
+        }
+        .build()
+        .ok()
+    };
+    Some([ff([13.713, 16.766], 10.732)?, ff([19.410, 23.818], 10.683)?])
 }
 
 /// The measured point of call `k`: the reference `LAG` periods back (`refs` holds the
@@ -64,6 +95,7 @@ pub struct XyEstimated {
     path: Parabola,
     ic: InterpCoeffs,
     c: XyCoeffs<NpidCoeffs>,
+    ff: [VelocityFfCoeffs; 2],
     xy: EstimatedXy<N, H>,
     /// The last references, newest at `k % (LAG + 1)`.
     refs: [[PosUm; 2]; LAG + 1],
@@ -108,6 +140,7 @@ impl XyEstimated {
             path,
             ic,
             c,
+            ff: feedforward()?,
             refs: [start; LAG + 1],
             measured: start,
             out: None,
@@ -125,7 +158,14 @@ impl Figure for XyEstimated {
     #[inline(always)]
     fn call(&mut self, k: u32) {
         self.next_inputs(k);
-        let per = tick(&mut self.xy, &self.ic, &self.c, &self.path, self.measured);
+        let per = tick(
+            &mut self.xy,
+            &self.ic,
+            &self.c,
+            &self.ff,
+            &self.path,
+            self.measured,
+        );
         let r = per.reference.pos_um();
         self.refs[k as usize % (LAG + 1)] = [r.x, r.y];
         self.out = Some(per);
