@@ -47,7 +47,7 @@
 //! a circle (sin/cos), so h_max is also the CPU-budget knob.
 //! A tick that does not advance (feed 0, path finished) leaves the window unchanged.
 
-use super::fx::{mul_shr30_i32_i64, mul_shr_i64, mul_shr_i64_by_u32, sat_i64};
+use super::fx::{mul_shr30_i32_i64, mul_shr32_i64_i32, mul_shr_i64_by_u32, sat_i64};
 use super::geom::rel_sat;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
 use super::window::{ContourWindow, OrdinaryPoint};
@@ -198,8 +198,12 @@ impl Taylor {
     /// reverse the step (an arc longer than the radius of curvature) the first-order step
     /// is used.
     pub(crate) fn du(&self, a: i64) -> i64 {
-        let ac = mul_shr_i64(a, self.c_q32, 32);
-        let du = a.saturating_sub(mul_shr_i64(a, ac, 32));
+        // Two `i64 × i32` products (`mul_shr32_i64_i32`): |c| < 2^31 for any path within
+        // the contract (c ≤ |r″|/(2|r′|)), and a·c/2^32 = Δu's relative curvature term,
+        // far below 2^31 for a step shorter than the radius of curvature; the exact
+        // `i128` form otherwise.
+        let ac = mul_shr32_i64_i32(a, self.c_q32);
+        let du = a.saturating_sub(mul_shr32_i64_i32(a, ac));
         if du > 0 {
             du
         } else {
