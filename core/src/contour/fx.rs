@@ -114,6 +114,55 @@ pub(crate) const fn mul_shr32_i64_i32(a: i64, b: i64) -> i64 {
     hi.wrapping_add(lo.wrapping_add(1 << 31) >> 32)
 }
 
+/// `(a · b) >> 32` rounded to nearest, saturated, for two `i64`: equal to
+/// `mul_shr_i64(a, b, 32)`. When |a| < 2^40 and |b| < 2^49 (a parabola's u in Q16 times
+/// its 1/p in Q48) it is formed from four 32-bit products of the halves
+/// (a = a_h·2^32 + a_l, b = b_h·2^32 + b_l, a_h and b_h signed, a_l and b_l unsigned):
+///
+/// ```text
+/// (a·b + 2^31) >> 32 = a_h·b_h·2^32 + a_h·b_l + a_l·b_h + (a_l·b_l + 2^31) >> 32   (exact)
+/// ```
+///
+/// (|a_h| < 2^8, |b_h| < 2^17: |a_h·b_h·2^32| < 2^57, |a_h·b_l| < 2^40, |a_l·b_h| < 2^49,
+/// a_l·b_l + 2^31 < 2^64: the sum is below 2^58, no saturation is reachable), else by
+/// the `i128` form.
+#[inline(always)]
+pub(crate) const fn mul_shr32_i64_small(a: i64, b: i64) -> i64 {
+    if (a.unsigned_abs() >> 40) | (b.unsigned_abs() >> 49) != 0 {
+        return mul_shr_i64(a, b, 32);
+    }
+    let (ah, al) = (a >> 32, a as u32 as u64);
+    let (bh, bl) = (b >> 32, b as u32 as u64);
+    let low = (al.wrapping_mul(bl).wrapping_add(1 << 31) >> 32) as i64;
+    (ah.wrapping_mul(bh) << 32)
+        .wrapping_add(ah.wrapping_mul(bl as i64))
+        .wrapping_add((al as i64).wrapping_mul(bh))
+        .wrapping_add(low)
+}
+
+/// `(u² · k + 2^67) >> 68` (round to nearest, ties toward +∞), saturated, for
+/// |u| ≤ 2^39 and |k| < 2^63: equal to `sat_i64(shr_round_i128(u²·k, 68))` (a parabola's
+/// y_l = u²/(2p): u in Q16, 1/(2p) in Q48, result Q12). When |u| < 2^32 (|x_l| < 65.5 mm)
+/// u² is one `u32×u32→u64` product and u²·|k| an unsigned 64×64-bit product (no sign
+/// handling in the 128-bit part); a negative k rounds the magnitude with ties toward 0
+/// (floor(−X/2^68 + 1/2) = −⌊(X + 2^67 − 1)/2^68⌋). Otherwise the `i128` form.
+#[inline(always)]
+pub(crate) fn sq_mul_shr68(u: i64, k: i64) -> i64 {
+    let ua = u.unsigned_abs();
+    if ua >> 32 != 0 {
+        let sq = i128::from(u).wrapping_mul(i128::from(u));
+        return sat_i64(shr_round_i128(sq.wrapping_mul(i128::from(k)), 68));
+    }
+    // ua < 2^32: ua² < 2^64; ·|k| < 2^127; the rounding add < 2^128.
+    let sq = ua.wrapping_mul(ua);
+    let x = u128::from(sq).wrapping_mul(u128::from(k.unsigned_abs()));
+    if k >= 0 {
+        sat_i64((x.wrapping_add(1 << 67) >> 68) as i128)
+    } else {
+        sat_i64((x.wrapping_add((1 << 67) - 1) >> 68) as i128).wrapping_neg()
+    }
+}
+
 /// `(a · b) >> s` rounded to nearest for `i32` operands (exact `i64` product).
 #[inline(always)]
 pub(crate) const fn mul_shr_i32(a: i32, b: i32, s: u32) -> i64 {
@@ -587,6 +636,26 @@ mod tests {
             b in prop_oneof![any::<i32>().prop_map(i64::from), any::<i64>(), Just(i64::from(i32::MIN)), Just(i64::from(i32::MAX))],
         ) {
             prop_assert_eq!(mul_shr32_i64_i32(a, b), mul_shr_i64(a, b, 32));
+        }
+
+        #[test]
+        fn mul_shr32_small_matches_the_i128_form(
+            a in prop_oneof![any::<i64>(), -(1i64 << 40)..(1i64 << 40), -(1i64 << 33)..(1i64 << 33)],
+            b in prop_oneof![any::<i64>(), -(1i64 << 49)..(1i64 << 49), -(1i64 << 33)..(1i64 << 33)],
+        ) {
+            prop_assert_eq!(mul_shr32_i64_small(a, b), mul_shr_i64(a, b, 32));
+        }
+
+        #[test]
+        fn sq_mul_shr68_matches_the_i128_form(
+            u in prop_oneof![-(1i64 << 39)..=(1i64 << 39), -(1i64 << 32)..(1i64 << 32), -100_000i64..100_000],
+            k in prop_oneof![any::<i64>(), -(1i64 << 48)..(1i64 << 48), Just(i64::MIN), Just(i64::MAX)],
+        ) {
+            let exact = sat_i64(shr_round_i128(
+                i128::from(u) * i128::from(u) * i128::from(k),
+                68,
+            ));
+            prop_assert_eq!(sq_mul_shr68(u, k), exact);
         }
 
         #[test]
