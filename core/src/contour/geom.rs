@@ -8,7 +8,7 @@ use super::fx::{clamp_rel, clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, 
 use super::Xy;
 
 /// `a − b`, saturated to ±`REL_LIMIT` (2^30 LSB).
-#[inline]
+#[inline(always)]
 pub(crate) fn sub(a: Xy<i32>, b: Xy<i32>) -> Xy<i32> {
     Xy::new(
         clamp_rel(i64::from(a.x).wrapping_sub(i64::from(b.x))),
@@ -19,7 +19,7 @@ pub(crate) fn sub(a: Xy<i32>, b: Xy<i32>) -> Xy<i32> {
 /// `a − b` of two absolute Q52.12 positions as a relative vector, saturated; the flag
 /// says whether it saturated. For positions of the window or an estimated point (both
 /// saturated to ±`POS_LIMIT` = 2^40 LSB, so the `i64` difference is exact).
-#[inline]
+#[inline(always)]
 pub(crate) fn rel(a: Xy<i64>, b: Xy<i64>) -> (Xy<i32>, bool) {
     let dx = a.x.wrapping_sub(b.x);
     let dy = a.y.wrapping_sub(b.y);
@@ -39,7 +39,7 @@ pub(crate) fn rel_sat(a: Xy<i64>, b: Xy<i64>) -> Xy<i32> {
 }
 
 /// a · b (Q24 for Q12 inputs).
-#[inline]
+#[inline(always)]
 pub(crate) fn dot(a: Xy<i32>, b: Xy<i32>) -> i64 {
     (i64::from(a.x).wrapping_mul(i64::from(b.x)))
         .saturating_add(i64::from(a.y).wrapping_mul(i64::from(b.y)))

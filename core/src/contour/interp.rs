@@ -179,6 +179,7 @@ pub(crate) struct Taylor {
 
 impl Taylor {
     /// The expansion at a point (one normalisation of r′, three products).
+    #[inline(always)]
     pub(crate) fn at(p: &PathPoint, f: &DerivFrame) -> Self {
         let tdot = mul_shr30_i32_i64(f.ux, p.d2.x.to_bits())
             .saturating_add(mul_shr30_i32_i64(f.uy, p.d2.y.to_bits()));

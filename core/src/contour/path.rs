@@ -97,6 +97,7 @@ pub(crate) struct DerivFrame {
 }
 
 /// û and 1/|r′| (one normalisation without the length: no division). `None` where r′ = 0.
+#[inline(always)]
 pub(crate) fn deriv_frame(p: &PathPoint) -> Option<DerivFrame> {
     let f = normalize_no_len(p.d1.x.to_bits(), p.d1.y.to_bits())?;
     // 1/|r′| for r′ in Q32: (2^32/len_raw) in Q30 = recip with 62 fractional bits.
@@ -109,6 +110,7 @@ pub(crate) fn deriv_frame(p: &PathPoint) -> Option<DerivFrame> {
 
 /// Signed curvature in 1/µm, Q32.32 raw bits:
 /// κ = (û × r″)·(1/|r′|)² (Q30·Q32 → Q32, then twice ·Q30 → Q32).
+#[inline(always)]
 pub(crate) fn curvature_q32_per_um(p: &PathPoint, f: &DerivFrame) -> i64 {
     let (d2x, d2y) = (p.d2.x.to_bits(), p.d2.y.to_bits());
     // û × r″ = κ·|r′|², Q32.
