@@ -59,6 +59,11 @@ pub(crate) const fn mul_shr_i64(a: i64, b: i64, s: u32) -> i64 {
 /// 4·a·b_h could leave the `i64` range.
 #[inline(always)]
 pub(crate) const fn mul_shr30_i32_i64(a: i32, b: i64) -> i64 {
+    if b as i32 as i64 == b {
+        // b fits an i32 (a path's r″ in Q32 is usually far below 2^31): one `smull`,
+        // |a·b| ≤ 2^62, the rounding add cannot wrap; the exact value, as below.
+        return (a as i64).wrapping_mul(b).wrapping_add(1 << 29) >> 30;
+    }
     let hi = (a as i64).wrapping_mul(b >> 32);
     if hi.unsigned_abs() >= 1 << 60 {
         return mul_shr_i64(a as i64, b, 30);
@@ -82,6 +87,14 @@ pub(crate) const fn mul_shr30_i32_i64(a: i32, b: i64) -> i64 {
 pub(crate) const fn mul_shr_i64_by_u32(a: i64, b: i64, s: u32) -> i64 {
     if b < 0 || b > u32::MAX as i64 || s < 2 || s > 32 {
         return mul_shr_i64(a, b, s);
+    }
+    if a as i32 as i64 == a {
+        // a fits an i32: |a·b| < 2^31·2^32 − 2^32, so a·b + 2^(s−1) < 2^63 (s ≤ 32);
+        // one `i32×u32` product, the exact value.
+        return a
+            .wrapping_mul(b)
+            .wrapping_add(1i64.wrapping_shl(s.wrapping_sub(1)))
+            .wrapping_shr(s);
     }
     let hi = (a >> 32).wrapping_mul(b);
     // |hi·2^(32−s)| < 2^62 and the second term < 2^62 (s ≥ 2): the sum fits an i64.
@@ -630,6 +643,16 @@ mod tests {
         #[test]
         fn mul_by_u32_matches_the_i128_form(a: i64, b in -(1i64 << 33)..(1i64 << 33), s in 0u32..40) {
             prop_assert_eq!(mul_shr_i64_by_u32(a, b, s), mul_shr_i64(a, b, s));
+        }
+
+        #[test]
+        fn mul_shr30_matches_on_i32_operands(a: i32, b: i32) {
+            prop_assert_eq!(mul_shr30_i32_i64(a, i64::from(b)), mul_shr_i64(i64::from(a), i64::from(b), 30));
+        }
+
+        #[test]
+        fn mul_by_u32_matches_on_i32_operands(a: i32, b: u32, s in 0u32..40) {
+            prop_assert_eq!(mul_shr_i64_by_u32(i64::from(a), i64::from(b), s), mul_shr_i64(i64::from(a), i64::from(b), s));
         }
 
         #[test]
