@@ -254,7 +254,14 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
             (false, true) => Ends::OpenEnd,
             (true, true) => Ends::Open,
         };
-        let seg = chord_dist(sub(w, el), sub(eh, el), slot_b.tangent_raw(), ends);
+        // From S_a itself (lo = 0, E_0 = S_a = 0) the differences are w and E_hi as they
+        // are (both already within ±2^30): no subtraction.
+        let (wl, dl) = if lo == 0 {
+            (w, eh)
+        } else {
+            (sub(w, el), sub(eh, el))
+        };
+        let seg = chord_dist(wl, dl, slot_b.tangent_raw(), ends);
         // |S_a| ≤ 2^40 (window positions are saturated to ±POS_LIMIT), |E_lo| ≤ 2^30:
         // the sum cannot wrap.
         let base = Xy::new(
