@@ -176,6 +176,30 @@ pub(crate) fn sq_mul_shr68(u: i64, k: i64) -> i64 {
     }
 }
 
+/// ⌊a / n⌋ for a ≥ 0 and 1 ≤ n ≤ 65 536 without a 64-bit division (the Cortex-M4 has
+/// none: `__aeabi_ldivmod` costs about a hundred instructions): long division in base
+/// 2^16 with four 32-bit `udiv`s — each partial dividend r·2^16 + digit < n·2^16 ≤ 2^32
+/// (the remainder r < n), each quotient digit < 2^16. Equal to `a / n`; `None` outside
+/// the domain.
+#[inline(always)]
+pub(crate) fn div_small(a: i64, n: u32) -> Option<i64> {
+    if a < 0 || n == 0 || n > 1 << 16 {
+        return None;
+    }
+    let a = a as u64;
+    let mut q = 0u64;
+    let mut r = 0u32;
+    for k in (0..4u32).rev() {
+        let digit = ((a >> (16 * k)) & 0xFFFF) as u32;
+        // r < n ≤ 2^16: r·2^16 + digit < 2^32.
+        let cur = (r << 16) | digit;
+        let qd = cur / n;
+        r = cur.wrapping_sub(qd.wrapping_mul(n));
+        q = (q << 16) | u64::from(qd);
+    }
+    Some(q as i64)
+}
+
 /// `(a · b) >> s` rounded to nearest for `i32` operands (exact `i64` product).
 #[inline(always)]
 pub(crate) const fn mul_shr_i32(a: i32, b: i32, s: u32) -> i64 {
@@ -691,6 +715,14 @@ mod tests {
                 68,
             ));
             prop_assert_eq!(sq_mul_shr68(u, k), exact);
+        }
+
+        #[test]
+        fn div_small_equals_the_division(
+            a in prop_oneof![0i64..=i64::MAX, 0i64..(1i64 << 40), Just(i64::MAX), Just(0i64)],
+            n in prop_oneof![1u32..=65_536, 1u32..70, Just(65_536u32)],
+        ) {
+            prop_assert_eq!(div_small(a, n), Some(a / i64::from(n)));
         }
 
         #[test]

@@ -47,7 +47,7 @@
 //! a circle (sin/cos), so h_max is also the CPU-budget knob.
 //! A tick that does not advance (feed 0, path finished) leaves the window unchanged.
 
-use super::fx::{mul_shr30_i32_i64, mul_shr32_i64_i32, mul_shr_i64_by_u32, sat_i64};
+use super::fx::{div_small, mul_shr30_i32_i64, mul_shr32_i64_i32, mul_shr_i64_by_u32, sat_i64};
 use super::geom::rel_sat;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
 use super::window::{ContourWindow, OrdinaryPoint};
@@ -329,12 +329,17 @@ impl Interpolator {
         }
         let kappa = curvature_q32_per_um(&self.cur, &frame);
         let h = coeffs.extra_count(kappa, feed, H);
-        // First-order step of one sub-interval, a_e = (ΔS/(h + 1))/|r′| (the 64-bit
-        // division only when there are extra points to place).
+        // First-order step of one sub-interval, a_e = (ΔS/(h + 1))/|r′| (the division
+        // only when there are extra points to place: a ≥ 0 and h + 1 ≤ 4097, so it is
+        // `div_small`'s four 32-bit divisions, not a 64-bit one).
         let a_e = if h == 0 {
             0
         } else {
-            a.checked_div(h.wrapping_add(1) as i64).unwrap_or(0)
+            let n = h.wrapping_add(1);
+            match u32::try_from(n).ok().and_then(|n| div_small(a, n)) {
+                Some(q) => q,
+                None => a.checked_div(n as i64).unwrap_or(0),
+            }
         };
         let next = path.eval(Param::from_bits(u1));
         let (u0, start_pos) = (self.u, self.cur.pos.map(PosFine::to_bits));

@@ -181,6 +181,7 @@ impl ParametricPath for Parabola {
         Param::from_bits(self.u1)
     }
 
+    #[inline]
     fn position(&self, u: Param) -> Xy<PosFine> {
         self.local(u).0
     }
