@@ -122,6 +122,9 @@ pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usiz
     let mut lo = 0usize;
     let mut hi = extras.len().saturating_add(1);
     let mut steps = 0u8;
+    // E_lo and E_hi are carried along (the new end is the old E_mid): one point read
+    // per step.
+    let (mut pl, mut ph) = (Xy::new(0, 0), seq_point(extras, d, hi));
     // hi − lo halves (rounding up) every step: ⌈log₂(h + 1)⌉ steps; the bound is a
     // belt-and-braces guard, never reached.
     for _ in 0..usize::BITS {
@@ -129,8 +132,6 @@ pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usiz
             break;
         }
         let mid = lo.wrapping_add(hi.wrapping_sub(lo) / 2);
-        let pl = seq_point(extras, d, lo);
-        let ph = seq_point(extras, d, hi);
         let pm = seq_point(extras, d, mid);
         // (P − E_mid)·(E_hi − E_lo) in i64: every component difference ≤ 2^31, each
         // product ≤ 2^62, the sum saturates.
@@ -143,9 +144,9 @@ pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usiz
             i64::from(ph.y).wrapping_sub(i64::from(pl.y)),
         );
         if qx.wrapping_mul(cx).saturating_add(qy.wrapping_mul(cy)) >= 0 {
-            lo = mid;
+            (lo, pl) = (mid, pm);
         } else {
-            hi = mid;
+            (hi, ph) = (mid, pm);
         }
         steps = steps.wrapping_add(1);
     }

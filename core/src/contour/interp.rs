@@ -48,9 +48,9 @@
 //! A tick that does not advance (feed 0, path finished) leaves the window unchanged.
 
 use super::fx::{div_small, mul_shr30_i32_i64, mul_shr32_i64_i32, mul_shr_i64_by_u32, sat_i64};
-use super::geom::rel_sat;
+use super::geom::rel;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
-use super::window::{ContourWindow, OrdinaryPoint};
+use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, UnitQ30, Xy};
 use crate::units::{PosUm, VelUmPerS};
 
@@ -351,18 +351,22 @@ impl Interpolator {
         }
         self.finished = u1 >= u_end;
         let point = self.ordinary();
+        // Both ends of the relative vectors saturated to ±2^40 (as in the window): the
+        // differences are exact `i64`s, clamped to ±2^30 as `rel_sat` would.
+        let start_pos = clamp_pos(start_pos);
         let n = window.push_with(point, |buf| {
             let mut n = 0usize;
             let mut a = 0i64;
             for slot in buf.iter_mut().take(h) {
-                // Extra point k at arc length k·ΔS/(h + 1) on the same expansion.
-                a = a.saturating_add(a_e);
+                // Extra point k at arc length k·ΔS/(h + 1) on the same expansion
+                // (k·a_e ≤ a ≤ 2^52: no wrap).
+                a = a.wrapping_add(a_e);
                 let ue = u0.saturating_add(taylor.du(a));
                 if ue >= u1 {
                     break;
                 }
                 let pos = path.position(Param::from_bits(ue));
-                *slot = rel_sat(pos.map(PosFine::to_bits), start_pos);
+                *slot = rel(clamp_pos(pos.map(PosFine::to_bits)), start_pos).0;
                 n = n.wrapping_add(1);
             }
             n

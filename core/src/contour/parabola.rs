@@ -162,10 +162,13 @@ impl Parabola {
         // |x_l| < 65.5 mm, the exact i128 form beyond).
         let yl = sq_mul_shr68(uq, self.inv_2p_q48);
         let (px, py) = self.rotate(xl, yl);
+        // |x_l| ≤ 2^35 (u clamped to 2^23 µm), |y_l| ≤ 2^57 (u² ≤ 2^78 in Q32, 1/(2p) ≤
+        // 2^47 in Q48), so |(px, py)| < 2^58 after any rotation; the vertex is within
+        // ±8.4 m (2^35): the sum cannot wrap.
         (
             Xy::new(
-                PosFine::from_bits(self.vertex.x.saturating_add(px)),
-                PosFine::from_bits(self.vertex.y.saturating_add(py)),
+                PosFine::from_bits(self.vertex.x.wrapping_add(px)),
+                PosFine::from_bits(self.vertex.y.wrapping_add(py)),
             ),
             uq,
         )
