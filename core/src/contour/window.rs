@@ -189,10 +189,6 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         }
     }
 
-    pub(crate) fn slot_pos_raw(&self, i: usize) -> Option<Xy<i64>> {
-        self.slot(i).map(|s| s.point.pos.map(PosFine::to_bits))
-    }
-
     /// Raw positions of the held points in storage order (the valid slots are always
     /// the first `len`: the head moves only once the ring is full), for the full scan.
     pub(crate) fn stored_pos_raw(&self) -> impl Iterator<Item = Xy<i64>> + '_ {
@@ -200,6 +196,12 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
             .iter()
             .take(self.len)
             .map(|s| s.point.pos.map(PosFine::to_bits))
+    }
+
+    /// The slots in storage order (physical indices).
+    #[inline(always)]
+    pub(crate) fn slots_ref(&self) -> &[Slot<H>; N] {
+        &self.slots
     }
 
     /// Physical index of the oldest point.
