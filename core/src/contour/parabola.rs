@@ -184,7 +184,7 @@ impl ParametricPath for Parabola {
         Param::from_bits(self.u1)
     }
 
-    #[inline]
+    #[inline(always)]
     fn position(&self, u: Param) -> Xy<PosFine> {
         self.local(u).0
     }
