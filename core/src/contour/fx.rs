@@ -3,7 +3,19 @@
 //!
 //! Every helper saturates instead of overflowing and never panics. Products of two
 //! `i64` are formed in an `i128` (exact: |a·b| ≤ 2^126); products of two `i32` in an
-//! `i64` (exact: ≤ 2^62).
+//! `i64` (exact: ≤ 2^62). The `i64` helpers used per period (`mul_shr30_i32_i64`,
+//! `mul_shr_i64_by_u32`, `mul_shr32_i64_i32`, `mul_shr32_i64_small`, `sq_mul_shr68`) give
+//! exactly the `i128` form's value from 32-bit products when their operands are in range
+//! (tested against it), and fall back to it otherwise; `div_small` divides an `i64` by a
+//! small integer with 32-bit divisions (a Cortex-M4 has no 64-bit divide). Range tests
+//! that the compiler would otherwise turn into branch-free 64-bit clamps keep their
+//! saturating branch in a separate cold function (`clamp_rel`).
+//!
+//! | quantity | format | range |
+//! |---|---|---|
+//! | 1/√x (`rsqrt_q30`) | `u32` Q2.30 | x ∈ [0.25, 2), result ∈ (0.707, 2], < 4·10⁻⁹ relative |
+//! | unit vector (`normalize`) | `i32` Q2.30 | ±2^30, < 8·10⁻⁹ |
+//! | 1/|d| (`UnitLen::rsq`, `exp`) | `u32` Q2.30 × 2^exp | (2^29.5, 2^31] |
 
 /// Saturates an `i128` to the `i64` range (same result as `crate::q::sat_i64`, but one
 /// test: does the high half equal the sign extension of the low half? On a Cortex-M4
@@ -190,10 +202,11 @@ pub(crate) fn div_small(a: i64, n: u32) -> Option<i64> {
     let mut q = 0u64;
     let mut r = 0u32;
     for k in (0..4u32).rev() {
-        let digit = ((a >> (16 * k)) & 0xFFFF) as u32;
+        let digit = ((a >> k.wrapping_mul(16)) & 0xFFFF) as u32;
         // r < n ≤ 2^16: r·2^16 + digit < 2^32.
         let cur = (r << 16) | digit;
-        let qd = cur / n;
+        // n ≥ 1 (checked above): the division cannot fail.
+        let qd = cur.checked_div(n).unwrap_or(0);
         r = cur.wrapping_sub(qd.wrapping_mul(n));
         q = (q << 16) | u64::from(qd);
     }
