@@ -118,6 +118,7 @@ fn seq_point(extras: &[Xy<i32>], d: Xy<i32>, k: usize) -> Xy<i32> {
 /// `w` = P − S_a, `d` = S_b − S_a, `extras` relative to S_a. Returns (lo, hi, steps)
 /// with hi = lo + 1 (or hi = lo = 0 for an empty sequence), `steps` ≤
 /// ⌈log₂(extras.len() + 1)⌉.
+#[inline(always)]
 pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usize, u8) {
     let mut lo = 0usize;
     let mut hi = extras.len().saturating_add(1);
@@ -281,6 +282,7 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
 
 /// u at the foot: u_a + (u_b − u_a)·(lo + t)/(h + 1), t = along/len of the final
 /// chord; the fraction in Q16 by one 32-bit division (`udiv` on a Cortex-M4).
+#[inline(always)]
 pub(crate) fn u_at_foot(u_a: i64, u_b: i64, lo: usize, h: usize, seg: &SegDist) -> i64 {
     let n = (h.min(usize::from(u16::MAX)) as u32).wrapping_add(1);
     let lo = lo.min(usize::from(u16::MAX)) as u32;
@@ -316,6 +318,7 @@ pub(crate) fn u_at_foot(u_a: i64, u_b: i64, lo: usize, h: usize, seg: &SegDist) 
 }
 
 /// Packs a segment distance (foot relative to `base`) into an estimate.
+#[inline(always)]
 pub(crate) fn finish(
     base: Xy<i64>,
     seg: SegDist,
