@@ -111,6 +111,7 @@ pub(crate) enum Ends {
 /// ((a + L/2)² − L²/4)·κ/2 — 0.014 µm for 20 µm beyond a 50 µm chord on a 50 mm radius,
 /// measured by the estimator's test). `along` may then be below 0 or above `len`;
 /// `t_q30` stays clamped to [0, 1].
+#[inline(always)]
 pub(crate) fn chord_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>, ends: Ends) -> SegDist {
     let open_start = matches!(ends, Ends::OpenStart | Ends::Open);
     let open_end = matches!(ends, Ends::OpenEnd | Ends::Open);
