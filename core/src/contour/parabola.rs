@@ -189,6 +189,7 @@ impl ParametricPath for Parabola {
         self.local(u).0
     }
 
+    #[inline(always)]
     fn eval(&self, u: Param) -> PathPoint {
         let (pos, uq) = self.local(u);
         // u/p: Q16·Q48 → Q64 → Q32 (|uq| ≤ 2^39, |1/p| ≤ 2^48: 32-bit products).
