@@ -118,10 +118,14 @@ fn seq_point(extras: &[Xy<i32>], d: Xy<i32>, k: usize) -> Xy<i32> {
 /// `w` = P − S_a, `d` = S_b − S_a, `extras` relative to S_a. Returns (lo, hi, steps)
 /// with hi = lo + 1 (or hi = lo = 0 for an empty sequence), `steps` ≤
 /// ⌈log₂(extras.len() + 1)⌉.
+#[inline(always)]
 pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usize, u8) {
     let mut lo = 0usize;
     let mut hi = extras.len().saturating_add(1);
     let mut steps = 0u8;
+    // E_lo and E_hi are carried along (the new end is the old E_mid): one point read
+    // per step.
+    let (mut pl, mut ph) = (Xy::new(0, 0), seq_point(extras, d, hi));
     // hi − lo halves (rounding up) every step: ⌈log₂(h + 1)⌉ steps; the bound is a
     // belt-and-braces guard, never reached.
     for _ in 0..usize::BITS {
@@ -129,8 +133,6 @@ pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usiz
             break;
         }
         let mid = lo.wrapping_add(hi.wrapping_sub(lo) / 2);
-        let pl = seq_point(extras, d, lo);
-        let ph = seq_point(extras, d, hi);
         let pm = seq_point(extras, d, mid);
         // (P − E_mid)·(E_hi − E_lo) in i64: every component difference ≤ 2^31, each
         // product ≤ 2^62, the sum saturates.
@@ -143,9 +145,9 @@ pub(crate) fn bisect(w: Xy<i32>, d: Xy<i32>, extras: &[Xy<i32>]) -> (usize, usiz
             i64::from(ph.y).wrapping_sub(i64::from(pl.y)),
         );
         if qx.wrapping_mul(cx).saturating_add(qy.wrapping_mul(cy)) >= 0 {
-            lo = mid;
+            (lo, pl) = (mid, pm);
         } else {
-            hi = mid;
+            (hi, ph) = (mid, pm);
         }
         steps = steps.wrapping_add(1);
     }
@@ -254,10 +256,19 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
             (false, true) => Ends::OpenEnd,
             (true, true) => Ends::Open,
         };
-        let seg = chord_dist(sub(w, el), sub(eh, el), slot_b.tangent_raw(), ends);
+        // From S_a itself (lo = 0, E_0 = S_a = 0) the differences are w and E_hi as they
+        // are (both already within ±2^30): no subtraction.
+        let (wl, dl) = if lo == 0 {
+            (w, eh)
+        } else {
+            (sub(w, el), sub(eh, el))
+        };
+        let seg = chord_dist(wl, dl, slot_b.tangent_raw(), ends);
+        // |S_a| ≤ 2^40 (window positions are saturated to ±POS_LIMIT), |E_lo| ≤ 2^30:
+        // the sum cannot wrap.
         let base = Xy::new(
-            sa.x.saturating_add(i64::from(el.x)),
-            sa.y.saturating_add(i64::from(el.y)),
+            sa.x.wrapping_add(i64::from(el.x)),
+            sa.y.wrapping_add(i64::from(el.y)),
         );
         let u = u_at_foot(slot_a.u_raw(), slot_b.u_raw(), lo, extras.len(), &seg);
         Some(finish(base, seg, b, lo, u, steps, saturated))
@@ -271,26 +282,43 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
 
 /// u at the foot: u_a + (u_b − u_a)·(lo + t)/(h + 1), t = along/len of the final
 /// chord; the fraction in Q16 by one 32-bit division (`udiv` on a Cortex-M4).
+#[inline(always)]
 pub(crate) fn u_at_foot(u_a: i64, u_b: i64, lo: usize, h: usize, seg: &SegDist) -> i64 {
     let n = (h.min(usize::from(u16::MAX)) as u32).wrapping_add(1);
     let lo = lo.min(usize::from(u16::MAX)) as u32;
-    let t_q16 = (seg.t_q30.clamp(0, 1 << 30) >> 14) as u32;
+    // t_q30 clamped to [0, 2^30] (chord_dist already keeps it there).
+    let t_q16 = u32::try_from(seg.t_q30.max(0))
+        .unwrap_or(u32::MAX)
+        .min(1 << 30)
+        >> 14;
     let frac = lo
         .wrapping_shl(16)
         .saturating_add(t_q16)
         .checked_div(n)
         .unwrap_or(0)
         .min(1 << 16);
-    // (Δu·frac + 2^15) >> 16 without an i128: Δu = Δu_h·2^16 + Δu_l, exact
-    // (|Δu| ≤ 2^62 after the clamp: Δu_h·frac ≤ 2^62, Δu_l·frac < 2^33).
-    let du = u_b.saturating_sub(u_a).clamp(-(1 << 62), 1 << 62);
     let f = i64::from(frac);
-    let hi = (du >> 16).wrapping_mul(f);
-    let lo = (du & 0xFFFF).wrapping_mul(f).wrapping_add(1 << 15) >> 16;
-    u_a.saturating_add(hi.wrapping_add(lo))
+    // (Δu·frac + 2^15) >> 16. A segment's Δu is far below 2^46 (ΔS ≤ 65.5 mm per
+    // period, |r′| ≥ 1/16: Δu < 2^20 µm = 2^52 in Q32 at the very worst; 2^38 at 50 µm):
+    // then Δu·frac < 2^62, one 64×32-bit product. Otherwise without an i128:
+    // Δu = Δu_h·2^16 + Δu_l, exact (|Δu| ≤ 2^62 after the clamp: Δu_h·frac ≤ 2^62,
+    // Δu_l·frac < 2^33). Both forms give the same value.
+    let d = u_b.wrapping_sub(u_a);
+    // |d| < 2^46, and the subtraction did not wrap (the sign of d is that of u_b − u_a).
+    let d_fits = d.wrapping_add(1 << 46) as u64 >> 47 == 0;
+    let du_f = if d_fits && (u_b >= u_a) == (d >= 0) {
+        d.wrapping_mul(f).wrapping_add(1 << 15) >> 16
+    } else {
+        let du = u_b.saturating_sub(u_a).clamp(-(1 << 62), 1 << 62);
+        let hi = (du >> 16).wrapping_mul(f);
+        let lo = (du & 0xFFFF).wrapping_mul(f).wrapping_add(1 << 15) >> 16;
+        hi.wrapping_add(lo)
+    };
+    u_a.saturating_add(du_f)
 }
 
 /// Packs a segment distance (foot relative to `base`) into an estimate.
+#[inline(always)]
 pub(crate) fn finish(
     base: Xy<i64>,
     seg: SegDist,
@@ -302,9 +330,11 @@ pub(crate) fn finish(
 ) -> ContourEstimate {
     ContourEstimate {
         eps_um: RelUm::from_bits(clamp_to_i32(seg.eps, i32::MAX)),
+        // |base| ≤ 2^40 + 2^30 (a window position plus an extra point), |foot| ≤ 2^30:
+        // the sum cannot wrap.
         foot: Xy::new(
-            PosFine::from_bits(base.x.saturating_add(i64::from(seg.foot.x))),
-            PosFine::from_bits(base.y.saturating_add(i64::from(seg.foot.y))),
+            PosFine::from_bits(base.x.wrapping_add(i64::from(seg.foot.x))),
+            PosFine::from_bits(base.y.wrapping_add(i64::from(seg.foot.y))),
         ),
         tangent: seg.unit.map(UnitQ30::from_bits),
         segment: b.min(usize::from(u16::MAX)) as u16,
@@ -335,18 +365,30 @@ mod tests {
             (-5 << 40, 7 << 40),
             (1 << 50, -(1 << 50)),
             (3, 3),
+            ((1 << 46) - 1, 0),
+            (0, (1 << 46) - 1),
+            (0, 1 << 46),
+            (i64::MIN + 5, i64::MAX),
         ] {
             for (lo, h, t) in [
                 (0usize, 0usize, 0i64),
                 (0, 0, 1 << 29),
                 (3, 7, 12345),
                 (63, 63, 1 << 30),
+                (2, 4, -7),
+                (1, 1, (1 << 30) + 9),
+                (1, 1, 1 << 40),
             ] {
                 let s = seg(t);
                 let n = (h as i64) + 1;
                 let frac = ((((lo as i64) << 16) + ((t.clamp(0, 1 << 30)) >> 14)) / n).min(1 << 16);
-                let exact =
-                    ua + (((i128::from(ub - ua) * i128::from(frac)) + (1 << 15)) >> 16) as i64;
+                let du = i128::from(ub)
+                    .saturating_sub(i128::from(ua))
+                    .clamp(-(1 << 62), 1 << 62)
+                    .clamp(i128::from(i64::MIN), i128::from(i64::MAX));
+                let exact = (i128::from(ua) + ((du * i128::from(frac) + (1 << 15)) >> 16))
+                    .clamp(i128::from(i64::MIN), i128::from(i64::MAX))
+                    as i64;
                 assert_eq!(
                     u_at_foot(ua, ub, lo, h, &s),
                     exact,

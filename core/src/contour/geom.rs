@@ -8,7 +8,7 @@ use super::fx::{clamp_rel, clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, 
 use super::Xy;
 
 /// `a − b`, saturated to ±`REL_LIMIT` (2^30 LSB).
-#[inline]
+#[inline(always)]
 pub(crate) fn sub(a: Xy<i32>, b: Xy<i32>) -> Xy<i32> {
     Xy::new(
         clamp_rel(i64::from(a.x).wrapping_sub(i64::from(b.x))),
@@ -19,7 +19,7 @@ pub(crate) fn sub(a: Xy<i32>, b: Xy<i32>) -> Xy<i32> {
 /// `a − b` of two absolute Q52.12 positions as a relative vector, saturated; the flag
 /// says whether it saturated. For positions of the window or an estimated point (both
 /// saturated to ±`POS_LIMIT` = 2^40 LSB, so the `i64` difference is exact).
-#[inline]
+#[inline(always)]
 pub(crate) fn rel(a: Xy<i64>, b: Xy<i64>) -> (Xy<i32>, bool) {
     let dx = a.x.wrapping_sub(b.x);
     let dy = a.y.wrapping_sub(b.y);
@@ -39,7 +39,7 @@ pub(crate) fn rel_sat(a: Xy<i64>, b: Xy<i64>) -> Xy<i32> {
 }
 
 /// a · b (Q24 for Q12 inputs).
-#[inline]
+#[inline(always)]
 pub(crate) fn dot(a: Xy<i32>, b: Xy<i32>) -> i64 {
     (i64::from(a.x).wrapping_mul(i64::from(b.x)))
         .saturating_add(i64::from(a.y).wrapping_mul(i64::from(b.y)))
@@ -111,6 +111,7 @@ pub(crate) enum Ends {
 /// ((a + L/2)² − L²/4)·κ/2 — 0.014 µm for 20 µm beyond a 50 µm chord on a 50 mm radius,
 /// measured by the estimator's test). `along` may then be below 0 or above `len`;
 /// `t_q30` stays clamped to [0, 1].
+#[inline(always)]
 pub(crate) fn chord_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>, ends: Ends) -> SegDist {
     let open_start = matches!(ends, Ends::OpenStart | Ends::Open);
     let open_end = matches!(ends, Ends::OpenEnd | Ends::Open);
@@ -122,10 +123,12 @@ pub(crate) fn chord_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>, ends: Ends) 
     let along = mul_shr_i32(unit.x, w.x, 30).saturating_add(mul_shr_i32(unit.y, w.y, 30));
     let perp = mul_shr_i32(unit.x, w.y, 30).saturating_sub(mul_shr_i32(unit.y, w.x, 30));
     let beyond = len != 0 && ((open_start && along < 0) || (open_end && along > len));
-    let (dist, foot) = if beyond {
-        // |along| ≤ |w| < 2^31·√2: saturate to i32 for the foot (≥ ±262 mm: a window
-        // that far behind is reported `saturated` anyway).
-        let along32 = clamp_to_i32(along, i32::MAX);
+    // |along| ≤ |w|·(1 + 10⁻⁸) < 2^31 and 0 ≤ len ≤ |d| < 2^31 (components within
+    // ±2^30): both fit an i32, so the clamp to [0, len] is a 32-bit one.
+    let (along32, len32) = (clamp_to_i32(along, i32::MAX), clamp_to_i32(len, i32::MAX));
+    let along_t = i64::from(along32.clamp(0, len32.max(0)));
+    let (dist, foot) = if beyond || (len != 0 && along > 0 && along < len) {
+        // Interior (or beyond an open end): the perpendicular foot, û·along.
         (
             perp.saturating_abs(),
             Xy::new(
@@ -135,37 +138,31 @@ pub(crate) fn chord_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>, ends: Ends) 
         )
     } else if len == 0 || along <= 0 {
         (sqrt_u64(norm2(w)) as i64, Xy::new(0, 0))
-    } else if along >= len {
+    } else {
         (sqrt_u64(norm2(sub(w, d))) as i64, d)
-    } else {
-        // 0 < along < |d| ≤ 2^31: û·along fits.
-        let along32 = clamp_to_i32(along, i32::MAX);
-        (
-            perp.saturating_abs(),
-            Xy::new(
-                clamp_rel(mul_shr_i32(unit.x, along32, 30)),
-                clamp_rel(mul_shr_i32(unit.y, along32, 30)),
-            ),
-        )
     };
-    let along = if beyond {
-        along
-    } else {
-        along.clamp(0, len.max(0))
-    };
-    let along_t = along.clamp(0, len.max(0));
-    // t = along·(1/len) = along·rsq·2^exp; in Q30: shift by exp + 30 (≤ 0 here since
-    // len < 2^32 in Q12); along, rsq < 2^32 so the product fits.
+    let along = if beyond { along } else { along_t };
+    // t = along·(1/len) = along·rsq·2^(s−60) (s the normalisation shift); in Q30:
+    // (along·2^s·rsq + 2^29) >> 30. For s ≥ 0 (|d| < 2^30: every chord shorter than
+    // 262 mm) along·2^s ≤ len·2^s ≤ |n| + 2^(s−1) < 2^32 and the product < 2^63: one
+    // `umull`, a fixed shift. Otherwise the general rounded shift (same value).
     let t_q30 = match n {
         Some(u) => {
-            let sh = u.exp.saturating_add(30);
-            let prod = along_t.wrapping_mul(i64::from(u.rsq));
-            let t = if sh >= 0 {
-                prod
+            let s = u.exp.wrapping_add(60);
+            if (0..=29).contains(&s) {
+                let a = u64::from((along_t as u32).wrapping_shl(s as u32));
+                let t = a.wrapping_mul(u64::from(u.rsq)).wrapping_add(1 << 29) >> 30;
+                t.min(1 << 30) as i64
             } else {
-                shr_round_i64(prod, sh.unsigned_abs().min(63))
-            };
-            t.clamp(0, 1 << 30)
+                let sh = u.exp.saturating_add(30);
+                let prod = along_t.wrapping_mul(i64::from(u.rsq));
+                let t = if sh >= 0 {
+                    prod
+                } else {
+                    shr_round_i64(prod, sh.unsigned_abs().min(63))
+                };
+                t.clamp(0, 1 << 30)
+            }
         }
         None => 0,
     };
@@ -186,6 +183,93 @@ mod tests {
     use super::*;
 
     const UM: i32 = 4096;
+
+    /// The previous implementation, the reference of `chord_dist_is_the_reference`.
+    fn chord_dist_ref(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>, ends: Ends) -> SegDist {
+        let open_start = matches!(ends, Ends::OpenStart | Ends::Open);
+        let open_end = matches!(ends, Ends::OpenEnd | Ends::Open);
+        let n = normalize(i64::from(d.x), i64::from(d.y));
+        let (unit, len) = match n {
+            Some(u) => (Xy::new(u.ux, u.uy), u.len),
+            None => (fallback, 0),
+        };
+        let along = mul_shr_i32(unit.x, w.x, 30).saturating_add(mul_shr_i32(unit.y, w.y, 30));
+        let perp = mul_shr_i32(unit.x, w.y, 30).saturating_sub(mul_shr_i32(unit.y, w.x, 30));
+        let beyond = len != 0 && ((open_start && along < 0) || (open_end && along > len));
+        let (dist, foot) = if beyond {
+            // |along| ≤ |w| < 2^31·√2: saturate to i32 for the foot (≥ ±262 mm: a window
+            // that far behind is reported `saturated` anyway).
+            let along32 = clamp_to_i32(along, i32::MAX);
+            (
+                perp.saturating_abs(),
+                Xy::new(
+                    clamp_rel(mul_shr_i32(unit.x, along32, 30)),
+                    clamp_rel(mul_shr_i32(unit.y, along32, 30)),
+                ),
+            )
+        } else if len == 0 || along <= 0 {
+            (sqrt_u64(norm2(w)) as i64, Xy::new(0, 0))
+        } else if along >= len {
+            (sqrt_u64(norm2(sub(w, d))) as i64, d)
+        } else {
+            // 0 < along < |d| ≤ 2^31: û·along fits.
+            let along32 = clamp_to_i32(along, i32::MAX);
+            (
+                perp.saturating_abs(),
+                Xy::new(
+                    clamp_rel(mul_shr_i32(unit.x, along32, 30)),
+                    clamp_rel(mul_shr_i32(unit.y, along32, 30)),
+                ),
+            )
+        };
+        let along = if beyond {
+            along
+        } else {
+            along.clamp(0, len.max(0))
+        };
+        let along_t = along.clamp(0, len.max(0));
+        // t = along·(1/len) = along·rsq·2^exp; in Q30: shift by exp + 30 (≤ 0 here since
+        // len < 2^32 in Q12); along, rsq < 2^32 so the product fits.
+        let t_q30 = match n {
+            Some(u) => {
+                let sh = u.exp.saturating_add(30);
+                let prod = along_t.wrapping_mul(i64::from(u.rsq));
+                let t = if sh >= 0 {
+                    prod
+                } else {
+                    shr_round_i64(prod, sh.unsigned_abs().min(63))
+                };
+                t.clamp(0, 1 << 30)
+            }
+            None => 0,
+        };
+        SegDist {
+            dist,
+            eps: if perp > 0 { dist.wrapping_neg() } else { dist },
+            foot,
+            unit,
+            along,
+            len,
+            t_q30,
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(5000))]
+        #[test]
+        fn chord_dist_equals_the_reference(
+            wx in -REL_LIMIT..=REL_LIMIT, wy in -REL_LIMIT..=REL_LIMIT,
+            dx in proptest::prop_oneof![-REL_LIMIT..=REL_LIMIT, -5000i32..5000, -3i32..3],
+            dy in proptest::prop_oneof![-REL_LIMIT..=REL_LIMIT, -5000i32..5000, -3i32..3],
+            small in proptest::bool::ANY,
+            ends in 0u8..4,
+        ) {
+            let (wx, wy) = if small { (wx >> 14, wy >> 14) } else { (wx, wy) };
+            let ends = [Ends::Closed, Ends::OpenStart, Ends::OpenEnd, Ends::Open][usize::from(ends)];
+            let (w, d, fb) = (Xy::new(wx, wy), Xy::new(dx, dy), Xy::new(1 << 30, 0));
+            proptest::prop_assert_eq!(chord_dist(w, d, fb, ends), chord_dist_ref(w, d, fb, ends));
+        }
+    }
 
     #[test]
     fn interior_and_ends() {

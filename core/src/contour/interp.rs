@@ -40,17 +40,19 @@
 //! place.
 //!
 //! Work per period: one full path evaluation, one normalisation of r′ (of the new point,
-//! kept for the next period's step), one curvature, one
-//! 64-bit division, and per extra point one position evaluation
-//! ([`ParametricPath::position`]) and two `i64×i64→i128` products; h ≤ min(h_max, H).
-//! Measured on a Cortex-M4 (`docs/contour.md`): about 600 instructions per extra point on
-//! a circle (sin/cos), so h_max is also the CPU-budget knob.
+//! kept for the next period's step), one curvature, one division by h + 1 (four 32-bit
+//! `udiv`s, [`super::fx`]'s `div_small`, only when h > 0), and per extra point one
+//! position evaluation ([`ParametricPath::position`]) and two `i64×i32` products (the
+//! `i128` form only for a curvature term beyond 2^31); h ≤ min(h_max, H). Every product
+//! of the Taylor step and of κ takes a one-`smull` path when its operand fits 32 bits.
+//! Measured on a Cortex-M4 (`./bench-m4.sh`): about 70 instructions per extra point on
+//! the patent parabola, more on a circle (sin/cos), so h_max is also the CPU-budget knob.
 //! A tick that does not advance (feed 0, path finished) leaves the window unchanged.
 
-use super::fx::{mul_shr30_i32_i64, mul_shr_i64, mul_shr_i64_by_u32, sat_i64};
-use super::geom::rel_sat;
+use super::fx::{div_small, mul_shr30_i32_i64, mul_shr32_i64_i32, mul_shr_i64_by_u32, sat_i64};
+use super::geom::rel;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
-use super::window::{ContourWindow, OrdinaryPoint};
+use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, UnitQ30, Xy};
 use crate::units::{PosUm, VelUmPerS};
 
@@ -179,6 +181,7 @@ pub(crate) struct Taylor {
 
 impl Taylor {
     /// The expansion at a point (one normalisation of r′, three products).
+    #[inline(always)]
     pub(crate) fn at(p: &PathPoint, f: &DerivFrame) -> Self {
         let tdot = mul_shr30_i32_i64(f.ux, p.d2.x.to_bits())
             .saturating_add(mul_shr30_i32_i64(f.uy, p.d2.y.to_bits()));
@@ -198,8 +201,12 @@ impl Taylor {
     /// reverse the step (an arc longer than the radius of curvature) the first-order step
     /// is used.
     pub(crate) fn du(&self, a: i64) -> i64 {
-        let ac = mul_shr_i64(a, self.c_q32, 32);
-        let du = a.saturating_sub(mul_shr_i64(a, ac, 32));
+        // Two `i64 × i32` products (`mul_shr32_i64_i32`): |c| < 2^31 for any path within
+        // the contract (c ≤ |r″|/(2|r′|)), and a·c/2^32 = Δu's relative curvature term,
+        // far below 2^31 for a step shorter than the radius of curvature; the exact
+        // `i128` form otherwise.
+        let ac = mul_shr32_i64_i32(a, self.c_q32);
+        let du = a.saturating_sub(mul_shr32_i64_i32(a, ac));
         if du > 0 {
             du
         } else {
@@ -324,12 +331,17 @@ impl Interpolator {
         }
         let kappa = curvature_q32_per_um(&self.cur, &frame);
         let h = coeffs.extra_count(kappa, feed, H);
-        // First-order step of one sub-interval, a_e = (ΔS/(h + 1))/|r′| (the 64-bit
-        // division only when there are extra points to place).
+        // First-order step of one sub-interval, a_e = (ΔS/(h + 1))/|r′| (the division
+        // only when there are extra points to place: a ≥ 0 and h + 1 ≤ 4097, so it is
+        // `div_small`'s four 32-bit divisions, not a 64-bit one).
         let a_e = if h == 0 {
             0
         } else {
-            a.checked_div(h.wrapping_add(1) as i64).unwrap_or(0)
+            let n = h.wrapping_add(1);
+            match u32::try_from(n).ok().and_then(|n| div_small(a, n)) {
+                Some(q) => q,
+                None => a.checked_div(n as i64).unwrap_or(0),
+            }
         };
         let next = path.eval(Param::from_bits(u1));
         let (u0, start_pos) = (self.u, self.cur.pos.map(PosFine::to_bits));
@@ -341,18 +353,22 @@ impl Interpolator {
         }
         self.finished = u1 >= u_end;
         let point = self.ordinary();
+        // Both ends of the relative vectors saturated to ±2^40 (as in the window): the
+        // differences are exact `i64`s, clamped to ±2^30 as `rel_sat` would.
+        let start_pos = clamp_pos(start_pos);
         let n = window.push_with(point, |buf| {
             let mut n = 0usize;
             let mut a = 0i64;
             for slot in buf.iter_mut().take(h) {
-                // Extra point k at arc length k·ΔS/(h + 1) on the same expansion.
-                a = a.saturating_add(a_e);
+                // Extra point k at arc length k·ΔS/(h + 1) on the same expansion
+                // (k·a_e ≤ a ≤ 2^52: no wrap).
+                a = a.wrapping_add(a_e);
                 let ue = u0.saturating_add(taylor.du(a));
                 if ue >= u1 {
                     break;
                 }
                 let pos = path.position(Param::from_bits(ue));
-                *slot = rel_sat(pos.map(PosFine::to_bits), start_pos);
+                *slot = rel(clamp_pos(pos.map(PosFine::to_bits)), start_pos).0;
                 n = n.wrapping_add(1);
             }
             n

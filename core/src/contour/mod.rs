@@ -46,8 +46,10 @@
 //! Why 12 fractional bits for positions: the target accuracy is 0.1 µm and the extra
 //! chords' sagitta is ~1–10 nm, so the points themselves must be ten times finer than
 //! that; `I24F8` (3.9 nm) would dominate the error at low speed. Relative vectors are
-//! `i32`, so the estimator's products are `i32×i32→i64` (one `smull` on a Cortex-M4),
-//! and only the interpolator and the path evaluations use `i64×i64→i128` products.
+//! `i32`, so the estimator's products are `i32×i32→i64` (one `smull` on a Cortex-M4);
+//! the interpolator's and the parabola's products are split into 32-bit products while
+//! their operands are in the usual ranges (|x_l| < 65.5 mm, r″ and the Taylor terms below
+//! 2^31), with the exact `i128` form beyond (the arc's sin/cos still use it).
 //! Rounding: a point of a built-in path is within 0.4 nm of the exact path, a distance
 //! is rounded to 0.24 nm: on a straight line every method matches the exact distance to
 //! 0.2 nm (measured, `tests/tests/contour_estimate.rs`).
@@ -78,8 +80,8 @@
 //! point (3 squared distances in steady state, at most 2N with the full-scan fallback), one
 //! dot product, ⌈log₂(H + 1)⌉ bisection steps, one point-to-chord distance (inverse square
 //! roots by Newton steps, no division) and one 32-bit division. Measured on a Cortex-M4
-//! (`./bench-m4.sh`, `DefaultWindow`, the patent parabola at 200 mm/s): 1 730 instructions
-//! typical, 2 580 worst; the interpolator step 3 540 on average over the first 256 periods.
+//! (`./bench-m4.sh`, `DefaultWindow`, the patent parabola at 200 mm/s): 1 400 instructions
+//! typical, 1 990 worst; the interpolator step 2 160 on average over the first 256 periods.
 
 mod arc;
 mod baseline;

@@ -48,10 +48,11 @@ fn dist2(p: Xy<i64>, s: Xy<i64>) -> u64 {
 }
 
 impl<const N: usize, const H: usize> ContourWindow<N, H> {
-    /// |p − S_i|² for logical index `i` (`u64::MAX` if there is no such point).
-    #[inline]
+    /// |p − S_i|² for logical index `i` (`u64::MAX` if there is no such point) — the
+    /// tests' reference.
+    #[cfg(test)]
     fn dist2_at(&self, p: Xy<i64>, i: usize) -> u64 {
-        self.slot_pos_raw(i).map_or(u64::MAX, |s| dist2(p, s))
+        self.slot(i).map_or(u64::MAX, |s| dist2(p, s.pos_raw()))
     }
 
     /// Index (0 = oldest) of the ordinary point nearest to `p` (Q52.12 raw): the warm
@@ -90,29 +91,48 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         (i < self.len()).then_some(i)
     }
 
+    /// |p − S|² of the slot at physical index `pi` (`u64::MAX` if out of range).
+    #[inline(always)]
+    fn dist2_phys(&self, p: Xy<i64>, pi: usize) -> u64 {
+        self.slots_ref()
+            .get(pi)
+            .map_or(u64::MAX, |s| dist2(p, s.pos_raw()))
+    }
+
     /// The walk downhill from logical index `start`: the local minimum it reaches, or
-    /// `None` when that is the first or the last point of the window (then scan).
+    /// `None` when that is the first or the last point of the window (then scan). It
+    /// steps through the ring by physical index (one wrap test per step, no logical →
+    /// physical conversion); the logical index only bounds the walk.
     pub(crate) fn nearest_walk(&self, p: Xy<i64>, start: usize) -> Option<usize> {
         let last = self.len().checked_sub(1)?;
         let mut i = start.min(last);
-        let mut d = self.dist2_at(p, i);
+        let mut pi = self.phys(i);
+        let mut d = self.dist2_phys(p, pi);
         let mut moved = false;
         while i < last {
-            let next = i.wrapping_add(1);
-            let dn = self.dist2_at(p, next);
+            let pn = if pi.wrapping_add(1) >= N {
+                0
+            } else {
+                pi.wrapping_add(1)
+            };
+            let dn = self.dist2_phys(p, pn);
             if dn >= d {
                 break;
             }
-            (i, d, moved) = (next, dn, true);
+            (i, pi, d, moved) = (i.wrapping_add(1), pn, dn, true);
         }
         if !moved {
             while i > 0 {
-                let prev = i.wrapping_sub(1);
-                let dp = self.dist2_at(p, prev);
+                let pp = if pi == 0 {
+                    N.wrapping_sub(1)
+                } else {
+                    pi.wrapping_sub(1)
+                };
+                let dp = self.dist2_phys(p, pp);
                 if dp >= d {
                     break;
                 }
-                (i, d) = (prev, dp);
+                (i, pi, d) = (i.wrapping_sub(1), pp, dp);
             }
         }
         (i != 0 && i != last).then_some(i)

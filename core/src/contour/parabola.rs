@@ -11,11 +11,12 @@
 //!
 //! Fixed point: u is rounded to Q16 µm (1.5·10⁻⁵ µm) and both x_l and y_l are computed
 //! from that same value, so the point lies on the parabola; 1/(2p) and 1/p are Q48
-//! (relative error < 2·10⁻¹¹ for |p| ≤ 8.4 m); y_l = u²·(1/(2p)) in `i128`, rounded to
+//! (relative error < 2·10⁻¹¹ for |p| ≤ 8.4 m); y_l = u²·(1/(2p)) exact (a 64×64-bit
+//! unsigned product while |x_l| < 65.5 mm, `i128` beyond) and u/p from 32-bit products, rounded to
 //! Q12; the rotation uses the Q62 sin/cos of θ (exactly (1, 0) for θ = 0). A point is
 //! within 0.4 nm of the exact parabola (two Q12 roundings and the rotation).
 
-use super::fx::{mul_shr_i64, sat_i64, shr_round_i128, shr_round_i64};
+use super::fx::{mul_shr32_i64_small, mul_shr_i64, shr_round_i64, sq_mul_shr68};
 use super::path::{fine_bits, in_range, ParametricPath, PathError, PathPoint};
 use super::trig::{sin_cos_q62, turns_from_deg, ONE_Q62};
 use super::{Deriv, Param, PosFine, Xy};
@@ -133,6 +134,7 @@ impl ParabolaSpec {
 impl Parabola {
     /// Rotates a local vector (Q-format kept) by θ: (c·x − s·y, s·x + c·y). For an axis
     /// along ±x or ±y the same result without products (exactly: c, s ∈ {0, ±2^62}).
+    #[inline(always)]
     fn rotate(&self, x: i64, y: i64) -> (i64, i64) {
         match self.quarter {
             Some(Quarter::PlusX) => return (x, y),
@@ -151,18 +153,22 @@ impl Parabola {
 
 impl Parabola {
     /// The position at u and u rounded to Q16 µm (|uq| ≤ 2^39).
+    #[inline(always)]
     fn local(&self, u: Param) -> (Xy<PosFine>, i64) {
         let u = u.to_bits().clamp(-U_LIMIT, U_LIMIT);
         let uq = shr_round_i64(u, 16);
         let xl = shr_round_i64(uq, 4);
-        // u² (Q32, ≤ 2^78) · 1/(2p) (Q48, ≤ 2^47) → Q80 → Q12.
-        let sq = (uq as i128).wrapping_mul(uq as i128);
-        let yl = sat_i64(shr_round_i128(sq.wrapping_mul(self.inv_2p_q48 as i128), 68));
+        // u² (Q32, ≤ 2^78) · 1/(2p) (Q48, ≤ 2^47) → Q80 → Q12 (64-bit products while
+        // |x_l| < 65.5 mm, the exact i128 form beyond).
+        let yl = sq_mul_shr68(uq, self.inv_2p_q48);
         let (px, py) = self.rotate(xl, yl);
+        // |x_l| ≤ 2^35 (u clamped to 2^23 µm), |y_l| ≤ 2^57 (u² ≤ 2^78 in Q32, 1/(2p) ≤
+        // 2^47 in Q48), so |(px, py)| < 2^58 after any rotation; the vertex is within
+        // ±8.4 m (2^35): the sum cannot wrap.
         (
             Xy::new(
-                PosFine::from_bits(self.vertex.x.saturating_add(px)),
-                PosFine::from_bits(self.vertex.y.saturating_add(py)),
+                PosFine::from_bits(self.vertex.x.wrapping_add(px)),
+                PosFine::from_bits(self.vertex.y.wrapping_add(py)),
             ),
             uq,
         )
@@ -178,14 +184,16 @@ impl ParametricPath for Parabola {
         Param::from_bits(self.u1)
     }
 
+    #[inline(always)]
     fn position(&self, u: Param) -> Xy<PosFine> {
         self.local(u).0
     }
 
+    #[inline(always)]
     fn eval(&self, u: Param) -> PathPoint {
         let (pos, uq) = self.local(u);
-        // u/p: Q16·Q48 → Q64 → Q32.
-        let slope = mul_shr_i64(uq, self.inv_p_q48, 32);
+        // u/p: Q16·Q48 → Q64 → Q32 (|uq| ≤ 2^39, |1/p| ≤ 2^48: 32-bit products).
+        let slope = mul_shr32_i64_small(uq, self.inv_p_q48);
         let curv = shr_round_i64(self.inv_p_q48, 16);
         let (d1x, d1y) = self.rotate(1 << 32, slope);
         let (d2x, d2y) = self.rotate(0, curv);

@@ -19,7 +19,7 @@
 //! (any u, no panic) and exact to a small fraction of a nanometre, since the estimator's
 //! accuracy can be no better than the points it is given.
 
-use super::fx::{mul_shr30_i32_i64, mul_shr_i64_by_u32, normalize, shr_round_i128};
+use super::fx::{mul_shr30_i32_i64, mul_shr_i64_by_u32, normalize_no_len, shr_round_i128};
 use super::{Deriv, Param, PosFine, Xy};
 use fixed::types::I32F32;
 
@@ -87,30 +87,30 @@ pub fn curvature_per_m(p: &PathPoint) -> Option<I32F32> {
 }
 
 /// The derivatives at one point in the form the interpolator uses: the unit tangent
-/// û = r′/|r′| (Q2.30), |r′| (Q32.32, µm per unit of u) and 1/|r′| (Q2.30 raw in a
-/// wider `i64`: 2^30 = 1 unit of u per µm).
+/// û = r′/|r′| (Q2.30) and 1/|r′| (Q2.30 raw in a wider `i64`: 2^30 = 1 unit of u per
+/// µm). (|r′| itself is not needed: the Taylor step and κ use 1/|r′|.)
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct DerivFrame {
     pub ux: i32,
     pub uy: i32,
-    pub len_q32: i64,
     pub inv_q30: i64,
 }
 
-/// û, |r′| and 1/|r′| (one normalisation: no division). `None` where r′ = 0.
+/// û and 1/|r′| (one normalisation without the length: no division). `None` where r′ = 0.
+#[inline(always)]
 pub(crate) fn deriv_frame(p: &PathPoint) -> Option<DerivFrame> {
-    let f = normalize(p.d1.x.to_bits(), p.d1.y.to_bits())?;
+    let f = normalize_no_len(p.d1.x.to_bits(), p.d1.y.to_bits())?;
     // 1/|r′| for r′ in Q32: (2^32/len_raw) in Q30 = recip with 62 fractional bits.
     Some(DerivFrame {
         ux: f.ux,
         uy: f.uy,
-        len_q32: f.len.max(1),
         inv_q30: f.recip(62),
     })
 }
 
 /// Signed curvature in 1/µm, Q32.32 raw bits:
 /// κ = (û × r″)·(1/|r′|)² (Q30·Q32 → Q32, then twice ·Q30 → Q32).
+#[inline(always)]
 pub(crate) fn curvature_q32_per_um(p: &PathPoint, f: &DerivFrame) -> i64 {
     let (d2x, d2y) = (p.d2.x.to_bits(), p.d2.y.to_bits());
     // û × r″ = κ·|r′|², Q32.

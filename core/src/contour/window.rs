@@ -29,10 +29,25 @@ pub(crate) const REL_LIMIT: i32 = 1 << 30;
 /// subtraction in the estimator's inner loops).
 pub(crate) const POS_LIMIT: i64 = 1 << 40;
 
-/// Saturates an absolute raw position to ±[`POS_LIMIT`].
+/// Saturates an absolute raw position to ±[`POS_LIMIT`]: one unsigned range test per
+/// component on the common path (the saturating branch out of line, so that the
+/// compiler does not turn the test into a branch-free 64-bit clamp).
 #[inline(always)]
 pub(crate) fn clamp_pos(p: Xy<i64>) -> Xy<i64> {
-    p.map(|v| v.clamp(-POS_LIMIT, POS_LIMIT))
+    p.map(|v| {
+        if (v.wrapping_add(POS_LIMIT) as u64) <= (2 * POS_LIMIT) as u64 {
+            v
+        } else {
+            clamp_pos_out_of_range(v)
+        }
+    })
+}
+
+/// The saturating branch of [`clamp_pos`].
+#[cold]
+#[inline(never)]
+fn clamp_pos_out_of_range(v: i64) -> i64 {
+    v.clamp(-POS_LIMIT, POS_LIMIT)
 }
 
 /// An ordinary interpolation point (a motion command) as stored in the window.
@@ -174,10 +189,6 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
         }
     }
 
-    pub(crate) fn slot_pos_raw(&self, i: usize) -> Option<Xy<i64>> {
-        self.slot(i).map(|s| s.point.pos.map(PosFine::to_bits))
-    }
-
     /// Raw positions of the held points in storage order (the valid slots are always
     /// the first `len`: the head moves only once the ring is full), for the full scan.
     pub(crate) fn stored_pos_raw(&self) -> impl Iterator<Item = Xy<i64>> + '_ {
@@ -185,6 +196,12 @@ impl<const N: usize, const H: usize> ContourWindow<N, H> {
             .iter()
             .take(self.len)
             .map(|s| s.point.pos.map(PosFine::to_bits))
+    }
+
+    /// The slots in storage order (physical indices).
+    #[inline(always)]
+    pub(crate) fn slots_ref(&self) -> &[Slot<H>; N] {
+        &self.slots
     }
 
     /// Physical index of the oldest point.
