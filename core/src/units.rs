@@ -9,7 +9,7 @@
 //! | slave position, target, error | [`PosUm`] = `I24F8` | µm | 3.9 nm | ±8.39 m | strokes ≤ 8 m validated in the table and axis scale; differences saturate |
 //! | slave velocity (feed-forward) | [`VelUmPerS`] = `I24F8` | µm/s | 3.9 nm/s | ±8.39 m/s | product saturates to the range |
 //! | slave acceleration | [`AccUmPerS2`] = `I32F0` | µm/s² | 1 µm/s² | ±2147 m/s² | product saturates |
-//! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; saturating adds |
+//! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; the filter, predictor and in-segment test work modulo 2^64 raw (`wrapping_*`: a wrapping counter is followed through the wrap) |
 //! | master speed | [`MasterRate`] = `I48F16` | counts/s | 1.5e-5 counts/s | ±1.4e14 | derived from the filter state by one shift |
 //! | master-filter velocity per tick | `I32F32` (`i64`) | counts/tick | 2.3e-10 | ±2^31 | residual clamped to ±2^14 counts before the gain product; saturating adds |
 //! | master-filter acceleration per tick | `I0F32` (`i32`) | counts/tick² | 2.3e-10 | ±0.5 (±5·10⁵ counts/s² at 1 kHz) | saturating add |
