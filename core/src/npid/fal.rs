@@ -127,11 +127,12 @@ pub fn fal(c: &FalCoeffs, e_q16: i64) -> i64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn fal_f64(e: f64, a: f64, d: f64) -> f64 {
+    /// fal in f64, the reference of the fixed-point forms (also `term`'s tests).
+    pub(crate) fn fal_f64(e: f64, a: f64, d: f64) -> f64 {
         if e.abs() > d {
             e.abs().powf(a) * e.signum()
         } else {

@@ -218,13 +218,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn fal_f64(e: f64, a: f64, d: f64) -> f64 {
-        if e.abs() > d {
-            e.abs().powf(a) * e.signum()
-        } else {
-            e / d.powf(1.0 - a)
-        }
-    }
+    use super::super::fal::tests::fal_f64;
 
     #[test]
     fn log2_f64_is_exact_enough() {
