@@ -4,7 +4,12 @@
 //! Per tick, from the master sample θ_m(k) and the slave positions x(k):
 //!
 //! 1. The master tracking filter ([`MasterFilter`]) and the eq. 4 predictor
-//!    ([`Predictor`]) take θ_m(k).
+//!    ([`Predictor`]) take θ_m(k). A follower whose axes are all `Paper` runs the
+//!    predictor alone (SPEC §A has no tracking filter): its "now" is θ_m(k) itself, its
+//!    direction the sign of θ_m(k) − θ_m(k−1), its jump test θ_m(k) against θ̂(k).
+//!    Every axis on one law (all Feedforward, all Paper) takes that law's own path, with
+//!    the per-axis dispatch resolved at compile time; other mixes and an ended table take
+//!    the general one.
 //! 2. End of table (steps 3 and 8): once the master is at or past the last node while
 //!    moving up, or below the first while moving down, the follower latches `ended` and
 //!    every slave holds its final table position (no feed-forward).
@@ -107,7 +112,8 @@ pub struct FollowerOutputs<const S: usize> {
     pub fault: [Option<AxisFault>; S],
     /// The master has passed the end of the table: the slaves hold.
     pub end_of_table: bool,
-    /// The master filter flagged a jump this tick.
+    /// The master moved 2^15 counts or more from its prediction this tick (the tracking
+    /// filter's residual, or the eq. 4 predictor's for an all-Paper follower).
     pub master_jump: bool,
 }
 
