@@ -388,6 +388,35 @@ mod tests {
         assert!(worst < 60.0, "speed ripple {worst}");
     }
 
+    /// A master counter that wraps at the end of the `I48F16` range is followed through
+    /// the wrap: no jump, the same speed, the position wrapped with it.
+    #[test]
+    fn follows_a_counter_through_its_wrap() {
+        let c = MasterFilterConfig::default().build(1000).unwrap();
+        let mut f = MasterFilter::default();
+        let step = 3i64 << 16; // 3 counts/tick
+        let start = i64::MAX - 1000 * step;
+        let mut m = start;
+        for _ in 0..2000 {
+            assert!(!f.update(&c, Master::from_bits(m)));
+            m = m.wrapping_add(step);
+        }
+        assert!(m < 0, "the counter wrapped");
+        let e = f.estimate_now(&c);
+        assert!(
+            (e.rate_per_s.to_num::<f64>() - 3000.0).abs() < 1.0,
+            "{}",
+            e.rate_per_s
+        );
+        let last = m.wrapping_sub(step);
+        assert!(
+            e.pos.to_bits().wrapping_sub(last).abs() < 1 << 16,
+            "{}",
+            e.pos
+        );
+        assert_eq!(f.direction(), 1);
+    }
+
     #[test]
     fn reports_jumps() {
         let c = MasterFilterConfig::default().build(1000).unwrap();
