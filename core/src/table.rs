@@ -342,7 +342,7 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     /// the fraction's product; `frac_q32` is then 0 (off the fast path it is the true
     /// fraction).
     #[inline]
-    pub fn locate_segment(&self, cursor: &mut usize, m: Master) -> Lookup {
+    pub(crate) fn locate_segment(&self, cursor: &mut usize, m: Master) -> Lookup {
         let m = m.to_bits();
         if let Some(s) = self.segs.get(*cursor) {
             // As in `locate`.
@@ -776,6 +776,31 @@ mod tests {
                 for axis in 0..2 {
                     prop_assert_eq!(sp.value_bits(axis), t.value(&lk, axis).to_bits());
                 }
+            }
+        }
+
+        /// `locate_segment` finds the segment (and the end beyond) that `locate` finds,
+        /// from the same cursor.
+        #[test]
+        fn locate_segment_agrees_with_locate(steps in table_strategy(), probes in proptest::collection::vec(-0.2f64..1.2, 1..40)) {
+            let mut nodes = std::vec::Vec::new();
+            let mut m = -10_000.0;
+            for (dm, x, y) in &steps {
+                m += dm.round().max(1.0);
+                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
+            }
+            let mut l = lim::<2>();
+            l.master_speed_per_s = MasterRate::from_num(1);
+            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &l).unwrap();
+            let lo = nodes[0].master.to_num::<f64>();
+            let hi = nodes[nodes.len() - 1].master.to_num::<f64>();
+            let (mut c1, mut c2) = (0, 0);
+            for p in probes {
+                let m = Master::from_num(lo + p * (hi - lo));
+                let a = t.locate(&mut c1, m);
+                let b = t.locate_segment(&mut c2, m);
+                prop_assert_eq!((a.seg, a.beyond), (b.seg, b.beyond));
+                prop_assert_eq!(c1, c2);
             }
         }
 
