@@ -336,6 +336,44 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         dir: i8,
     ) {
         let t = &self.table;
+        // Feedforward, not ended, the master now and its look-ahead in the cursor's
+        // segment (nearly every tick): both lookups and the rates from that segment.
+        if M == MODE_FF && !self.ended {
+            if let Some(lead) = self.ff_lead0 {
+                let (delta, rate_q8, acc_q8) = self.filter.ahead_delta(&self.mf, lead);
+                if let Some((now, seg_v, seg_a)) =
+                    t.span_and_rates(self.cur_now, self.filter.pos(), delta, rate_q8, acc_q8)
+                {
+                    let ctx = TickCtx {
+                        now,
+                        pred: now,
+                        ff: FfRef {
+                            lead,
+                            span: now,
+                            seg_v,
+                            seg_a,
+                        },
+                        dir,
+                        ended: false,
+                    };
+                    axes_loop::<S, N, M>(
+                        Axes {
+                            axes: &self.axes,
+                            rt: &mut self.rt,
+                            filter: &self.filter,
+                            mf: &self.mf,
+                            table: t,
+                            cur_ff: &mut self.cur_ff,
+                            check_leads: self.ff_leads_differ,
+                        },
+                        inp,
+                        out,
+                        ctx,
+                    );
+                    return;
+                }
+            }
+        }
         // Where the feedback looks: the filtered master now, or the end it stopped at.
         let m_now = match (self.ended, self.end_high) {
             // Paper path: the sampled master θ(k) itself (no tracking filter runs).
@@ -379,36 +417,69 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 seg_a: 0,
             },
         };
-        let mut ctx = TickCtx {
+        let ctx = TickCtx {
             now,
             pred,
             ff,
             dir,
             ended: self.ended,
         };
-        // Whether an axis may need a lookup of its own (decided once, outside the loop).
-        let check_leads = M != MODE_PAPER && self.ff_leads_differ && !self.ended;
-        for i in 0..S {
-            let (Some(c), Some(rt), Some(x)) =
-                (self.axes.get(i), self.rt.get_mut(i), inp.pos_um.get(i))
-            else {
-                continue;
-            };
-            if check_leads
-                && (M == MODE_FF || c.mode == ControlMode::Feedforward)
-                && c.lead_q16 != ctx.ff.lead
-            {
-                if let Some(f) = ff_lookup(&self.filter, &self.mf, t, &mut self.cur_ff, c.lead_q16)
-                {
-                    ctx.ff = f;
-                }
+        axes_loop::<S, N, M>(
+            Axes {
+                axes: &self.axes,
+                rt: &mut self.rt,
+                filter: &self.filter,
+                mf: &self.mf,
+                table: t,
+                cur_ff: &mut self.cur_ff,
+                check_leads: M != MODE_PAPER && self.ff_leads_differ && !self.ended,
+            },
+            inp,
+            out,
+            ctx,
+        );
+    }
+}
+
+/// What the axis loop works on: the follower's fields it reads or updates, borrowed apart
+/// from the table the tick's lookups point into.
+struct Axes<'a, 't, const S: usize, const N: usize> {
+    axes: &'a [AxisCoeffs; S],
+    rt: &'a mut [AxisRt; S],
+    filter: &'a MasterFilter,
+    mf: &'a MasterFilterCoeffs,
+    table: &'t CamTable<S, N>,
+    cur_ff: &'a mut usize,
+    /// Whether an axis may need a lookup of its own (decided once, outside the loop).
+    check_leads: bool,
+}
+
+/// Steps 4–5 for every axis, from the tick's lookups.
+#[inline(always)]
+fn axes_loop<'t, const S: usize, const N: usize, const M: u8>(
+    a: Axes<'_, 't, S, N>,
+    inp: &FollowerInputs<S>,
+    out: &mut FollowerOutputs<S>,
+    mut ctx: TickCtx<'t, S>,
+) {
+    for i in 0..S {
+        let (Some(c), Some(rt), Some(x)) = (a.axes.get(i), a.rt.get_mut(i), inp.pos_um.get(i))
+        else {
+            continue;
+        };
+        if a.check_leads
+            && (M == MODE_FF || c.mode == ControlMode::Feedforward)
+            && c.lead_q16 != ctx.ff.lead
+        {
+            if let Some(f) = ff_lookup(a.filter, a.mf, a.table, a.cur_ff, c.lead_q16) {
+                ctx.ff = f;
             }
-            if S == 1 {
-                // One axis: no loop to keep registers for, so no call.
-                axis_step_inline::<S, M>(&ctx, c, rt, x.to_bits(), i, out);
-            } else {
-                axis_step::<S, M>(&ctx, c, rt, x.to_bits(), i, out);
-            }
+        }
+        if S == 1 {
+            // One axis: no loop to keep registers for, so no call.
+            axis_step_inline::<S, M>(&ctx, c, rt, x.to_bits(), i, out);
+        } else {
+            axis_step::<S, M>(&ctx, c, rt, x.to_bits(), i, out);
         }
     }
 }

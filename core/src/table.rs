@@ -141,6 +141,23 @@ struct Segment<const S: usize> {
     dx: [i32; S],
 }
 
+impl<const S: usize> Segment<S> {
+    /// `rate / len` in segments per unit time, Q16.16, for a rate in master counts per
+    /// unit time, Q24.8 (see [`CamTable::seg_rate_q16`]).
+    #[inline(always)]
+    fn rate_q16(&self, rate_q8: i32) -> i32 {
+        // rate[Q8]·2^24/len[Q16] = rate/len·2^16; |rate|·recip_m < 2^63.
+        let p = i64::from(rate_q8).wrapping_mul(i64::from(self.recip_m));
+        if self.recip_s >= 32 {
+            // Segments of 2^24 raw bits (256 counts) and longer: the high word shifted
+            // by 0 … 7 (a 32-bit shift, and the result cannot overflow).
+            ((p >> 32) as i32).wrapping_shr(self.recip_s.wrapping_sub(32))
+        } else {
+            sat_i32(p.wrapping_shr(self.recip_s))
+        }
+    }
+}
+
 /// Where a master value falls in the table.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -448,15 +465,43 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         let Some(s) = self.segs.get(lk.seg) else {
             return 0;
         };
-        // rate[Q8]·2^24/len[Q16] = rate/len·2^16; |rate|·recip_m < 2^63.
-        let p = i64::from(rate_q8).wrapping_mul(i64::from(s.recip_m));
-        if s.recip_s >= 32 {
-            // Segments of 2^24 raw bits (256 counts) and longer: the high word shifted
-            // by 0 … 7 (a 32-bit shift, and the result cannot overflow).
-            ((p >> 32) as i32).wrapping_shr(s.recip_s.wrapping_sub(32))
-        } else {
-            sat_i32(p.wrapping_shr(s.recip_s))
+        s.rate_q16(rate_q8)
+    }
+
+    /// The follower's fast path for its two lookups: the master now, `m`, and the
+    /// look-ahead `m + delta` (raw `I48F16`) both inside the cursor's segment — nearly
+    /// every tick, since the look-ahead is a few periods of motion and a segment many.
+    /// Gives the span at `m` and the rates (as [`CamTable::seg_rate_q16`]) of that
+    /// segment; `None` sends the caller to [`CamTable::locate`] and
+    /// [`CamTable::locate_segment`].
+    #[inline(always)]
+    pub(crate) fn span_and_rates(
+        &self,
+        cursor: usize,
+        m: Master,
+        delta: i64,
+        rate_q8: i32,
+        acc_q8: i32,
+    ) -> Option<(Span<'_, S>, i32, i32)> {
+        let s = self.segs.get(cursor)?;
+        // As in `locate` (modulo 2^64); d < len < 2^32.
+        let d = m.to_bits().wrapping_sub(s.m0) as u64;
+        let len = u64::from(s.len);
+        // The look-ahead's offset, modulo 2^64 like `d` (|delta| < 2^45, see
+        // `MasterFilter::ahead`).
+        let d_ahead = (d as i64).wrapping_add(delta) as u64;
+        if d >= len || d_ahead >= len {
+            return None;
         }
+        Some((
+            Span {
+                x0: &s.x0,
+                dx: &s.dx,
+                frac_q32: frac_q32(d as u32, s.recip),
+            },
+            s.rate_q16(rate_q8),
+            s.rate_q16(acc_q8),
+        ))
     }
 }
 

@@ -233,6 +233,18 @@ impl MasterFilter {
     /// raw like the filter's.
     #[inline]
     pub fn ahead(&self, c: &MasterFilterCoeffs, lead_q16: i32) -> MasterAhead {
+        let (delta, rate_q8, acc_q8) = self.ahead_delta(c, lead_q16);
+        MasterAhead {
+            pos: Master::from_bits(self.pos.wrapping_add(delta)),
+            rate_q8,
+            acc_q8,
+        }
+    }
+
+    /// [`MasterFilter::ahead`] as the distance from the filtered position (raw `I48F16`,
+    /// |·| < 2^45) with the speed and acceleration there (Q24.8 counts/s, counts/s²).
+    #[inline(always)]
+    pub(crate) fn ahead_delta(&self, c: &MasterFilterCoeffs, lead_q16: i32) -> (i64, i32, i32) {
         let n = i64::from(lead_q16.clamp(0, MAX_LEAD_Q16));
         // |θ̇| ≤ 2^46: θ̇ >> 16 fits 31 bits exactly.
         let v16 = i64::from((self.vel >> 16) as i32);
@@ -241,16 +253,10 @@ impl MasterFilter {
         // ½acc·n²: (acc·n as Q16, |·| ≤ 2^29) · n = Q32 → >> 17 = Q16 with the ½ (< 2^59).
         let half_acc_n2 = i64::from((acc_n >> 16) as i32).wrapping_mul(n) >> 17;
         // θ̇·n: Q16·Q16 >> 16 = Q16 (< 2^44); the sum of the two terms < 2^45.
-        let pos = self
-            .pos
-            .wrapping_add((v16.wrapping_mul(n) >> 16).wrapping_add(half_acc_n2));
+        let delta = (v16.wrapping_mul(n) >> 16).wrapping_add(half_acc_n2);
         // |θ̇ + θ̈·n| ≤ 2^46 + 2^45 < 2^47: the Q16 speed fits an i32 exactly.
         let v_ahead = (self.vel.wrapping_add(acc_n) >> 16) as i32;
-        MasterAhead {
-            pos: Master::from_bits(pos),
-            rate_q8: self.rate_q8(c, v_ahead),
-            acc_q8: self.acc_q8(c),
-        }
+        (delta, self.rate_q8(c, v_ahead), self.acc_q8(c))
     }
 
     /// A speed in counts/tick (Q16) in counts/s, Q24.8 (saturated):
