@@ -79,7 +79,16 @@ fn clamp_vel(v: i64) -> i64 {
     let hi = (v >> 32) as i32;
     if hi >> 14 == hi >> 31 {
         v
-    } else if v < 0 {
+    } else {
+        clamp_vel_out(v)
+    }
+}
+
+/// [`clamp_vel`] for a speed out of range (cold: a master near 2^14 counts/tick).
+#[cold]
+#[inline(never)]
+fn clamp_vel_out(v: i64) -> i64 {
+    if v < 0 {
         MAX_VEL.wrapping_neg()
     } else {
         MAX_VEL
@@ -192,10 +201,9 @@ impl MasterFilter {
             };
             return false;
         }
-        // Predict one tick: step = (θ̇ + ½θ̈) >> 16 (Q32 → Q16 counts), formed exactly as
-        // (θ̇ >> 16) + ((θ̇ mod 2^16) + ½θ̈) >> 16: |θ̇| ≤ 2^46, so |step| < 2^31.
-        let step = (self.vel >> 16)
-            .wrapping_add(((self.vel & 0xFFFF).wrapping_add(i64::from(self.acc >> 1))) >> 16);
+        // Predict one tick: step = (θ̇ + ½θ̈) >> 16 (Q32 → Q16 counts): |θ̇| ≤ 2^46 and
+        // |½θ̈| < 2^30, so the sum cannot wrap and |step| < 2^31.
+        let step = self.vel.wrapping_add(i64::from(self.acc >> 1)) >> 16;
         // The residual modulo 2^64; a jump when it does not fit an i32 (|r| ≥ 2^15
         // counts), then saturated to ±2^31 raw. One test of the high word.
         let r_raw = m.wrapping_sub(self.pos).wrapping_sub(step);
