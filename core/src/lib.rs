@@ -37,3 +37,13 @@ pub mod scurve;
 pub mod table;
 pub mod units;
 pub mod valve;
+
+/// Property-test case counts that a command line can raise: `var` (an environment
+/// variable) if set to a number, else `default`.
+#[cfg(test)]
+pub(crate) fn env_cases(var: &str, default: u32) -> u32 {
+    std::env::var(var)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
+}

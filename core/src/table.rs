@@ -748,21 +748,34 @@ mod tests {
         )
     }
 
+    /// The nodes of a `table_strategy` draw (masters from `m0`, steps rounded to whole
+    /// counts, at least 1) and the table built from them with the wide test limits.
+    fn strategy_table(
+        steps: &[(f64, f64, f64)],
+        m0: f64,
+    ) -> (std::vec::Vec<Node<2>>, CamTable<2, 64>) {
+        let mut nodes = std::vec::Vec::new();
+        let mut m = m0;
+        for (dm, x, y) in steps {
+            m += dm.round().max(1.0);
+            nodes.push(Node {
+                master: Master::from_num(m),
+                slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)],
+            });
+        }
+        let mut l = lim::<2>();
+        l.master_speed_per_s = MasterRate::from_num(1);
+        let t = CamTable::try_from_nodes(&nodes, &l).unwrap();
+        (nodes, t)
+    }
+
     proptest! {
         /// The interpolated value lies between the bracketing nodes and equals an f64
         /// reference within 2 LSB (7.8 nm), for any cursor start.
         #[test]
         fn matches_f64_reference(steps in table_strategy(), probes in proptest::collection::vec(0.0f64..1.0, 1..40),
                                  start in 0usize..64) {
-            let mut nodes = std::vec::Vec::new();
-            let mut m = -10_000.0;
-            for (dm, x, y) in &steps {
-                m += dm.round().max(1.0);
-                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
-            }
-            let mut l = lim::<2>();
-            l.master_speed_per_s = MasterRate::from_num(1);
-            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &l).unwrap();
+            let (nodes, t) = strategy_table(&steps, -10_000.0);
             let lo = nodes[0].master.to_num::<f64>();
             let hi = nodes[nodes.len() - 1].master.to_num::<f64>();
             let mut c = start;
@@ -803,15 +816,7 @@ mod tests {
         /// ends too.
         #[test]
         fn span_matches_value(steps in table_strategy(), probes in proptest::collection::vec(-0.2f64..1.2, 1..40)) {
-            let mut nodes = std::vec::Vec::new();
-            let mut m = -10_000.0;
-            for (dm, x, y) in &steps {
-                m += dm.round().max(1.0);
-                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
-            }
-            let mut l = lim::<2>();
-            l.master_speed_per_s = MasterRate::from_num(1);
-            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &l).unwrap();
+            let (nodes, t) = strategy_table(&steps, -10_000.0);
             let lo = nodes[0].master.to_num::<f64>();
             let hi = nodes[nodes.len() - 1].master.to_num::<f64>();
             let mut c = 0;
@@ -828,15 +833,7 @@ mod tests {
         /// from the same cursor.
         #[test]
         fn locate_segment_agrees_with_locate(steps in table_strategy(), probes in proptest::collection::vec(-0.2f64..1.2, 1..40)) {
-            let mut nodes = std::vec::Vec::new();
-            let mut m = -10_000.0;
-            for (dm, x, y) in &steps {
-                m += dm.round().max(1.0);
-                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
-            }
-            let mut l = lim::<2>();
-            l.master_speed_per_s = MasterRate::from_num(1);
-            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &l).unwrap();
+            let (nodes, t) = strategy_table(&steps, -10_000.0);
             let lo = nodes[0].master.to_num::<f64>();
             let hi = nodes[nodes.len() - 1].master.to_num::<f64>();
             let (mut c1, mut c2) = (0, 0);
@@ -855,15 +852,9 @@ mod tests {
         #[test]
         fn check_limits_agrees_with_building(steps in table_strategy(), max_um in 0.0f64..400_000.0,
                                              v_max in 1_000.0f64..1_000_000.0, master_speed in 1.0f64..3000.0) {
-            let mut nodes = std::vec::Vec::new();
-            let mut m = 0.0;
-            for (dm, x, y) in &steps {
-                m += dm.round().max(1.0);
-                nodes.push(Node { master: Master::from_num(m), slave_um: [PosUm::from_num(*x), PosUm::from_num(*y)] });
-            }
+            let (nodes, t) = strategy_table(&steps, 0.0);
             let mut wide = lim::<2>();
             wide.master_speed_per_s = MasterRate::from_num(1);
-            let t: CamTable<2, 64> = CamTable::try_from_nodes(&nodes, &wide).unwrap();
             prop_assert_eq!(t.check_limits(&wide), Ok(()));
             let mut other = lim::<2>();
             other.master_speed_per_s = MasterRate::from_num(master_speed);

@@ -343,7 +343,9 @@ impl Reference {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
+    // `HYDRA_FOLLOWER_CASES=30000 cargo test --release -p hydra-core follower::tests`
+    // for a long run.
+    #![proptest_config(ProptestConfig::with_cases(crate::env_cases("HYDRA_FOLLOWER_CASES", 48)))]
     /// Over random smooth master trajectories and random slave positions near the
     /// table, the fixed-point command equals the f64 reference within 0.05 LSB
     /// (the DAC's own resolution is 1 LSB).

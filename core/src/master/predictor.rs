@@ -59,13 +59,19 @@ impl Predictor {
     /// lower-order forms (hold, then linear extrapolation).
     #[inline]
     pub fn update(&mut self, theta: Master) -> Master {
+        self.push(theta.to_bits());
+        self.predict()
+    }
+
+    /// Shifts θ(k) (raw) into the history and forms θ̂(k+1).
+    #[inline(always)]
+    fn push(&mut self, m: i64) {
         let [h0, h1, _] = self.hist;
-        self.hist = [theta.to_bits(), h0, h1];
+        self.hist = [m, h0, h1];
         if self.filled < 3 {
             self.filled = self.filled.saturating_add(1);
         }
         self.next = self.extrapolate();
-        self.predict()
     }
 
     /// Pushes θ(k) when the predictor is the follower's only master estimate (every axis
@@ -80,21 +86,16 @@ impl Predictor {
         // in the tracking filter.
         let residual = m.wrapping_sub(self.next);
         let jump = self.filled > 0 && (residual >> 32) as i32 != (residual as i32) >> 31;
-        let [h0, h1, _] = self.hist;
-        self.hist = [m, h0, h1];
         let dir = if self.filled == 0 {
             0
         } else {
-            match m.wrapping_sub(h0) {
+            match m.wrapping_sub(self.hist[0]) {
                 d if d > 0 => 1,
                 d if d < 0 => -1,
                 _ => 0,
             }
         };
-        if self.filled < 3 {
-            self.filled = self.filled.saturating_add(1);
-        }
-        self.next = self.extrapolate();
+        self.push(m);
         (jump, dir)
     }
 

@@ -755,10 +755,7 @@ fn op() -> impl Strategy<Value = Op> {
 }
 
 fn fuzz_cases() -> u32 {
-    std::env::var("HYDRA_FUZZ_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(200)
+    crate::env_cases("HYDRA_FUZZ_CASES", 200)
 }
 
 /// Replays a sequence, tracking the table the host last committed successfully.
