@@ -28,14 +28,16 @@
 //!
 //! Every table lookup starts from its own cursor, so the search is O(1) amortised.
 
-use crate::axis::position::{paper_law_bits, positional_law_bits};
+use crate::axis::position::{paper_law_bits, positional_law_ff};
 use crate::axis::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosState};
 use crate::master::{
     MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig, MasterFilterError,
 };
 use crate::master::{Predictor, PredictorKind};
-use crate::q::mul_shr;
-use crate::table::{CamTable, Span};
+use crate::table::{Beyond, CamTable, Span};
+use ff_plan::FfPlan;
+
+mod ff_plan;
 use crate::units::{CmdLsb, DacCode, Master, PosUm};
 
 /// Follower configuration in engineering units.
@@ -136,6 +138,8 @@ impl<const S: usize> Default for FollowerOutputs<S> {
 struct AxisRt {
     st: PosState,
     fault: Option<AxisFault>,
+    /// The feed-forward constants of the segment the axis' look-ahead was last in.
+    ff: FfPlan,
 }
 
 /// The follower: validated coefficients, the table, and the loop state.
@@ -235,6 +239,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         self.cur_ff = 0;
         for rt in &mut self.rt {
             rt.st.reset();
+            rt.ff = FfPlan::default();
         }
         self.ended = false;
     }
@@ -340,19 +345,18 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         // segment (nearly every tick): both lookups and the rates from that segment.
         if M == MODE_FF && !self.ended {
             if let Some(lead) = self.ff_lead0 {
-                let (delta, rate_q8, acc_q8) = self.filter.ahead_delta(&self.mf, lead);
-                if let Some((now, seg_v, seg_a)) =
-                    t.span_and_rates(self.cur_now, self.filter.pos(), delta, rate_q8, acc_q8)
-                {
+                let (delta, v_q16) = self.filter.ahead_delta(lead);
+                if let Some(now) = t.span_pair(self.cur_now, self.filter.pos(), delta) {
                     let ctx = TickCtx {
                         now,
                         pred: now,
                         ff: FfRef {
                             lead,
-                            span: now,
-                            seg_v,
-                            seg_a,
+                            at: Some((self.cur_now, now)),
+                            v_q16,
+                            acc_q32: self.filter.acc_q32(),
                         },
+                        tps_q16: self.mf.tps_q16(),
                         dir,
                         ended: false,
                     };
@@ -361,7 +365,6 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                             axes: &self.axes,
                             rt: &mut self.rt,
                             filter: &self.filter,
-                            mf: &self.mf,
                             table: t,
                             cur_ff: &mut self.cur_ff,
                             check_leads: self.ff_leads_differ,
@@ -400,27 +403,19 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         // Feed-forward lookup, shared by the axes with the same lead (taken here for the
         // first Feedforward axis' lead, again only for an axis with another lead).
         let ff = match (M != MODE_PAPER, self.ff_lead0, self.ended) {
-            (true, Some(lead), false) => {
-                ff_lookup_inline(&self.filter, &self.mf, t, &mut self.cur_ff, lead).unwrap_or(
-                    FfRef {
-                        lead,
-                        span: now,
-                        seg_v: 0,
-                        seg_a: 0,
-                    },
-                )
-            }
+            (true, Some(lead), false) => ff_lookup_inline(&self.filter, t, &mut self.cur_ff, lead),
             _ => FfRef {
                 lead: -1,
-                span: now,
-                seg_v: 0,
-                seg_a: 0,
+                at: None,
+                v_q16: 0,
+                acc_q32: 0,
             },
         };
         let ctx = TickCtx {
             now,
             pred,
             ff,
+            tps_q16: self.mf.tps_q16(),
             dir,
             ended: self.ended,
         };
@@ -429,7 +424,6 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 axes: &self.axes,
                 rt: &mut self.rt,
                 filter: &self.filter,
-                mf: &self.mf,
                 table: t,
                 cur_ff: &mut self.cur_ff,
                 check_leads: M != MODE_PAPER && self.ff_leads_differ && !self.ended,
@@ -447,7 +441,6 @@ struct Axes<'a, 't, const S: usize, const N: usize> {
     axes: &'a [AxisCoeffs; S],
     rt: &'a mut [AxisRt; S],
     filter: &'a MasterFilter,
-    mf: &'a MasterFilterCoeffs,
     table: &'t CamTable<S, N>,
     cur_ff: &'a mut usize,
     /// Whether an axis may need a lookup of its own (decided once, outside the loop).
@@ -471,9 +464,7 @@ fn axes_loop<'t, const S: usize, const N: usize, const M: u8>(
             && (M == MODE_FF || c.mode == ControlMode::Feedforward)
             && c.lead_q16 != ctx.ff.lead
         {
-            if let Some(f) = ff_lookup(a.filter, a.mf, a.table, a.cur_ff, c.lead_q16) {
-                ctx.ff = f;
-            }
+            ctx.ff = ff_lookup(a.filter, a.table, a.cur_ff, c.lead_q16);
         }
         if S == 1 {
             // One axis: no loop to keep registers for, so no call.
@@ -510,6 +501,8 @@ struct TickCtx<'a, const S: usize> {
     pred: Span<'a, S>,
     /// The feed-forward lookup.
     ff: FfRef<'a, S>,
+    /// Ticks per second, Q16 (for a feed-forward plan).
+    tps_q16: i32,
     /// Direction of the master: 1, 0, −1.
     dir: i8,
     /// The end-of-table latch.
@@ -566,15 +559,17 @@ fn axis_step_inline<const S: usize, const M: u8>(
                 paper_law_bits(c, &mut rt.st, e)
             }
             (ControlMode::Feedforward, false) => {
-                let rise = ctx.ff.span.rise_bits(i);
-                // µm (Q8) · seg/s (Q16) >> 16 = µm/s (Q8); · seg/s² >> 24 = µm/s² (Q0).
-                let v = mul_shr(rise, ctx.ff.seg_v, 16);
-                let a = if c.ka != 0 {
-                    mul_shr(rise, ctx.ff.seg_a, 24)
-                } else {
-                    0
+                let ff = match ctx.ff.at {
+                    Some((seg, span)) => {
+                        if !rt.ff.is_for(seg) {
+                            rt.ff = plan(c, seg, &span, i, ctx.tps_q16);
+                        }
+                        rt.ff.ff_q16(ctx.ff.v_q16, ctx.ff.acc_q32)
+                    }
+                    // The look-ahead beyond an end of the table: no feed-forward.
+                    None => 0,
                 };
-                positional_law_bits(c, &mut rt.st, err, v, a)
+                positional_law_ff(c, &mut rt.st, err, ff)
             }
             (ControlMode::NextNode, false) => {
                 // The node at the far end of the segment in the direction of motion.
@@ -583,10 +578,10 @@ fn axis_step_inline<const S: usize, const M: u8>(
                 } else {
                     ctx.now.start_bits(i)
                 };
-                positional_law_bits(c, &mut rt.st, node.saturating_sub(x), 0, 0)
+                positional_law_ff(c, &mut rt.st, node.saturating_sub(x), 0)
             }
             (ControlMode::Feedforward | ControlMode::NextNode, true) => {
-                positional_law_bits(c, &mut rt.st, err, 0, 0)
+                positional_law_ff(c, &mut rt.st, err, 0)
             }
         };
         // The laws clamp u to the valve's clamp: the output stage need not again.
@@ -609,17 +604,18 @@ fn axis_step_inline<const S: usize, const M: u8>(
     }
 }
 
-/// The feed-forward's view of the table for one lead.
+/// The feed-forward's view of the table and the master for one lead.
 #[derive(Clone, Copy)]
 struct FfRef<'a, const S: usize> {
     /// The lead it was taken for, ticks Q16 (−1: none).
     lead: i32,
-    /// The segment at θ_f(k + lead).
-    span: Span<'a, S>,
-    /// Master speed there in segments/s, Q16 (0 beyond the ends).
-    seg_v: i32,
-    /// Master acceleration in segments/s², Q16 (0 beyond the ends).
-    seg_a: i32,
+    /// The segment containing θ_f(k + lead) and its index (`None` beyond the ends: no
+    /// feed-forward).
+    at: Option<(usize, Span<'a, S>)>,
+    /// Master speed at θ_f(k + lead), counts/tick, Q16.
+    v_q16: i32,
+    /// Master acceleration, counts/tick², Q32.
+    acc_q32: i32,
 }
 
 /// Locates θ_f(k + lead) with the feed-forward cursor (out of line: the call inside the
@@ -627,31 +623,49 @@ struct FfRef<'a, const S: usize> {
 #[inline(never)]
 fn ff_lookup<'a, const S: usize, const N: usize>(
     filter: &MasterFilter,
-    mf: &MasterFilterCoeffs,
     t: &'a CamTable<S, N>,
     cursor: &mut usize,
     lead: i32,
-) -> Option<FfRef<'a, S>> {
-    ff_lookup_inline(filter, mf, t, cursor, lead)
+) -> FfRef<'a, S> {
+    ff_lookup_inline(filter, t, cursor, lead)
 }
 
 /// [`ff_lookup`]'s body (inlined for the first lead, before the loop).
 #[inline(always)]
 fn ff_lookup_inline<'a, const S: usize, const N: usize>(
     filter: &MasterFilter,
-    mf: &MasterFilterCoeffs,
     t: &'a CamTable<S, N>,
     cursor: &mut usize,
     lead: i32,
-) -> Option<FfRef<'a, S>> {
-    let ahead = filter.ahead(mf, lead);
-    let lk = t.locate_segment(cursor, ahead.pos);
-    Some(FfRef {
+) -> FfRef<'a, S> {
+    let (delta, v_q16) = filter.ahead_delta(lead);
+    let ahead = Master::from_bits(filter.pos().to_bits().wrapping_add(delta));
+    let lk = t.locate_segment(cursor, ahead);
+    let at = match lk.beyond {
+        Beyond::Inside => t.span(&lk).map(|span| (lk.seg, span)),
+        Beyond::Low | Beyond::High => None,
+    };
+    FfRef {
         lead,
-        span: t.span(&lk)?,
-        seg_v: t.seg_rate_q16(&lk, ahead.rate_q8),
-        seg_a: t.seg_rate_q16(&lk, ahead.acc_q8),
-    })
+        at,
+        v_q16,
+        acc_q32: filter.acc_q32(),
+    }
+}
+
+/// Axis `i`'s feed-forward constants in segment `seg` (out of line and cold: once each
+/// time the axis' look-ahead enters a segment).
+#[cold]
+#[inline(never)]
+fn plan<const S: usize>(
+    c: &AxisCoeffs,
+    seg: usize,
+    span: &Span<'_, S>,
+    i: usize,
+    tps_q16: i32,
+) -> FfPlan {
+    let (recip_m, recip_s) = span.recip();
+    FfPlan::new(c, seg, span.rise_bits(i), recip_m, recip_s, tps_q16)
 }
 
 #[cfg(test)]

@@ -471,18 +471,10 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     /// The follower's fast path for its two lookups: the master now, `m`, and the
     /// look-ahead `m + delta` (raw `I48F16`) both inside the cursor's segment — nearly
     /// every tick, since the look-ahead is a few periods of motion and a segment many.
-    /// Gives the span at `m` and the rates (as [`CamTable::seg_rate_q16`]) of that
-    /// segment; `None` sends the caller to [`CamTable::locate`] and
-    /// [`CamTable::locate_segment`].
+    /// Gives the span at `m` (which is also the look-ahead's segment); `None` sends the
+    /// caller to [`CamTable::locate`] and [`CamTable::locate_segment`].
     #[inline(always)]
-    pub(crate) fn span_and_rates(
-        &self,
-        cursor: usize,
-        m: Master,
-        delta: i64,
-        rate_q8: i32,
-        acc_q8: i32,
-    ) -> Option<(Span<'_, S>, i32, i32)> {
+    pub(crate) fn span_pair(&self, cursor: usize, m: Master, delta: i64) -> Option<Span<'_, S>> {
         let s = self.segs.get(cursor)?;
         // As in `locate` (modulo 2^64); d < len < 2^32.
         let d = m.to_bits().wrapping_sub(s.m0) as u64;
@@ -493,15 +485,10 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         if d >= len || d_ahead >= len {
             return None;
         }
-        Some((
-            Span {
-                x0: &s.x0,
-                dx: &s.dx,
-                frac_q32: frac_q32(d as u32, s.recip),
-            },
-            s.rate_q16(rate_q8),
-            s.rate_q16(acc_q8),
-        ))
+        Some(Span {
+            seg: s,
+            frac_q32: frac_q32(d as u32, s.recip),
+        })
     }
 }
 
@@ -517,8 +504,7 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
 /// [`CamTable::seg_rate_q16`]).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Span<'a, const S: usize> {
-    x0: &'a [i32; S],
-    dx: &'a [i32; S],
+    seg: &'a Segment<S>,
     frac_q32: u32,
 }
 
@@ -526,8 +512,8 @@ impl<const S: usize> Span<'_, S> {
     /// x*(θ) = x_j + round(Δx_j·frac / 2^32), raw `I24F8` µm (0 for a column beyond `S`).
     #[inline(always)]
     pub(crate) fn value_bits(&self, axis: usize) -> i32 {
-        let x0 = self.x0.get(axis).copied().unwrap_or(0);
-        let dx = self.dx.get(axis).copied().unwrap_or(0);
+        let x0 = self.seg.x0.get(axis).copied().unwrap_or(0);
+        let dx = self.seg.dx.get(axis).copied().unwrap_or(0);
         // |dx|·2^32 < 2^63; rounded to nearest; between x_j and x_{j+1}.
         let p = i64::from(dx).wrapping_mul(i64::from(self.frac_q32));
         x0.saturating_add((p.wrapping_add(1 << 31) >> 32) as i32)
@@ -536,13 +522,20 @@ impl<const S: usize> Span<'_, S> {
     /// x_j, raw `I24F8` µm.
     #[inline(always)]
     pub(crate) fn start_bits(&self, axis: usize) -> i32 {
-        self.x0.get(axis).copied().unwrap_or(0)
+        self.seg.x0.get(axis).copied().unwrap_or(0)
     }
 
     /// Δx_j, raw `I24F8` µm.
     #[inline(always)]
     pub(crate) fn rise_bits(&self, axis: usize) -> i32 {
-        self.dx.get(axis).copied().unwrap_or(0)
+        self.seg.dx.get(axis).copied().unwrap_or(0)
+    }
+
+    /// The segment's floating reciprocal 2^24/len_j ≈ m·2^-s (raw `I48F16` len_j), as
+    /// (m, s): m ∈ [2^31, 2^32), s ∈ 8 … 40.
+    #[inline(always)]
+    pub(crate) fn recip(&self) -> (u32, u32) {
+        (self.seg.recip_m, self.seg.recip_s)
     }
 }
 
@@ -552,8 +545,7 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     #[inline(always)]
     pub(crate) fn span(&self, lk: &Lookup) -> Option<Span<'_, S>> {
         self.segs.get(lk.seg).map(|s| Span {
-            x0: &s.x0,
-            dx: &s.dx,
+            seg: s,
             frac_q32: lk.frac_q32,
         })
     }

@@ -143,21 +143,30 @@ pub(crate) fn positional_law_bits(
     v: i32,
     a: i32,
 ) -> i32 {
-    let (e1, _) = st.history(e);
-    let clamp = c.valve.clamp_lsb().to_bits();
     let kv = if v >= 0 { c.kv_pos } else { c.kv_neg };
-    // Validated gains are non-negative and below 2^31 (kp < 2^26), so each
-    // product is below 2^62 and each pair's sum below 2^63: no overflow.
-    // P + D in Q24 (e Q8 · gain Q16); velocity + acceleration in Q32.
-    let pd24 = i64::from(e)
-        .wrapping_mul(i64::from(c.kp))
-        .wrapping_add(i64::from(e.saturating_sub(e1)).wrapping_mul(i64::from(c.kd_tick)));
+    // Validated gains are non-negative and below 2^31: each product is below 2^62 and
+    // their sum below 2^63 (Q8 · Q24 = Q32 and Q0 · Q32 = Q32).
     let ff32 = i64::from(v)
         .wrapping_mul(i64::from(kv))
         .wrapping_add(i64::from(a).wrapping_mul(i64::from(c.ka)));
-    // Each shifted to Q16 and saturated to 32 bits, then one saturating 32-bit add
-    // (`qadd`): cheaper on the Cortex-M4 than a 64-bit sum and a 64-bit clamp.
-    let base = sat_i32(pd24 >> 8).saturating_add(sat_i32(ff32 >> 16));
+    positional_law_ff(c, st, e, sat_i32(ff32 >> 16))
+}
+
+/// [`positional_law_bits`] with the feed-forward kv±·v + ka·a already worked out: `ff`,
+/// `I16F16` LSB (the follower's per-segment constants, see `follower::ff_plan`).
+#[inline(always)]
+pub(crate) fn positional_law_ff(c: &AxisCoeffs, st: &mut PosState, e: i32, ff: i32) -> i32 {
+    let (e1, _) = st.history(e);
+    let clamp = c.valve.clamp_lsb().to_bits();
+    // Validated gains are non-negative and below 2^31 (kp < 2^26), so each
+    // product is below 2^62 and the pair's sum below 2^63: no overflow.
+    // P + D in Q24 (e Q8 · gain Q16), shifted to Q16 and saturated to 32 bits, then one
+    // saturating 32-bit add (`qadd`): cheaper on the Cortex-M4 than a 64-bit sum and a
+    // 64-bit clamp.
+    let pd24 = i64::from(e)
+        .wrapping_mul(i64::from(c.kp))
+        .wrapping_add(i64::from(e.saturating_sub(e1)).wrapping_mul(i64::from(c.kd_tick)));
+    let base = sat_i32(pd24 >> 8).saturating_add(ff);
     if e.saturating_abs() <= c.i_zone {
         let cand = clamp_sym(st.integ.saturating_add(integ_step(c, e)), c.i_limit);
         let u_try = base.saturating_add(cand);

@@ -241,18 +241,19 @@ impl MasterFilter {
     /// raw like the filter's.
     #[inline]
     pub fn ahead(&self, c: &MasterFilterCoeffs, lead_q16: i32) -> MasterAhead {
-        let (delta, rate_q8, acc_q8) = self.ahead_delta(c, lead_q16);
+        let (delta, v_q16) = self.ahead_delta(lead_q16);
         MasterAhead {
             pos: Master::from_bits(self.pos.wrapping_add(delta)),
-            rate_q8,
-            acc_q8,
+            rate_q8: self.rate_q8(c, v_q16),
+            acc_q8: self.acc_q8(c),
         }
     }
 
     /// [`MasterFilter::ahead`] as the distance from the filtered position (raw `I48F16`,
-    /// |·| < 2^45) with the speed and acceleration there (Q24.8 counts/s, counts/s²).
+    /// |·| < 2^45) and the speed there in counts/tick, Q16 (|·| < 2^31): the follower's
+    /// working formats.
     #[inline(always)]
-    pub(crate) fn ahead_delta(&self, c: &MasterFilterCoeffs, lead_q16: i32) -> (i64, i32, i32) {
+    pub(crate) fn ahead_delta(&self, lead_q16: i32) -> (i64, i32) {
         let n = i64::from(lead_q16.clamp(0, MAX_LEAD_Q16));
         // |θ̇| ≤ 2^46: θ̇ >> 16 fits 31 bits exactly.
         let v16 = i64::from((self.vel >> 16) as i32);
@@ -264,7 +265,13 @@ impl MasterFilter {
         let delta = (v16.wrapping_mul(n) >> 16).wrapping_add(half_acc_n2);
         // |θ̇ + θ̈·n| ≤ 2^46 + 2^45 < 2^47: the Q16 speed fits an i32 exactly.
         let v_ahead = (self.vel.wrapping_add(acc_n) >> 16) as i32;
-        (delta, self.rate_q8(c, v_ahead), self.acc_q8(c))
+        (delta, v_ahead)
+    }
+
+    /// The acceleration, counts/tick², Q32 (±0.5, the filter's own format).
+    #[inline(always)]
+    pub(crate) fn acc_q32(&self) -> i32 {
+        self.acc
     }
 
     /// A speed in counts/tick (Q16) in counts/s, Q24.8 (saturated):
