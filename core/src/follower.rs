@@ -303,11 +303,47 @@ impl<const S: usize, const N: usize> Follower<S, N> {
     fn tick_path<const M: u8>(&mut self, inp: &FollowerInputs<S>, out: &mut FollowerOutputs<S>) {
         // Every axis Paper: the paper's own predictor is the master estimate (SPEC §A
         // has no tracking filter); otherwise the tracking filter.
-        let (master_jump, dir) = if M == MODE_PAPER {
-            self.pred.observe(inp.master)
+        if M == MODE_PAPER {
+            let (jump, dir) = self.pred.observe(inp.master);
+            self.tick_general::<M>(inp, out, jump, dir);
         } else {
-            filter_step(&mut self.filter, &self.mf, inp.master)
-        };
+            let jump = filter_step(&mut self.filter, &self.mf, inp.master);
+            out.master_jump = jump;
+            if M == MODE_FF && !self.ended && self.tick_ff_fast(inp, out) {
+                return;
+            }
+            if M == MODE_FF {
+                // Out of line: the fast path keeps its own register allocation.
+                self.tick_general_outlined(inp, out, jump);
+            } else {
+                let dir = self.filter.direction();
+                self.tick_general::<M>(inp, out, jump, dir);
+            }
+        }
+    }
+
+    /// [`Follower::tick_general`] for the Feedforward path, out of line.
+    #[inline(never)]
+    fn tick_general_outlined(
+        &mut self,
+        inp: &FollowerInputs<S>,
+        out: &mut FollowerOutputs<S>,
+        master_jump: bool,
+    ) {
+        let dir = self.filter.direction();
+        self.tick_general::<MODE_FF>(inp, out, master_jump, dir);
+    }
+
+    /// Steps 3–8 after the master's update, off the Feedforward fast path: the end test,
+    /// then the ended or the general lookups.
+    #[inline(always)]
+    fn tick_general<const M: u8>(
+        &mut self,
+        inp: &FollowerInputs<S>,
+        out: &mut FollowerOutputs<S>,
+        master_jump: bool,
+        dir: i8,
+    ) {
         let t = &self.table;
         if !self.ended
             && ((dir > 0 && inp.master >= t.master_last())
@@ -323,6 +359,58 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         } else {
             self.tick_mode::<M>(inp, out, dir);
         }
+    }
+
+    /// The Feedforward fast path (steps 3–5 of a tick where every axis is Feedforward with
+    /// one lead and the table has not ended): the sampled master, the filtered master now
+    /// and its look-ahead all in the cursor's segment — nearly every tick. The sampled
+    /// master inside a segment is inside the table, so the end test of step 3 cannot fire
+    /// (and needs no direction); both lookups and the feed-forward come from that
+    /// segment. Returns `false` (nothing written but the outputs' end flag) otherwise.
+    #[inline(always)]
+    fn tick_ff_fast(&mut self, inp: &FollowerInputs<S>, out: &mut FollowerOutputs<S>) -> bool {
+        let Some(lead) = self.ff_lead0 else {
+            return false;
+        };
+        let t = &self.table;
+        let f = &self.filter;
+        let mut v_q16 = 0;
+        let Some(now) = t.span_pair(self.cur_now, inp.master, f.pos(), || {
+            let (delta, v) = f.ahead_delta(lead);
+            v_q16 = v;
+            delta
+        }) else {
+            return false;
+        };
+        out.end_of_table = false;
+        let ctx = TickCtx {
+            now,
+            pred: now,
+            ff: FfRef {
+                lead,
+                at: Some((self.cur_now, now)),
+                v_q16,
+                acc_q32: self.filter.acc_q32(),
+            },
+            tps_q16: self.mf.tps_q16(),
+            // No NextNode axis on this path.
+            dir: 0,
+            ended: false,
+        };
+        axes_loop::<S, N, MODE_FF>(
+            Axes {
+                axes: &self.axes,
+                rt: &mut self.rt,
+                filter: &self.filter,
+                table: t,
+                cur_ff: &mut self.cur_ff,
+                check_leads: self.ff_leads_differ,
+            },
+            inp,
+            out,
+            ctx,
+        );
+        true
     }
 
     /// Steps 3–5 of an ended table (every slave holds its end), out of line.
@@ -341,42 +429,6 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         dir: i8,
     ) {
         let t = &self.table;
-        // Feedforward, not ended, the master now and its look-ahead in the cursor's
-        // segment (nearly every tick): both lookups and the rates from that segment.
-        if M == MODE_FF && !self.ended {
-            if let Some(lead) = self.ff_lead0 {
-                let (delta, v_q16) = self.filter.ahead_delta(lead);
-                if let Some(now) = t.span_pair(self.cur_now, self.filter.pos(), delta) {
-                    let ctx = TickCtx {
-                        now,
-                        pred: now,
-                        ff: FfRef {
-                            lead,
-                            at: Some((self.cur_now, now)),
-                            v_q16,
-                            acc_q32: self.filter.acc_q32(),
-                        },
-                        tps_q16: self.mf.tps_q16(),
-                        dir,
-                        ended: false,
-                    };
-                    axes_loop::<S, N, M>(
-                        Axes {
-                            axes: &self.axes,
-                            rt: &mut self.rt,
-                            filter: &self.filter,
-                            table: t,
-                            cur_ff: &mut self.cur_ff,
-                            check_leads: self.ff_leads_differ,
-                        },
-                        inp,
-                        out,
-                        ctx,
-                    );
-                    return;
-                }
-            }
-        }
         // Where the feedback looks: the filtered master now, or the end it stopped at.
         let m_now = match (self.ended, self.end_high) {
             // Paper path: the sampled master θ(k) itself (no tracking filter runs).
@@ -674,6 +726,6 @@ mod tests;
 /// The tracking filter's update and direction, out of line (measured: the Feedforward
 /// path is cheaper with the filter's registers freed before the lookups).
 #[inline(never)]
-fn filter_step(f: &mut MasterFilter, c: &MasterFilterCoeffs, m: Master) -> (bool, i8) {
-    (f.update(c, m), f.direction())
+fn filter_step(f: &mut MasterFilter, c: &MasterFilterCoeffs, m: Master) -> bool {
+    f.update(c, m)
 }

@@ -468,21 +468,34 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         s.rate_q16(rate_q8)
     }
 
-    /// The follower's fast path for its two lookups: the master now, `m`, and the
-    /// look-ahead `m + delta` (raw `I48F16`) both inside the cursor's segment — nearly
-    /// every tick, since the look-ahead is a few periods of motion and a segment many.
-    /// Gives the span at `m` (which is also the look-ahead's segment); `None` sends the
-    /// caller to [`CamTable::locate`] and [`CamTable::locate_segment`].
+    /// The follower's fast path for its lookups: the sampled master `sampled`, the
+    /// filtered master now, `m`, and the look-ahead `m + delta()` (raw `I48F16`) all
+    /// inside the cursor's segment — nearly every tick, since the filter's error and the
+    /// look-ahead are a few periods of motion and a segment many. Gives the span at `m`
+    /// (which is also the look-ahead's segment); `None` sends the caller to
+    /// [`CamTable::locate`] and [`CamTable::locate_segment`]. `delta` is called only
+    /// once the first two are known to be inside.
     #[inline(always)]
-    pub(crate) fn span_pair(&self, cursor: usize, m: Master, delta: i64) -> Option<Span<'_, S>> {
+    pub(crate) fn span_pair(
+        &self,
+        cursor: usize,
+        sampled: Master,
+        m: Master,
+        delta: impl FnOnce() -> i64,
+    ) -> Option<Span<'_, S>> {
         let s = self.segs.get(cursor)?;
         // As in `locate` (modulo 2^64); d < len < 2^32.
-        let d = m.to_bits().wrapping_sub(s.m0) as u64;
         let len = u64::from(s.len);
+        if sampled.to_bits().wrapping_sub(s.m0) as u64 >= len {
+            return None;
+        }
+        let d = m.to_bits().wrapping_sub(s.m0) as u64;
+        if d >= len {
+            return None;
+        }
         // The look-ahead's offset, modulo 2^64 like `d` (|delta| < 2^45, see
         // `MasterFilter::ahead`).
-        let d_ahead = (d as i64).wrapping_add(delta) as u64;
-        if d >= len || d_ahead >= len {
+        if (d as i64).wrapping_add(delta()) as u64 >= len {
             return None;
         }
         Some(Span {
@@ -590,12 +603,13 @@ fn check_slope<const S: usize>(
 ///
 /// recip < 2^64/len + 1, so d·recip < 2^64 − 2^64/len + len < 2^64 (2^64/len > 2^32 >
 /// len), and (d·recip) >> 32 = d·r_hi + (d·r_lo >> 32) < 2^32 (two u32×u32 products).
+/// Both terms and their sum are below 2^32, so the sum is one `umull` and one `mla` in
+/// 32-bit words (no wrap).
 #[inline(always)]
 fn frac_q32(d: u32, recip: u64) -> u32 {
-    let d = u64::from(d);
-    let lo = d.wrapping_mul(recip & 0xFFFF_FFFF) >> 32;
-    let hi = d.wrapping_mul(recip >> 32);
-    u32::try_from(hi.wrapping_add(lo)).unwrap_or(u32::MAX)
+    let lo = (u64::from(d).wrapping_mul(recip & 0xFFFF_FFFF) >> 32) as u32;
+    let hi = d.wrapping_mul((recip >> 32) as u32);
+    hi.wrapping_add(lo)
 }
 
 /// (m, s) with m = ⌈2^(24+s) / len⌉ ∈ [2^31, 2^32), for 2 ≤ len < 2^32 (table build only).

@@ -32,33 +32,28 @@
 //! below 2^63; the shifted result is saturated to `i32` (Q16 LSB, ±32 768 LSB).
 
 use crate::axis::AxisCoeffs;
+use crate::q::sat_i32;
 
 /// The feed-forward constants of one axis for one segment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct FfPlan {
     /// The segment these constants are for ([`FfPlan::NONE`]: none yet).
     seg: usize,
-    /// M_v for θ̇ ≥ 0, LSB per (count/tick) · 2^s.
-    m_up: i32,
-    /// M_v for θ̇ < 0, LSB per (count/tick) · 2^s.
-    m_dn: i32,
+    /// M_v for θ̇ ≥ 0 and for θ̇ < 0, LSB per (count/tick) · 2^s.
+    m_v: [i32; 2],
     /// M_a, LSB per (count/tick²) · 2^(s − 16).
     m_a: i32,
-    /// s, 1 … 31.
-    shr: u32,
-    /// 32 − s.
-    shl: u32,
+    /// 2^(32 − s), s = 1 … 31 (the final shift as a multiply).
+    k_shl: u32,
 }
 
 impl Default for FfPlan {
     fn default() -> Self {
         Self {
             seg: Self::NONE,
-            m_up: 0,
-            m_dn: 0,
+            m_v: [0; 2],
             m_a: 0,
-            shr: 1,
-            shl: 31,
+            k_shl: 1 << 31,
         }
     }
 }
@@ -164,11 +159,9 @@ impl FfPlan {
         };
         Self {
             seg,
-            m_up,
-            m_dn,
+            m_v: [m_up, m_dn],
             m_a,
-            shr: s as u32,
-            shl: 32u32.wrapping_sub(s as u32),
+            k_shl: 1u32.wrapping_shl(32u32.wrapping_sub(s as u32)),
         }
     }
 
@@ -176,20 +169,21 @@ impl FfPlan {
     /// acceleration `acc_q32` (counts/tick², Q32) at the look-ahead.
     #[inline(always)]
     pub(crate) fn ff_q16(&self, v_q16: i32, acc_q32: i32) -> i32 {
-        let m = if v_q16 >= 0 { self.m_up } else { self.m_dn };
+        // M_v+ or M_v− by the sign bit of θ̇.
+        let m = self
+            .m_v
+            .get((v_q16 as u32 >> 31) as usize)
+            .copied()
+            .unwrap_or(0);
         // Each product below 2^62, the sum below 2^63 (see the module).
         let p = i64::from(v_q16)
             .wrapping_mul(i64::from(m))
             .wrapping_add(i64::from(acc_q32).wrapping_mul(i64::from(self.m_a)));
-        // p >> s for 1 ≤ s ≤ 31 on the two words, then saturated to i32.
-        let hi = (p >> 32) as i32;
-        let lo = (p as u32).wrapping_shr(self.shr) | (hi as u32).wrapping_shl(self.shl);
-        let hi = hi.wrapping_shr(self.shr);
-        if hi == (lo as i32) >> 31 {
-            lo as i32
-        } else {
-            (hi >> 31) ^ i32::MAX
-        }
+        // p >> s = (p·2^(32−s)) >> 32 for 1 ≤ s ≤ 31, on the two words: hi·2^(32−s) plus
+        // the high word of lo·2^(32−s) (|·| < 2^62, no overflow), saturated to i32.
+        let hi = i64::from((p >> 32) as i32).wrapping_mul(i64::from(self.k_shl));
+        let lo = (u64::from(p as u32).wrapping_mul(u64::from(self.k_shl)) >> 32) as i64;
+        sat_i32(hi.wrapping_add(lo))
     }
 }
 
@@ -286,14 +280,15 @@ mod tests {
             let tps = (65_536.0e6 / f64::from(period_us)) as i32;
             let (rm, rs) = recip(len);
             let p = FfPlan::new(&c, 0, dx, rm, rs, tps);
-            prop_assert!((1..=31).contains(&p.shr) && p.shl == 32 - p.shr);
+            let shr = 32 - p.k_shl.trailing_zeros();
+            prop_assert!((1..=31).contains(&shr) && p.k_shl.is_power_of_two());
             let got = f64::from(p.ff_q16(v, acc));
             let want = reference(&c, dx, len, tps, v, acc) * 65_536.0;
             let limit = f64::from(i32::MAX);
             if want.abs() > limit * (1.0 + 1e-6) {
                 prop_assert_eq!(got, if want < 0.0 { f64::from(i32::MIN) } else { limit });
             } else if want.abs() < limit * (1.0 - 1e-6) {
-                let unit = (f64::from(v).abs() + f64::from(acc).abs()) * 2f64.powi(-(p.shr as i32));
+                let unit = (f64::from(v).abs() + f64::from(acc).abs()) * 2f64.powi(-(shr as i32));
                 let bound = unit + want.abs() * 2f64.powi(-28) + 1.0;
                 prop_assert!((got - want).abs() <= bound, "got {} want {} bound {}", got, want, bound);
             }

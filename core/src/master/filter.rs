@@ -254,18 +254,19 @@ impl MasterFilter {
     /// working formats.
     #[inline(always)]
     pub(crate) fn ahead_delta(&self, lead_q16: i32) -> (i64, i32) {
-        let n = i64::from(lead_q16.clamp(0, MAX_LEAD_Q16));
-        // |θ̇| ≤ 2^46: θ̇ >> 16 fits 31 bits exactly.
-        let v16 = i64::from((self.vel >> 16) as i32);
-        // acc·n: Q32·Q16 = Q48 → Q32 (|·| ≤ 2^31·2^30 >> 16 = 2^45).
-        let acc_n = i64::from(self.acc).wrapping_mul(n) >> 16;
-        // ½acc·n²: (acc·n as Q16, |·| ≤ 2^29) · n = Q32 → >> 17 = Q16 with the ½ (< 2^59).
-        let half_acc_n2 = i64::from((acc_n >> 16) as i32).wrapping_mul(n) >> 17;
-        // θ̇·n: Q16·Q16 >> 16 = Q16 (< 2^44); the sum of the two terms < 2^45.
-        let delta = (v16.wrapping_mul(n) >> 16).wrapping_add(half_acc_n2);
-        // |θ̇ + θ̈·n| ≤ 2^46 + 2^45 < 2^47: the Q16 speed fits an i32 exactly.
-        let v_ahead = (self.vel.wrapping_add(acc_n) >> 16) as i32;
-        (delta, v_ahead)
+        let n = lead_q16.clamp(0, MAX_LEAD_Q16);
+        // θ̇ in Q16 counts/tick: |θ̇| ≤ 2^46 (Q32), so θ̇ >> 16 fits 31 bits exactly.
+        let v16 = (self.vel >> 16) as i32;
+        // θ̈·n: Q32·Q16 >> 32 = Q16 counts/tick (|·| ≤ 2^31·2^30 >> 32 = 2^29).
+        let acc_n = (i64::from(self.acc).wrapping_mul(i64::from(n)) >> 32) as i32;
+        // θ̇·n + ½θ̈·n²: Q16·Q16 = Q32 (|θ̇·n| ≤ 2^60, |θ̈·n·n/2| ≤ 2^58), then Q16
+        // (|·| < 2^45).
+        let delta = i64::from(v16)
+            .wrapping_mul(i64::from(n))
+            .wrapping_add(i64::from(acc_n).wrapping_mul(i64::from(n)) >> 1)
+            >> 16;
+        // θ̇ + θ̈·n, Q16 counts/tick: |·| ≤ 2^30 + 2^29 < 2^31.
+        (delta, v16.wrapping_add(acc_n))
     }
 
     /// The acceleration, counts/tick², Q32 (±0.5, the filter's own format).
