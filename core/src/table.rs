@@ -613,7 +613,7 @@ fn frac_q32(d: u32, recip: u64) -> u32 {
 }
 
 /// (m, s) with m = ⌈2^(24+s) / len⌉ ∈ [2^31, 2^32), for 2 ≤ len < 2^32 (table build only).
-fn float_recip(len: u64) -> (u32, u32) {
+pub(crate) fn float_recip(len: u64) -> (u32, u32) {
     let len = u128::from(len.max(2));
     let mut s = 0u32;
     while s < 64 {

@@ -32,7 +32,6 @@
 //! below 2^63; the shifted result is saturated to `i32` (Q16 LSB, ±32 768 LSB).
 
 use crate::axis::AxisCoeffs;
-use crate::q::sat_i32;
 
 /// The feed-forward constants of one axis for one segment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -181,9 +180,17 @@ impl FfPlan {
             .wrapping_add(i64::from(acc_q32).wrapping_mul(i64::from(self.m_a)));
         // p >> s = (p·2^(32−s)) >> 32 for 1 ≤ s ≤ 31, on the two words: hi·2^(32−s) plus
         // the high word of lo·2^(32−s) (|·| < 2^62, no overflow), saturated to i32.
-        let hi = i64::from((p >> 32) as i32).wrapping_mul(i64::from(self.k_shl));
-        let lo = (u64::from(p as u32).wrapping_mul(u64::from(self.k_shl)) >> 32) as i64;
-        sat_i32(hi.wrapping_add(lo))
+        let k = self.k_shl;
+        let hi = i64::from((p >> 32) as i32).wrapping_mul(i64::from(k));
+        let lo = (u64::from(p as u32).wrapping_mul(u64::from(k)) >> 32) as u32;
+        // The 64-bit sum in words, then the saturation test of `sat_i32` on them.
+        let r_lo = (hi as u32).wrapping_add(lo);
+        let r_hi = ((hi >> 32) as i32).wrapping_add(i32::from(r_lo < lo));
+        if r_hi == (r_lo as i32) >> 31 {
+            r_lo as i32
+        } else {
+            (r_hi >> 31) ^ i32::MAX
+        }
     }
 }
 
@@ -205,14 +212,7 @@ mod tests {
 
     /// (recip_m, recip_s) of a segment of `len` raw bits, as the table builds them.
     fn recip(len: u64) -> (u32, u32) {
-        let mut s = 0;
-        loop {
-            let m = ((1u128 << (24 + s)) + u128::from(len) - 1) / u128::from(len);
-            if m >= 1 << 31 {
-                return (m as u32, s);
-            }
-            s += 1;
-        }
+        crate::table::float_recip(len)
     }
 
     fn coeffs(kvp: f32, kvn: f32, ka: f32) -> AxisCoeffs {
