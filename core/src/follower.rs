@@ -17,7 +17,10 @@
 //!    - `Feedforward`: x_ref = X(θ_f(k)), the table at the filtered master now (the error
 //!      at the sampling instant); v_ff = ΔX_j·θ̇/len_j and a_ff = ΔX_j·θ̈/len_j taken at
 //!      θ_f(k + n), n = 1.5 + t_valve/T periods ahead: the middle of the period in which
-//!      this command acts (one period of computation delay) plus the valve's lag.
+//!      this command acts (one period of computation delay) plus the valve's lag. Inside
+//!      a segment kv±·v_ff + ka·a_ff is two products of the filter's own speed and
+//!      acceleration with per-axis constants, worked out when the look-ahead enters the
+//!      segment (`ff_plan`).
 //!    - `Paper`: x_ref = X(θ̂(k+1)), the table at the eq. 4 prediction (eq. 5–6).
 //!    - `NextNode`: x_ref = the node at the far end of the current segment in the
 //!      direction of master motion.
@@ -26,7 +29,10 @@
 //!    fault: its valve goes to null, its controller state is cleared, until
 //!    [`Follower::clear_faults`].
 //!
-//! Every table lookup starts from its own cursor, so the search is O(1) amortised.
+//! Every table lookup starts from its own cursor, so the search is O(1) amortised. On
+//! nearly every tick of an all-Feedforward follower the sampled master, the filtered
+//! master and its look-ahead are in the cursor's segment: that tick takes the fast path
+//! (one segment read, no end test — `Follower::tick_ff_fast`).
 
 use crate::axis::position::{paper_law_bits, positional_law_ff};
 use crate::axis::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosState};
@@ -35,10 +41,10 @@ use crate::master::{
 };
 use crate::master::{Predictor, PredictorKind};
 use crate::table::{Beyond, CamTable, Span};
+use crate::units::{CmdLsb, DacCode, Master, PosUm};
 use ff_plan::FfPlan;
 
 mod ff_plan;
-use crate::units::{CmdLsb, DacCode, Master, PosUm};
 
 /// Follower configuration in engineering units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -366,7 +372,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
     /// and its look-ahead all in the cursor's segment — nearly every tick. The sampled
     /// master inside a segment is inside the table, so the end test of step 3 cannot fire
     /// (and needs no direction); both lookups and the feed-forward come from that
-    /// segment. Returns `false` (nothing written but the outputs' end flag) otherwise.
+    /// segment. Returns `false`, having written nothing, otherwise.
     #[inline(always)]
     fn tick_ff_fast(&mut self, inp: &FollowerInputs<S>, out: &mut FollowerOutputs<S>) -> bool {
         let Some(lead) = self.ff_lead0 else {
@@ -723,8 +729,8 @@ fn plan<const S: usize>(
 #[cfg(test)]
 mod tests;
 
-/// The tracking filter's update and direction, out of line (measured: the Feedforward
-/// path is cheaper with the filter's registers freed before the lookups).
+/// The tracking filter's update, out of line (measured: the Feedforward path is cheaper
+/// with the filter's registers freed before the lookups). Returns the jump flag.
 #[inline(never)]
 fn filter_step(f: &mut MasterFilter, c: &MasterFilterCoeffs, m: Master) -> bool {
     f.update(c, m)

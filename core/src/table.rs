@@ -513,8 +513,8 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
 /// fraction 2^32 − 1), and [`Span::value_bits`] then gives that end's node value exactly:
 /// x_j + round(Δx_j·(2^32 − 1)/2^32) = x_j + Δx_j for |Δx_j| < 2^31, because
 /// Δx·(2^32 − 1) + 2^31 = Δx·2^32 + (2^31 − Δx) with 0 < 2^31 − Δx < 2^32. So the loop needs
-/// no per-axis test of the ends (the feed-forward is zero there through
-/// [`CamTable::seg_rate_q16`]).
+/// no per-axis test of the ends (the follower's feed-forward lookup reports the end and
+/// gives no feed-forward there).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Span<'a, const S: usize> {
     seg: &'a Segment<S>,
