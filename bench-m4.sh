@@ -122,7 +122,7 @@ awk -v json="$JSON" '
   }
   END {
     fail = 0
-    printf "%-24s %12s %12s %10s %8s %9s  %s\n", "figure", "instructions", "est_cycles", "cyc/instr", "traced", "budget", "status"
+    printf "%-28s %12s %12s %10s %8s %9s  %s\n", "figure", "instructions", "est_cycles", "cyc/instr", "traced", "budget", "status"
     printf "{" > json
     for (i = 1; i <= n; i++) {
       f = name[i]
@@ -133,7 +133,7 @@ awk -v json="$JSON" '
       b = "-"
       if (!(f in budget)) { status = "NO BUDGET"; fail = 1 }
       else { b = budget[f]; if (instr[f] > budget[f]) { status = sprintf("OVER by %d", instr[f] - budget[f]); fail = 1 } }
-      printf "%-24s %12d %12d %10.2f %8.1f %9s  %s\n", f, instr[f], est, cpi, tin[f], b, status
+      printf "%-28s %12d %12d %10.2f %8.1f %9s  %s\n", f, instr[f], est, cpi, tin[f], b, status
       printf "%s\n  \"%s\": {\"instructions\": %d, \"est_cycles\": %d}", (i > 1 ? "," : ""), f, instr[f], est > json
     }
     printf "\n}\n" > json

@@ -1,5 +1,8 @@
-//! Follower figures (SPEC §A): one [`Follower::tick`] with 1, 4 and 8 slave axes in
-//! `Feedforward` mode and 1 axis in `Paper` mode, on the reference machine's cam table.
+//! Follower figures (SPEC §A): one [`Follower::tick`] with 1, 2, 4 and 8 slave axes in
+//! `Feedforward` mode and 1 axis in `Paper` mode, on the reference machine's cam table
+//! ([`Motion::Cruise`]); and the board's two Feedforward slaves on ticks that each enter
+//! a new table segment ([`Motion::EveryNode`], the worst case of the segment search and
+//! of the feed-forward constants).
 //!
 //! Set-up (PLANT.md): the tangent-cylinder table of the rotary-table stretch-bending
 //! machine, 181 nodes every 0.5° (500 master counts of 0.001°), 20…480 mm. Slave `i`
@@ -28,21 +31,84 @@ const MASTER_START: i64 = 5_000;
 const MASTER_STEP_X100: u32 = 307;
 /// Measured position = target − this lag (raw `I24F8`, 3 µm).
 const LAG_BITS: i32 = 3 << 8;
+/// [`Motion::EveryNode`]: master counts between nodes (the master moves 3.07 per tick).
+const EVERY_NODE_SPACING: i64 = 2;
+/// [`Motion::EveryNode`]: the die curve's stroke above 20 mm divided by this (slopes of
+/// ≤ 12 µm per count, ≤ 37 mm/s of slave at 3 070 counts/s).
+const EVERY_NODE_STROKE_DIV: i64 = 256;
+/// [`Motion::EveryNode`]: the master runs back and forth between these, counts (inside
+/// the 360 counts of the table, clear of its ends and of the filter's overshoot).
+const EVERY_NODE_LOW: i64 = 20;
+/// See [`EVERY_NODE_LOW`].
+const EVERY_NODE_HIGH: i64 = 340;
+
+/// The master motion and table of a follower figure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Motion {
+    /// The reference table (nodes 500 counts apart), the master cruising up at 3.07 counts
+    /// per tick from 5 000: the look-ahead enters a segment every ≈ 163 ticks.
+    Cruise,
+    /// Nodes 2 counts apart (the die curve, stroke / 256), the master at 3.07 counts per
+    /// tick back and forth between 20 and 340 counts: nearly every tick the master and
+    /// its look-ahead (17 counts ahead) are in new segments, so every tick searches both
+    /// and works out every axis' feed-forward constants.
+    EveryNode,
+}
+
+impl Motion {
+    /// Master counts between nodes.
+    fn spacing(self) -> i64 {
+        match self {
+            Self::Cruise => NODE_SPACING,
+            Self::EveryNode => EVERY_NODE_SPACING,
+        }
+    }
+
+    /// Divisor of the stroke above 20 mm.
+    fn stroke_div(self) -> i64 {
+        match self {
+            Self::Cruise => 1,
+            Self::EveryNode => EVERY_NODE_STROKE_DIV,
+        }
+    }
+
+    /// The master of call `k`, whole counts (u32 arithmetic, one UDIV: the harness must
+    /// cost little next to the call).
+    #[inline(always)]
+    fn master(self, k: u32) -> i64 {
+        let advance = k.wrapping_mul(MASTER_STEP_X100) / 100;
+        match self {
+            Self::Cruise => MASTER_START + i64::from(advance),
+            Self::EveryNode => {
+                let span = (EVERY_NODE_HIGH - EVERY_NODE_LOW) as u32;
+                let p = advance % (2 * span);
+                let up = if p < span { p } else { 2 * span - p };
+                EVERY_NODE_LOW + i64::from(up)
+            }
+        }
+    }
+}
 
 include!(concat!(env!("OUT_DIR"), "/die_table.rs"));
 
+/// The reference table with `S` columns ([`Motion::Cruise`], see [`table_for`]).
+pub(crate) fn table<const S: usize>() -> Option<CamTable<S, NODES>> {
+    table_for(Motion::Cruise)
+}
+
 /// The table with `S` columns: column 0 is the die curve scaled to 20…480 mm over
 /// 0…90° (PLANT.md, [`DIE_UM`]), column `i` the same curve with its stroke above 20 mm
-/// scaled by 1 − i/16 (integer arithmetic: no floating point on the target).
-pub(crate) fn table<const S: usize>() -> Option<CamTable<S, NODES>> {
+/// scaled by 1 − i/16 (integer arithmetic: no floating point on the target); nodes and
+/// stroke as `motion` sets them.
+fn table_for<const S: usize>(motion: Motion) -> Option<CamTable<S, NODES>> {
     let mut nodes = [Node {
         master: Master::ZERO,
         slave_um: [PosUm::ZERO; S],
     }; DIE_UM.len()];
     for ((j, n), x0) in nodes.iter_mut().enumerate().zip(DIE_UM.iter()) {
-        n.master = Master::from_num(j as i64 * NODE_SPACING);
+        n.master = Master::from_num(j as i64 * motion.spacing());
         for (i, x) in n.slave_um.iter_mut().enumerate() {
-            let above = i64::from(x0.saturating_sub(20_000));
+            let above = i64::from(x0.saturating_sub(20_000)) / motion.stroke_div();
             let scaled = above * (16 - i as i64) / 16;
             *x = PosUm::from_num(20_000 + scaled);
         }
@@ -90,22 +156,28 @@ fn tick<const S: usize>(
 /// A follower with its inputs and last outputs.
 pub struct FollowerFig<const S: usize> {
     f: Follower<S, NODES>,
+    motion: Motion,
     inp: FollowerInputs<S>,
     out: FollowerOutputs<S>,
 }
 
 impl<const S: usize> FollowerFig<S> {
-    /// The follower on the reference table, every axis in `mode`; `None` if the core
-    /// rejects the set-up (reported as a failed figure).
+    /// The follower on the reference table, every axis in `mode`, the master cruising;
+    /// `None` if the core rejects the set-up (reported as a failed figure).
     pub fn new(mode: ControlMode) -> Option<Self> {
+        Self::with_motion(mode, Motion::Cruise)
+    }
+
+    /// The follower on `motion`'s table and master, every axis in `mode`.
+    pub fn with_motion(mode: ControlMode, motion: Motion) -> Option<Self> {
         let cfg = FollowerConfig {
             axes: [axis(mode); S],
             ..FollowerConfig::default()
         };
-        let t = table::<S>()?;
+        let t = table_for::<S>(motion)?;
         let mut f = Follower::new(&cfg, t).ok()?;
         let inp = FollowerInputs {
-            master: Master::from_num(MASTER_START),
+            master: Master::from_num(motion.master(0)),
             pos_um: [PosUm::ZERO; S],
         };
         // Positions start on the table at the master start.
@@ -118,6 +190,7 @@ impl<const S: usize> FollowerFig<S> {
         let out = f.tick(&fig_inp);
         Some(Self {
             f,
+            motion,
             inp: fig_inp,
             out,
         })
@@ -127,9 +200,7 @@ impl<const S: usize> FollowerFig<S> {
     /// last target, whole µm.
     #[inline(always)]
     fn next_inputs(&mut self, k: u32) {
-        // u32 arithmetic (one UDIV): the harness must cost little next to the call.
-        let advance = k.wrapping_mul(MASTER_STEP_X100) / 100;
-        self.inp.master = Master::from_bits((MASTER_START + i64::from(advance)) << 16);
+        self.inp.master = Master::from_bits(self.motion.master(k) << 16);
         for (x, t) in self.inp.pos_um.iter_mut().zip(self.out.target_um.iter()) {
             *x = PosUm::from_bits((t.to_bits() & !0xFF).saturating_sub(LAG_BITS));
         }

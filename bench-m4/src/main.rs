@@ -31,7 +31,7 @@ mod xy;
 
 use core::fmt::Write;
 use cortex_m_rt::entry;
-use follower::FollowerFig;
+use follower::{FollowerFig, Motion};
 use harness::Figure;
 use hydra_core::axis::ControlMode;
 use out::Out;
@@ -194,6 +194,10 @@ fn main() -> ! {
     r.run(
         "follower_paper_1axis",
         FollowerFig::<1>::new(ControlMode::Paper),
+    );
+    r.run(
+        "follower_ff_2axes_every_node",
+        FollowerFig::<2>::with_motion(ControlMode::Feedforward, Motion::EveryNode),
     );
     // S-curve (SPEC §B).
     r.run("scurve_sample", scurve::ProfileSample::new());
