@@ -195,6 +195,10 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             .iter()
             .find(|a| a.mode == ControlMode::Feedforward)
             .map(|a| a.lead_q16);
+        let mut rt = [AxisRt::default(); S];
+        for (r, c) in rt.iter_mut().zip(axes.iter()) {
+            r.ff = FfPlan::new(c, mf.tps_q16());
+        }
         Ok(Self {
             axes,
             mf,
@@ -217,7 +221,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 .filter(|a| a.mode == ControlMode::Feedforward)
                 .any(|a| Some(a.lead_q16) != ff_lead0),
             ff_lead0,
-            rt: [AxisRt::default(); S],
+            rt,
             ended: false,
             end_high: true,
         })
@@ -245,7 +249,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         self.cur_ff = 0;
         for rt in &mut self.rt {
             rt.st.reset();
-            rt.ff = FfPlan::default();
+            rt.ff.invalidate();
         }
         self.ended = false;
     }
@@ -398,7 +402,6 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 v_q16,
                 acc_q32: self.filter.acc_q32(),
             },
-            tps_q16: self.mf.tps_q16(),
             // No NextNode axis on this path.
             dir: 0,
             ended: false,
@@ -473,7 +476,6 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             now,
             pred,
             ff,
-            tps_q16: self.mf.tps_q16(),
             dir,
             ended: self.ended,
         };
@@ -559,8 +561,6 @@ struct TickCtx<'a, const S: usize> {
     pred: Span<'a, S>,
     /// The feed-forward lookup.
     ff: FfRef<'a, S>,
-    /// Ticks per second, Q16 (for a feed-forward plan).
-    tps_q16: i32,
     /// Direction of the master: 1, 0, −1.
     dir: i8,
     /// The end-of-table latch.
@@ -620,7 +620,7 @@ fn axis_step_inline<const S: usize, const M: u8>(
                 let ff = match ctx.ff.at {
                     Some((seg, span)) => {
                         if !rt.ff.is_for(seg) {
-                            rt.ff = plan(c, seg, &span, i, ctx.tps_q16);
+                            enter(&mut rt.ff, seg, span.rise_bits(i), span.recip());
                         }
                         rt.ff.ff_q16(ctx.ff.v_q16, ctx.ff.acc_q32)
                     }
@@ -715,15 +715,8 @@ fn ff_lookup_inline<'a, const S: usize, const N: usize>(
 /// time the axis' look-ahead enters a segment).
 #[cold]
 #[inline(never)]
-fn plan<const S: usize>(
-    c: &AxisCoeffs,
-    seg: usize,
-    span: &Span<'_, S>,
-    i: usize,
-    tps_q16: i32,
-) -> FfPlan {
-    let (recip_m, recip_s) = span.recip();
-    FfPlan::new(c, seg, span.rise_bits(i), recip_m, recip_s, tps_q16)
+fn enter(ff: &mut FfPlan, seg: usize, dx: i32, (recip_m, recip_s): (u32, u32)) {
+    ff.enter(seg, dx, recip_m, recip_s);
 }
 
 #[cfg(test)]

@@ -33,10 +33,14 @@
 
 use crate::axis::AxisCoeffs;
 
-/// The feed-forward constants of one axis for one segment.
+/// The feed-forward of one axis: its gains for the follower's period, and its constants
+/// for one segment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct FfPlan {
-    /// The segment these constants are for ([`FfPlan::NONE`]: none yet).
+    /// kv⁺·f_s, kv⁻·f_s and ka·f_s²·2^-16 with the formats' exponents (kv `I8F24`, ka
+    /// `I0F32`, f_s Q16): worked out once, at [`FfPlan::new`].
+    gains: [Float; 3],
+    /// The segment the constants below are for ([`FfPlan::NONE`]: none yet).
     seg: usize,
     /// M_v for θ̇ ≥ 0 and for θ̇ < 0, LSB per (count/tick) · 2^s.
     m_v: [i32; 2],
@@ -47,8 +51,10 @@ pub(crate) struct FfPlan {
 }
 
 impl Default for FfPlan {
+    /// Zero gains, no segment.
     fn default() -> Self {
         Self {
+            gains: [Float::ZERO; 3],
             seg: Self::NONE,
             m_v: [0; 2],
             m_a: 0,
@@ -65,9 +71,24 @@ struct Float {
 }
 
 impl Float {
+    /// Zero.
+    const ZERO: Self = Self { m: 0, e: 0 };
+
     /// `x`·2^e, normalised.
     fn new(x: u32, e: i32) -> Self {
-        Self { m: x, e }.mul(1)
+        if x == 0 {
+            return Self::ZERO;
+        }
+        let lz = x.leading_zeros();
+        Self {
+            m: x.wrapping_shl(lz),
+            e: e.wrapping_sub(lz as i32),
+        }
+    }
+
+    /// The product of two, truncated to 32 significant bits.
+    fn times(self, x: Self) -> Self {
+        self.mul(x.m).mul_exp(x.e)
     }
 
     /// The product, truncated to 32 significant bits (relative error < 2^-31).
@@ -119,32 +140,38 @@ impl FfPlan {
         self.seg == seg
     }
 
-    /// The constants of axis `c` in segment `seg`: rise `dx` (raw `I24F8` µm), floating
+    /// Axis `c`'s feed-forward at ticks per second `tps_q16` (Q16), no segment yet.
+    pub(crate) fn new(c: &AxisCoeffs, tps_q16: i32) -> Self {
+        let tps = tps_q16.unsigned_abs();
+        // Validated gains are ≥ 0.
+        let kv = |g: i32| Float::new(g.unsigned_abs(), -56).mul(tps);
+        Self {
+            gains: [
+                kv(c.kv_pos),
+                kv(c.kv_neg),
+                Float::new(c.ka.unsigned_abs(), -96).mul(tps).mul(tps),
+            ],
+            ..Self::default()
+        }
+    }
+
+    /// Forgets the segment (a new table).
+    pub(crate) fn invalidate(&mut self) {
+        self.seg = Self::NONE;
+    }
+
+    /// Works out the constants of segment `seg`: rise `dx` (raw `I24F8` µm), floating
     /// reciprocal 2^24/len_j ≈ `recip_m`·2^-`recip_s` (len_j raw `I48F16` counts; see
-    /// [`crate::table::CamTable`]), ticks per second `tps_q16` (Q16).
+    /// [`crate::table::CamTable`]).
     ///
     /// With kv in `I8F24`, ka in `I0F32`, Δx in `I24F8`, 1/len_raw = recip_m·2^-(24 +
     /// recip_s) and f_s in Q16, the real constants are
     /// kv·Δx·recip_m·f_s·2^-(56 + recip_s) LSB per (count/tick) and
-    /// ka·Δx·recip_m·f_s²·2^-(80 + recip_s) LSB per (count/tick²).
-    pub(crate) fn new(
-        c: &AxisCoeffs,
-        seg: usize,
-        dx: i32,
-        recip_m: u32,
-        recip_s: u32,
-        tps_q16: i32,
-    ) -> Self {
-        let e0 = (recip_s as i32).wrapping_neg();
-        let tps = tps_q16.unsigned_abs();
-        // |slope|·f_s as a Float, without the gains' and formats' exponents.
-        let slope_tps = Float::new(dx.unsigned_abs(), e0).mul(recip_m).mul(tps);
-        // Validated gains are ≥ 0.
-        let gain = |g: i32, e: i32| slope_tps.mul(g.unsigned_abs()).mul_exp(e);
-        let kv_pos = gain(c.kv_pos, -56);
-        let kv_neg = gain(c.kv_neg, -56);
-        // The acceleration's constant carries a further f_s and 2^-16 (see the module).
-        let ka = gain(c.ka, -80).mul(tps).mul_exp(-16);
+    /// ka·Δx·recip_m·f_s²·2^-(80 + recip_s) LSB per (count/tick²), M_a a further 2^-16.
+    pub(crate) fn enter(&mut self, seg: usize, dx: i32, recip_m: u32, recip_s: u32) {
+        // |Δx|·recip_m·2^-recip_s: the slope without the formats' exponents.
+        let slope = Float::new(dx.unsigned_abs(), (recip_s as i32).wrapping_neg()).mul(recip_m);
+        let [kv_pos, kv_neg, ka] = self.gains.map(|g| g.times(slope));
         let s = kv_pos
             .max_shift()
             .min(kv_neg.max_shift())
@@ -156,12 +183,10 @@ impl FfPlan {
         } else {
             (n.wrapping_neg(), p.wrapping_neg(), a.wrapping_neg())
         };
-        Self {
-            seg,
-            m_v: [m_up, m_dn],
-            m_a,
-            k_shl: 1u32.wrapping_shl(32u32.wrapping_sub(s as u32)),
-        }
+        self.seg = seg;
+        self.m_v = [m_up, m_dn];
+        self.m_a = m_a;
+        self.k_shl = 1u32.wrapping_shl(32u32.wrapping_sub(s as u32));
     }
 
     /// u_ff, Q16 LSB (saturated), for the master speed `v_q16` (counts/tick, Q16) and
@@ -215,6 +240,14 @@ mod tests {
         crate::table::float_recip(len)
     }
 
+    /// Axis `c`'s constants in a segment.
+    fn plan(c: &AxisCoeffs, seg: usize, dx: i32, rm: u32, rs: u32, tps: i32) -> FfPlan {
+        let mut p = FfPlan::new(c, tps);
+        assert!(!p.is_for(seg));
+        p.enter(seg, dx, rm, rs);
+        p
+    }
+
     fn coeffs(kvp: f32, kvn: f32, ka: f32) -> AxisCoeffs {
         AxisConfig {
             kv_pos_lsb_per_um_s: kvp,
@@ -243,7 +276,7 @@ mod tests {
         let len = 500u64 << 16;
         let (rm, rs) = recip(len);
         let tps = 1000 << 16;
-        let p = FfPlan::new(&c, 7, 2000 << 8, rm, rs, tps);
+        let p = plan(&c, 7, 2000 << 8, rm, rs, tps);
         assert!(p.is_for(7) && !p.is_for(8));
         for (v, acc) in [(201_195, 0), (-201_195, 0), (201_195, 40_000), (0, -40_000)] {
             let got = f64::from(p.ff_q16(v, acc)) / 65_536.0;
@@ -254,7 +287,7 @@ mod tests {
         let up = f64::from(p.ff_q16(3 << 16, 0)) / 65_536.0;
         assert!((up - 0.017 * 4.0 * 3000.0).abs() < 1e-3, "{up}");
         // Falling segment, θ̇ > 0: the slave moves down, kv⁻.
-        let q = FfPlan::new(&c, 7, -(2000 << 8), rm, rs, tps);
+        let q = plan(&c, 7, -(2000 << 8), rm, rs, tps);
         let down = f64::from(q.ff_q16(3 << 16, 0)) / 65_536.0;
         assert!((down + 0.025 * 4.0 * 3000.0).abs() < 1e-3, "{down}");
     }
@@ -262,9 +295,9 @@ mod tests {
     #[test]
     fn zero_gains_or_flat_segment_give_zero() {
         let (rm, rs) = recip(1 << 20);
-        let p = FfPlan::new(&coeffs(0.0, 0.0, 0.0), 0, 5000, rm, rs, 1000 << 16);
+        let p = plan(&coeffs(0.0, 0.0, 0.0), 0, 5000, rm, rs, 1000 << 16);
         assert_eq!(p.ff_q16(i32::MAX, i32::MIN), 0);
-        let q = FfPlan::new(&coeffs(1.0, 1.0, 0.1), 0, 0, rm, rs, 1000 << 16);
+        let q = plan(&coeffs(1.0, 1.0, 0.1), 0, 0, rm, rs, 1000 << 16);
         assert_eq!(q.ff_q16(i32::MIN, i32::MAX), 0);
     }
 
@@ -279,7 +312,7 @@ mod tests {
             let c = coeffs(kvp, kvn, ka);
             let tps = (65_536.0e6 / f64::from(period_us)) as i32;
             let (rm, rs) = recip(len);
-            let p = FfPlan::new(&c, 0, dx, rm, rs, tps);
+            let p = plan(&c, 0, dx, rm, rs, tps);
             let shr = 32 - p.k_shl.trailing_zeros();
             prop_assert!((1..=31).contains(&shr) && p.k_shl.is_power_of_two());
             let got = f64::from(p.ff_q16(v, acc));
