@@ -837,6 +837,43 @@ mod tests {
 
         /// `locate_segment` finds the segment (and the end beyond) that `locate` finds,
         /// from the same cursor.
+        /// The follower's fast path: `Some` exactly when the sampled master, the master
+        /// and its look-ahead are all in the cursor's segment, then with the span
+        /// `locate` gives at the master; the look-ahead is computed only then.
+        #[test]
+        fn span_pair_is_the_in_segment_case(steps in table_strategy(),
+                                            probes in proptest::collection::vec((-0.2f64..1.2, -0.05f64..0.05, -0.05f64..0.05), 1..40)) {
+            let (nodes, t) = strategy_table(&steps, -10_000.0);
+            let lo = nodes[0].master.to_num::<f64>();
+            let hi = nodes[nodes.len() - 1].master.to_num::<f64>();
+            let mut c = 0;
+            for (p, ds, da) in probes {
+                let m = Master::from_num(lo + p * (hi - lo));
+                let sampled = Master::from_num(lo + (p + ds) * (hi - lo));
+                let delta = Master::from_num(da * (hi - lo)).to_bits();
+                let cursor = c;
+                let mut asked = false;
+                let got = t.span_pair(cursor, sampled, m, || {
+                    asked = true;
+                    delta
+                });
+                let seg = t.segs[cursor];
+                let inside = |x: i64| x >= seg.m0 && x < seg.m0 + i64::from(seg.len);
+                let all = inside(sampled.to_bits()) && inside(m.to_bits()) && inside(m.to_bits() + delta);
+                prop_assert_eq!(got.is_some(), all);
+                prop_assert_eq!(asked, inside(sampled.to_bits()) && inside(m.to_bits()));
+                if let Some(sp) = got {
+                    let lk = t.locate(&mut c, m);
+                    prop_assert_eq!(lk.seg, cursor);
+                    for axis in 0..2 {
+                        prop_assert_eq!(sp.value_bits(axis), t.value(&lk, axis).to_bits());
+                    }
+                } else {
+                    let _ = t.locate(&mut c, m);
+                }
+            }
+        }
+
         #[test]
         fn locate_segment_agrees_with_locate(steps in table_strategy(), probes in proptest::collection::vec(-0.2f64..1.2, 1..40)) {
             let (nodes, t) = strategy_table(&steps, -10_000.0);

@@ -521,3 +521,44 @@ fn paper_only_follower_uses_the_predictor() {
     assert!(o.end_of_table && f.ended());
     assert!(f.tick(&inputs(last + 100_000.0, 20_000.0)).master_jump);
 }
+
+/// A replaced table starts afresh, feed-forward constants included: after
+/// `replace_table` the follower gives, tick for tick, what a new follower on the new table
+/// gives (the old table's constants for the same segment indices are not reused).
+#[test]
+fn replaced_table_gives_a_fresh_followers_outputs() {
+    let cfg = FollowerConfig {
+        axes: [ff_axis()],
+        ..FollowerConfig::default()
+    };
+    let steeper: Vec<(f64, f64)> = sine_nodes()
+        .iter()
+        .map(|&(m, x)| (m, 20_000.0 + 2.0 * (x - 20_000.0)))
+        .collect();
+    let mut f = Follower::new(&cfg, table1(&sine_nodes())).unwrap();
+    let x_at = |t: &CamTable<1, 256>, m: f64| {
+        let mut c = 0;
+        t.value(&t.locate(&mut c, Master::from_num(m)), 0)
+            .to_num::<f64>()
+    };
+    for k in 0..3000 {
+        let m = 1000.0 + f64::from(k) * 3.07;
+        let x = x_at(f.table(), m) - 3.0;
+        f.tick(&inputs(m.floor(), x));
+    }
+    f.replace_table(table1(&steeper));
+    let mut fresh = Follower::new(&cfg, table1(&steeper)).unwrap();
+    let mut moved = false;
+    for k in 0..3000 {
+        // The master carries on from the same segments, moving up and back down.
+        let m = 10_000.0 + 4000.0 * (f64::from(k) * 2e-3).sin();
+        let x = x_at(fresh.table(), m) - 3.0;
+        let (a, b) = (
+            f.tick(&inputs(m.floor(), x)),
+            fresh.tick(&inputs(m.floor(), x)),
+        );
+        assert_eq!(a, b, "tick {k}");
+        moved |= a.cmd_lsb[0].abs() > CmdLsb::from_num(10);
+    }
+    assert!(moved, "the feed-forward acted");
+}
