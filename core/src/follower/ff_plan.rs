@@ -87,17 +87,27 @@ impl Float {
         }
     }
 
-    /// The value ·2^e.
-    fn mul_exp(self, e: i32) -> Self {
-        Self {
-            m: self.m,
-            e: self.e.wrapping_add(e),
-        }
-    }
-
-    /// The product of two, truncated to 32 significant bits.
+    /// The product of two normalised numbers, truncated to 32 significant bits (relative
+    /// error < 2^-31). Both mantissas in [2^31, 2^32): the product is in [2^62, 2^64), so
+    /// its normalisation is a shift by 0 or 1 (the cheap form of [`Float::mul`], for the
+    /// constants of every segment entered).
     fn times(self, x: Self) -> Self {
-        self.mul(x.m).mul_exp(x.e)
+        let p = u64::from(self.m).wrapping_mul(u64::from(x.m));
+        if self.m == 0 || x.m == 0 {
+            return Self::ZERO;
+        }
+        let e = self.e.wrapping_add(x.e).wrapping_add(32);
+        if p >> 63 == 0 {
+            Self {
+                m: (p >> 31) as u32,
+                e: e.wrapping_sub(1),
+            }
+        } else {
+            Self {
+                m: (p >> 32) as u32,
+                e,
+            }
+        }
     }
 
     /// The product, truncated to 32 significant bits (relative error < 2^-31).
@@ -178,8 +188,10 @@ impl FfPlan {
     /// kv·Δx·recip_m·f_s·2^-(56 + recip_s) LSB per (count/tick) and
     /// ka·Δx·recip_m·f_s²·2^-(80 + recip_s) LSB per (count/tick²), M_a a further 2^-16.
     pub(crate) fn enter(&mut self, seg: usize, dx: i32, recip_m: u32, recip_s: u32) {
-        // |Δx|·recip_m·2^-recip_s: the slope without the formats' exponents.
-        let slope = Float::new(dx.unsigned_abs(), (recip_s as i32).wrapping_neg()).mul(recip_m);
+        // |Δx|·recip_m·2^-recip_s: the slope without the formats' exponents (recip_m is
+        // normalised, see `CamTable`).
+        let slope = Float::new(dx.unsigned_abs(), (recip_s as i32).wrapping_neg())
+            .times(Float::new(recip_m, 0));
         let [kv_pos, kv_neg, ka] = self.gains.map(|g| g.times(slope));
         let s = kv_pos
             .max_shift()
