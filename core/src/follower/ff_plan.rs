@@ -21,7 +21,7 @@
 //! rising segment and −kv⁻·|slope| on a falling one, M_v− the other way round.
 //!
 //! The constants are worked out when the axis' feed-forward enters a segment (every ≈ 160
-//! ticks on the reference machine; out of line, ≈ 190 instructions on a Cortex-M4), the
+//! ticks on the reference machine; out of line, ≈ 160 instructions on a Cortex-M4), the
 //! gains with f_s folded in once when the follower is built, so a tick pays two
 //! multiply-accumulates and one shift per axis instead of converting the master's rates to
 //! counts/s, to segments/s and to µm/s first. Formats: M_v±, M_a `i32` with the common
