@@ -371,12 +371,13 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         }
     }
 
-    /// The Feedforward fast path (steps 3–5 of a tick where every axis is Feedforward with
-    /// one lead and the table has not ended): the sampled master, the filtered master now
-    /// and its look-ahead all in the cursor's segment — nearly every tick. The sampled
+    /// The Feedforward fast path (steps 3–5 of a tick where every axis is Feedforward and
+    /// the table has not ended): the sampled master, the filtered master now and the first
+    /// axis' look-ahead all in the cursor's segment — nearly every tick. The sampled
     /// master inside a segment is inside the table, so the end test of step 3 cannot fire
-    /// (and needs no direction); both lookups and the feed-forward come from that
-    /// segment. Returns `false`, having written nothing, otherwise.
+    /// (and needs no direction); both lookups and the feed-forward come from that segment
+    /// (an axis with another lead takes its own lookup in the axis loop). Returns `false`,
+    /// having written nothing, otherwise.
     #[inline(always)]
     fn tick_ff_fast(&mut self, inp: &FollowerInputs<S>, out: &mut FollowerOutputs<S>) -> bool {
         let Some(lead) = self.ff_lead0 else {
