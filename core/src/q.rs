@@ -8,10 +8,17 @@
 /// Saturates an `i64` to the `i32` range.
 #[inline(always)]
 pub const fn sat_i32(x: i64) -> i32 {
-    // x fits an i32 exactly when its high word is the sign extension of its low word;
-    // otherwise the result is MAX or MIN by the sign of x (`hi >> 31` is 0 or −1).
-    let lo = x as i32;
-    let hi = (x >> 32) as i32;
+    sat_i32_words((x >> 32) as i32, x as u32)
+}
+
+/// [`sat_i32`] of the `i64` whose high and low words are `hi` and `lo`: for a value
+/// built word by word (LLVM turns an `i64` sum followed by [`sat_i32`] into a 64-bit
+/// clamp, several instructions dearer on the Cortex-M4).
+#[inline(always)]
+pub const fn sat_i32_words(hi: i32, lo: u32) -> i32 {
+    // The value fits an i32 exactly when its high word is the sign extension of its low
+    // word; otherwise the result is MAX or MIN by its sign (`hi >> 31` is 0 or −1).
+    let lo = lo as i32;
     if hi == lo >> 31 {
         lo
     } else {

@@ -33,6 +33,7 @@
 //! below 2^63; the shifted result is saturated to `i32` (Q16 LSB, ±32 768 LSB).
 
 use crate::axis::AxisCoeffs;
+use crate::q::sat_i32_words;
 
 /// The feed-forward of one axis: its gains for the follower's period, and its constants
 /// for one segment.
@@ -229,14 +230,10 @@ impl FfPlan {
         let k = self.k_shl;
         let hi = i64::from((p >> 32) as i32).wrapping_mul(i64::from(k));
         let lo = (u64::from(p as u32).wrapping_mul(u64::from(k)) >> 32) as u32;
-        // The 64-bit sum in words, then the saturation test of `sat_i32` on them.
+        // The 64-bit sum in words (the carry by hand), saturated on the words.
         let r_lo = (hi as u32).wrapping_add(lo);
         let r_hi = ((hi >> 32) as i32).wrapping_add(i32::from(r_lo < lo));
-        if r_hi == (r_lo as i32) >> 31 {
-            r_lo as i32
-        } else {
-            (r_hi >> 31) ^ i32::MAX
-        }
+        sat_i32_words(r_hi, r_lo)
     }
 }
 
