@@ -142,6 +142,20 @@ struct Segment<const S: usize> {
 }
 
 impl<const S: usize> Segment<S> {
+    /// θ − θ_j for a master θ (raw `I48F16`) inside this segment, `None` outside: the
+    /// difference modulo 2^64 (the master's own arithmetic, see
+    /// [`crate::master::MasterFilter::update`]) is in [0, len_j) exactly when θ is in the
+    /// segment (a table spans far less than 2^63 raw), and then below 2^32.
+    #[inline(always)]
+    fn offset(&self, m: i64) -> Option<u32> {
+        let d = m.wrapping_sub(self.m0) as u64;
+        if d < u64::from(self.len) {
+            Some(d as u32)
+        } else {
+            None
+        }
+    }
+
     /// `rate / len` in segments per unit time, Q16.16, for a rate in master counts per
     /// unit time, Q24.8 (see [`CamTable::seg_rate_q16`]).
     #[inline(always)]
@@ -338,15 +352,10 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     pub fn locate(&self, cursor: &mut usize, m: Master) -> Lookup {
         let m = m.to_bits();
         if let Some(s) = self.segs.get(*cursor) {
-            // θ − θ_j modulo 2^64 (the master's own arithmetic, see
-            // [`crate::master::MasterFilter::update`]): in [0, len_j) exactly when θ is in
-            // the segment (a table spans far less than 2^63 raw).
-            let d = m.wrapping_sub(s.m0) as u64;
-            if d < u64::from(s.len) {
+            if let Some(d) = s.offset(m) {
                 return Lookup {
                     seg: *cursor,
-                    // d < len < 2^32.
-                    frac_q32: frac_q32(d as u32, s.recip),
+                    frac_q32: frac_q32(d, s.recip),
                     beyond: Beyond::Inside,
                 };
             }
@@ -362,8 +371,7 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     pub(crate) fn locate_segment(&self, cursor: &mut usize, m: Master) -> Lookup {
         let m = m.to_bits();
         if let Some(s) = self.segs.get(*cursor) {
-            // As in `locate`.
-            if (m.wrapping_sub(s.m0) as u64) < u64::from(s.len) {
+            if s.offset(m).is_some() {
                 return Lookup {
                     seg: *cursor,
                     frac_q32: 0,
@@ -484,23 +492,16 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         delta: impl FnOnce() -> i64,
     ) -> Option<Span<'_, S>> {
         let s = self.segs.get(cursor)?;
-        // As in `locate` (modulo 2^64); d < len < 2^32.
-        let len = u64::from(s.len);
-        if sampled.to_bits().wrapping_sub(s.m0) as u64 >= len {
-            return None;
-        }
-        let d = m.to_bits().wrapping_sub(s.m0) as u64;
-        if d >= len {
-            return None;
-        }
+        s.offset(sampled.to_bits())?;
+        let d = s.offset(m.to_bits())?;
         // The look-ahead's offset, modulo 2^64 like `d` (|delta| < 2^45, see
         // `MasterFilter::ahead`).
-        if (d as i64).wrapping_add(delta()) as u64 >= len {
+        if i64::from(d).wrapping_add(delta()) as u64 >= u64::from(s.len) {
             return None;
         }
         Some(Span {
             seg: s,
-            frac_q32: frac_q32(d as u32, s.recip),
+            frac_q32: frac_q32(d, s.recip),
         })
     }
 }
