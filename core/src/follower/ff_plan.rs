@@ -41,7 +41,7 @@ use crate::q::sat_i32_words;
 pub(crate) struct FfPlan {
     /// kv⁺·f_s, kv⁻·f_s and ka·f_s²·2^-16 with the formats' exponents (kv `I8F24`, ka
     /// `I0F32`, f_s Q16): worked out once, at [`FfPlan::new`].
-    gains: [Float; 3],
+    gains: [MantExp; 3],
     /// The segment the constants below are for ([`FfPlan::NONE`]: none yet).
     seg: usize,
     /// M_v for θ̇ ≥ 0 and for θ̇ < 0, LSB per (count/tick) · 2^s.
@@ -56,7 +56,7 @@ impl Default for FfPlan {
     /// Zero gains, no segment.
     fn default() -> Self {
         Self {
-            gains: [Float::ZERO; 3],
+            gains: [MantExp::ZERO; 3],
             seg: Self::NONE,
             m_v: [0; 2],
             m_a: 0,
@@ -65,14 +65,15 @@ impl Default for FfPlan {
     }
 }
 
-/// A positive number m·2^e with m < 2^32 (normalised: m ≥ 2^31, or m = 0).
+/// A positive number m·2^e with m < 2^32 (normalised: m ≥ 2^31, or m = 0): integer
+/// mantissa and exponent, for working out the constants (no floating point).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Float {
+struct MantExp {
     m: u32,
     e: i32,
 }
 
-impl Float {
+impl MantExp {
     /// Zero.
     const ZERO: Self = Self { m: 0, e: 0 };
 
@@ -90,7 +91,7 @@ impl Float {
 
     /// The product of two normalised numbers, truncated to 32 significant bits (relative
     /// error < 2^-31). Both mantissas in [2^31, 2^32): the product is in [2^62, 2^64), so
-    /// its normalisation is a shift by 0 or 1 (the cheap form of [`Float::mul`], for the
+    /// its normalisation is a shift by 0 or 1 (the cheap form of [`MantExp::mul`], for the
     /// constants of every segment entered).
     fn times(self, x: Self) -> Self {
         let p = u64::from(self.m).wrapping_mul(u64::from(x.m));
@@ -164,12 +165,12 @@ impl FfPlan {
     pub(crate) fn new(c: &AxisCoeffs, tps_q16: i32) -> Self {
         let tps = tps_q16.unsigned_abs();
         // Validated gains are ≥ 0.
-        let kv = |g: i32| Float::new(g.unsigned_abs(), -56).mul(tps);
+        let kv = |g: i32| MantExp::new(g.unsigned_abs(), -56).mul(tps);
         Self {
             gains: [
                 kv(c.kv_pos),
                 kv(c.kv_neg),
-                Float::new(c.ka.unsigned_abs(), -96).mul(tps).mul(tps),
+                MantExp::new(c.ka.unsigned_abs(), -96).mul(tps).mul(tps),
             ],
             ..Self::default()
         }
@@ -191,8 +192,8 @@ impl FfPlan {
     pub(crate) fn enter(&mut self, seg: usize, dx: i32, recip_m: u32, recip_s: u32) {
         // |Δx|·recip_m·2^-recip_s: the slope without the formats' exponents (recip_m is
         // normalised, see `CamTable`).
-        let slope = Float::new(dx.unsigned_abs(), (recip_s as i32).wrapping_neg())
-            .times(Float::new(recip_m, 0));
+        let slope = MantExp::new(dx.unsigned_abs(), (recip_s as i32).wrapping_neg())
+            .times(MantExp::new(recip_m, 0));
         let [kv_pos, kv_neg, ka] = self.gains.map(|g| g.times(slope));
         let s = kv_pos
             .max_shift()
