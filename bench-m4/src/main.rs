@@ -199,6 +199,10 @@ fn main() -> ! {
         "follower_ff_2axes_every_node",
         FollowerFig::<2>::with_motion(ControlMode::Feedforward, Motion::EveryNode),
     );
+    r.run(
+        "follower_ff_8axes_every_node",
+        FollowerFig::<8>::with_motion(ControlMode::Feedforward, Motion::EveryNode),
+    );
     // S-curve (SPEC §B).
     r.run("scurve_sample", scurve::ProfileSample::new());
     r.run("scurve_line_xy", scurve::LineXy::new());
