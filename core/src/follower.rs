@@ -173,11 +173,71 @@ pub struct Follower<const S: usize, const N: usize> {
     /// Which end `ended` latched at (true: the last node): fixed while ended, so a master
     /// estimate ringing through zero speed after the end cannot swap the held position.
     end_high: bool,
+    /// Whether [`Follower::configure`] succeeded once (see [`Follower::is_ready`]).
+    configured: bool,
 }
 
 impl<const S: usize, const N: usize> Follower<S, N> {
-    /// Validates the configuration and takes the table.
+    /// A law buffer's starting value: no configuration (every coefficient zero, valve
+    /// nulls at DAC code 0) and the [empty](CamTable::empty) table. `const` and all-zero
+    /// bytes, so a static law buffer is `.bss`, initialised at link time and never
+    /// through the stack; it is configured
+    /// and given a table in place ([`Self::configure`], [`Self::load_table`] or
+    /// [`Self::rebuild_table_from_nodes`]) before it runs. [`Self::is_ready`] tells the
+    /// two apart.
+    pub const fn unconfigured() -> Self {
+        const AXIS: AxisCoeffs = AxisCoeffs {
+            mode: ControlMode::Feedforward,
+            kp: 0,
+            ki_tick: 0,
+            kd_tick: 0,
+            i_zone: 0,
+            i_limit: 0,
+            kv_pos: 0,
+            kv_neg: 0,
+            ka: 0,
+            lead_q16: 0,
+            fe_limit: 0,
+            valve: crate::valve::ValveCoeffs::UNSET,
+        };
+        const RT: AxisRt = AxisRt {
+            st: PosState::RESET,
+            fault: None,
+            ff: FfPlan::ZEROED,
+        };
+        Self {
+            axes: [AXIS; S],
+            mf: MasterFilterCoeffs::UNSET,
+            filter: MasterFilter::START,
+            pred: Predictor::new(PredictorKind::Eq4),
+            table: CamTable::empty(),
+            cur_now: 0,
+            cur_pred: 0,
+            cur_ff: 0,
+            any_paper: false,
+            modes: Modes::Feedforward,
+            ff_lead0: None,
+            ff_leads_differ: false,
+            rt: [RT; S],
+            ended: false,
+            end_high: false,
+            configured: false,
+        }
+    }
+
+    /// Validates the configuration and takes the table (by value: the host's form; a
+    /// board builds its law in place, see [`Self::unconfigured`]).
     pub fn new(cfg: &FollowerConfig<S>, table: CamTable<S, N>) -> Result<Self, FollowerError> {
+        let mut f = Self::unconfigured();
+        f.configure(cfg)?;
+        f.table = table;
+        f.restart();
+        Ok(f)
+    }
+
+    /// Validates `cfg` and, only if all of it is valid, makes it this follower's
+    /// configuration, in place; the loop state restarts. On an error nothing changes.
+    pub fn configure(&mut self, cfg: &FollowerConfig<S>) -> Result<(), FollowerError> {
         let mf = cfg
             .master_filter
             .build(cfg.period_us)
@@ -195,36 +255,57 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             .iter()
             .find(|a| a.mode == ControlMode::Feedforward)
             .map(|a| a.lead_q16);
-        let mut rt = [AxisRt::default(); S];
-        for (r, c) in rt.iter_mut().zip(axes.iter()) {
-            r.ff = FfPlan::new(c, mf.tps_q16());
+        for (r, c) in self.rt.iter_mut().zip(axes.iter()) {
+            *r = AxisRt {
+                ff: FfPlan::new(c, mf.tps_q16()),
+                ..AxisRt::default()
+            };
         }
-        Ok(Self {
-            axes,
-            mf,
-            filter: MasterFilter::default(),
-            pred: Predictor::new(cfg.predictor),
-            table,
-            cur_now: 0,
-            cur_pred: 0,
-            cur_ff: 0,
-            any_paper: cfg.axes.iter().any(|a| a.mode == ControlMode::Paper),
-            modes: if cfg.axes.iter().all(|a| a.mode == ControlMode::Feedforward) {
-                Modes::Feedforward
-            } else if cfg.axes.iter().all(|a| a.mode == ControlMode::Paper) {
-                Modes::Paper
-            } else {
-                Modes::Mixed
-            },
-            ff_leads_differ: axes
-                .iter()
-                .filter(|a| a.mode == ControlMode::Feedforward)
-                .any(|a| Some(a.lead_q16) != ff_lead0),
-            ff_lead0,
-            rt,
-            ended: false,
-            end_high: true,
-        })
+        self.mf = mf;
+        self.pred = Predictor::new(cfg.predictor);
+        self.any_paper = cfg.axes.iter().any(|a| a.mode == ControlMode::Paper);
+        self.modes = if cfg.axes.iter().all(|a| a.mode == ControlMode::Feedforward) {
+            Modes::Feedforward
+        } else if cfg.axes.iter().all(|a| a.mode == ControlMode::Paper) {
+            Modes::Paper
+        } else {
+            Modes::Mixed
+        };
+        self.ff_leads_differ = axes
+            .iter()
+            .filter(|a| a.mode == ControlMode::Feedforward)
+            .any(|a| Some(a.lead_q16) != ff_lead0);
+        self.ff_lead0 = ff_lead0;
+        self.axes = axes;
+        self.configured = true;
+        self.restart();
+        Ok(())
+    }
+
+    /// Makes this follower's table a copy of `table`, in place, and restarts the loop
+    /// state (at a safe point: the caller checks that the axes are idle or the current
+    /// table has ended).
+    pub fn load_table(&mut self, table: &CamTable<S, N>) {
+        self.table.copy_from(table);
+        self.restart();
+    }
+
+    /// Validates `nodes` and rebuilds this follower's table from them in place
+    /// ([`CamTable::rebuild_from_nodes`]); the loop state restarts. On an error the table
+    /// is unchanged.
+    pub fn rebuild_table_from_nodes(
+        &mut self,
+        nodes: &[crate::table::Node<S>],
+        limits: &crate::table::TableLimits<S>,
+    ) -> Result<(), crate::table::TableError> {
+        self.table.rebuild_from_nodes(nodes, limits)?;
+        self.restart();
+        Ok(())
+    }
+
+    /// Configured and holding a built table: the law may run.
+    pub fn is_ready(&self) -> bool {
+        self.configured && !self.table.is_empty()
     }
 
     /// The table in use.

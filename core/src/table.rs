@@ -208,77 +208,74 @@ pub struct CamTable<const S: usize, const N: usize> {
 const MAX_LEN_BITS: i64 = (1 << 32) - (1 << 16);
 
 impl<const S: usize, const N: usize> CamTable<S, N> {
-    /// Validates the nodes and builds the table (SPEC §A "Table").
+    /// An empty table (no segment): the starting value of a table buffer that is filled
+    /// in place by [`Self::rebuild_from_nodes`] or [`Self::copy_from`]. `const`, so a
+    /// static buffer is initialised at link time, never through the stack. An empty
+    /// table is not a valid cam table ([`Self::is_empty`]); every lookup on it answers
+    /// node 0 at master 0 (nothing panics), and no law runs one (the board builds its law
+    /// only from a table that passed [`Self::rebuild_from_nodes`]).
+    pub const fn empty() -> Self {
+        Self {
+            segs: Vec::new(),
+            last: Node {
+                master: Master::ZERO,
+                slave_um: [PosUm::ZERO; S],
+            },
+        }
+    }
+
+    /// Validates the nodes and builds the table (SPEC §A "Table"), by value.
+    ///
+    /// A `CamTable` of 256 rows is 12 KiB: on a microcontroller build it in place in a
+    /// static buffer with [`Self::rebuild_from_nodes`] instead (this returns it through
+    /// the caller's stack frame).
     pub fn try_from_nodes(nodes: &[Node<S>], limits: &TableLimits<S>) -> Result<Self, TableError> {
-        if nodes.len() < 2 {
-            return Err(TableError::TooFewNodes);
-        }
-        if nodes.len() > N {
-            return Err(TableError::TooManyNodes { capacity: N });
-        }
-        if limits.master_speed_per_s <= 0 {
-            return Err(TableError::MasterSpeed);
-        }
-        let (first, rest) = nodes.split_first().ok_or(TableError::TooFewNodes)?;
-        let decreasing = rest.first().is_some_and(|n| n.master < first.master);
-        // Rows in increasing master order, with their original indices.
-        let at = |i: usize| -> Option<(usize, &Node<S>)> {
-            let len = nodes.len();
-            let idx = if decreasing {
-                len.checked_sub(1)?.checked_sub(i)?
-            } else {
-                i
-            };
-            nodes.get(idx).map(|n| (idx, n))
-        };
-        let mut segs: Vec<Segment<S>, N> = Vec::new();
-        let mut prev: Option<(usize, &Node<S>)> = None;
-        for i in 0..nodes.len() {
-            let (row, node) = at(i).ok_or(TableError::TooFewNodes)?;
-            check_range(row, node, limits)?;
-            if let Some((_, p)) = prev {
-                let len = node.master.to_bits().checked_sub(p.master.to_bits());
-                let len = match len {
-                    Some(l) if l > 0 => l,
-                    _ => return Err(TableError::NotMonotonic { row }),
-                };
-                if !(2..=MAX_LEN_BITS).contains(&len) {
-                    return Err(TableError::SegmentLength { row });
-                }
-                let mut dx = [0i32; S];
-                for (axis, ((d, (a, b)), lim)) in dx
-                    .iter_mut()
-                    .zip(p.slave_um.iter().zip(node.slave_um.iter()))
-                    .zip(limits.axes.iter())
-                    .enumerate()
-                {
-                    let diff = i64::from(b.to_bits()).saturating_sub(i64::from(a.to_bits()));
-                    check_slope(row, axis, diff, len, lim, limits)?;
-                    *d = i32::try_from(diff).map_err(|_| TableError::TooSteep { row, axis })?;
-                }
-                let len_u = len.unsigned_abs();
-                // ⌈2^64/len⌉ (len ≥ 2, so ≤ 2^63).
-                let recip = u64::MAX.checked_div(len_u).unwrap_or(0).saturating_add(1);
-                let mut x0 = [0i32; S];
-                for (o, x) in x0.iter_mut().zip(p.slave_um.iter()) {
-                    *o = x.to_bits();
-                }
-                let (recip_m, recip_s) = float_recip(len_u);
-                segs.push(Segment {
-                    m0: p.master.to_bits(),
-                    len: u32::try_from(len_u).map_err(|_| TableError::SegmentLength { row })?,
-                    recip,
-                    recip_m,
-                    recip_s,
-                    x0,
-                    dx,
-                })
-                .map_err(|_| TableError::TooManyNodes { capacity: N })?;
+        let mut t = Self::empty();
+        t.rebuild_from_nodes(nodes, limits)?;
+        Ok(t)
+    }
+
+    /// Validates the nodes and, only if every rule holds, rebuilds this table from them
+    /// in place (SPEC §A "Table"; the rules are in the module docs). On an error the
+    /// table is unchanged: a refused upload never harms the table in the buffer.
+    ///
+    /// Two passes over the nodes — the first checks every rule and writes nothing, the
+    /// second writes the segments — so no segment array is ever built on the stack.
+    pub fn rebuild_from_nodes(
+        &mut self,
+        nodes: &[Node<S>],
+        limits: &TableLimits<S>,
+    ) -> Result<(), TableError> {
+        // Pass 1: every rule, nothing written.
+        let last = build_segments(nodes, limits, N, |_| Ok(()))?;
+        // Pass 2: the same walk, writing (the rules held, so it cannot fail here; the
+        // capacity was checked in pass 1).
+        self.segs.clear();
+        let segs = &mut self.segs;
+        let r = build_segments(nodes, limits, N, |seg| {
+            segs.push(seg)
+                .map_err(|_| TableError::TooManyNodes { capacity: N })
+        });
+        match r {
+            Ok(_) => {
+                self.last = last;
+                Ok(())
             }
-            prev = Some((row, node));
+            Err(e) => {
+                // Unreachable after pass 1; leave an empty (never runnable) table rather
+                // than half of one.
+                self.segs.clear();
+                Err(e)
+            }
         }
-        let last = *prev.map(|(_, n)| n).ok_or(TableError::TooFewNodes)?;
-        Ok(Self { segs, last })
+    }
+
+    /// Makes this table a copy of `other`, in place (no temporary on the stack).
+    pub fn copy_from(&mut self, other: &Self) {
+        self.segs.clear();
+        // Same capacity N: cannot fail.
+        let _ = self.segs.extend_from_slice(&other.segs);
+        self.last = other.last;
     }
 
     /// Checks this (already built) table against other limits — e.g. after a limit
@@ -303,18 +300,25 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         Ok(())
     }
 
-    /// Number of nodes.
+    /// Number of nodes (0 for [`Self::empty`]; a built table has at least two).
     pub fn len(&self) -> usize {
-        self.segs.len().saturating_add(1)
+        if self.segs.is_empty() {
+            0
+        } else {
+            self.segs.len().saturating_add(1)
+        }
     }
 
-    /// Always false: a valid table has at least two nodes.
+    /// Whether this is the [`Self::empty`] placeholder (a built table never is).
     pub fn is_empty(&self) -> bool {
-        false
+        self.segs.is_empty()
     }
 
     /// Node `i` in increasing master order.
     pub fn node(&self, i: usize) -> Option<Node<S>> {
+        if self.segs.is_empty() {
+            return None;
+        }
         if i == self.segs.len() {
             return Some(self.last);
         }
@@ -563,6 +567,83 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
             frac_q32: lk.frac_q32,
         })
     }
+}
+
+/// The walk of [`CamTable::rebuild_from_nodes`]: checks every rule over `nodes` (at most
+/// `capacity` of them) and hands each segment, in increasing master order, to `put`.
+/// Returns the last node (in increasing master order).
+fn build_segments<const S: usize>(
+    nodes: &[Node<S>],
+    limits: &TableLimits<S>,
+    capacity: usize,
+    mut put: impl FnMut(Segment<S>) -> Result<(), TableError>,
+) -> Result<Node<S>, TableError> {
+    if nodes.len() < 2 {
+        return Err(TableError::TooFewNodes);
+    }
+    if nodes.len() > capacity {
+        return Err(TableError::TooManyNodes { capacity });
+    }
+    if limits.master_speed_per_s <= 0 {
+        return Err(TableError::MasterSpeed);
+    }
+    let (first, rest) = nodes.split_first().ok_or(TableError::TooFewNodes)?;
+    let decreasing = rest.first().is_some_and(|n| n.master < first.master);
+    // Rows in increasing master order, with their original indices.
+    let at = |i: usize| -> Option<(usize, &Node<S>)> {
+        let len = nodes.len();
+        let idx = if decreasing {
+            len.checked_sub(1)?.checked_sub(i)?
+        } else {
+            i
+        };
+        nodes.get(idx).map(|n| (idx, n))
+    };
+    let mut prev: Option<(usize, &Node<S>)> = None;
+    for i in 0..nodes.len() {
+        let (row, node) = at(i).ok_or(TableError::TooFewNodes)?;
+        check_range(row, node, limits)?;
+        if let Some((_, p)) = prev {
+            let len = node.master.to_bits().checked_sub(p.master.to_bits());
+            let len = match len {
+                Some(l) if l > 0 => l,
+                _ => return Err(TableError::NotMonotonic { row }),
+            };
+            if !(2..=MAX_LEN_BITS).contains(&len) {
+                return Err(TableError::SegmentLength { row });
+            }
+            let mut dx = [0i32; S];
+            for (axis, ((d, (a, b)), lim)) in dx
+                .iter_mut()
+                .zip(p.slave_um.iter().zip(node.slave_um.iter()))
+                .zip(limits.axes.iter())
+                .enumerate()
+            {
+                let diff = i64::from(b.to_bits()).saturating_sub(i64::from(a.to_bits()));
+                check_slope(row, axis, diff, len, lim, limits)?;
+                *d = i32::try_from(diff).map_err(|_| TableError::TooSteep { row, axis })?;
+            }
+            let len_u = len.unsigned_abs();
+            // ⌈2^64/len⌉ (len ≥ 2, so ≤ 2^63).
+            let recip = u64::MAX.checked_div(len_u).unwrap_or(0).saturating_add(1);
+            let mut x0 = [0i32; S];
+            for (o, x) in x0.iter_mut().zip(p.slave_um.iter()) {
+                *o = x.to_bits();
+            }
+            let (recip_m, recip_s) = float_recip(len_u);
+            put(Segment {
+                m0: p.master.to_bits(),
+                len: u32::try_from(len_u).map_err(|_| TableError::SegmentLength { row })?,
+                recip,
+                recip_m,
+                recip_s,
+                x0,
+                dx,
+            })?;
+        }
+        prev = Some((row, node));
+    }
+    prev.map(|(_, n)| *n).ok_or(TableError::TooFewNodes)
 }
 
 /// Every slave position of `node` (row `row`) within its axis range.

@@ -90,6 +90,26 @@ pub struct ValveCoeffs {
     identity: bool,
 }
 
+impl ValveCoeffs {
+    /// Every byte zero: the placeholder of an unconfigured law buffer (a `const`, so a
+    /// static buffer needs no construction at run time, and all-zero, so it is `.bss`). Never used for output: a
+    /// law is configured ([`crate::follower::Follower::configure`]) before it runs.
+    pub(crate) const UNSET: Self = Self {
+        null: 0,
+        ov_pos: 0,
+        ov_neg: 0,
+        zone: 0,
+        slope_pos: 0,
+        slope_neg: 0,
+        gain_pos: 0,
+        gain_neg: 0,
+        invert: false,
+        clamp: 0,
+        linear: false,
+        identity: false,
+    };
+}
+
 fn in_range(x: f32, lo: f32, hi: f32) -> bool {
     x.is_finite() && x >= lo && x <= hi
 }

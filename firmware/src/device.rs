@@ -7,16 +7,17 @@
 //! the tick's command queue and are answered after the tick that applied them
 //! ([`LinkIo::command_wait`]), so a command never races the tick.
 //!
-//! A new law (a table activated, a parameter changed) is built here, outside the
-//! critical section, then installed together with its valve null codes
-//! ([`ValveBank::publish_safe_codes`], read by the panic handler) in one critical
-//! section, only at a safe point (the handler checks it; `Runtime::install` refuses
-//! otherwise). That section moves the law (`Follower<2, 256>`) into the runtime: the tick
-//! after it starts late by that copy, once, while the valves are at null or holding the
-//! table's end.
+//! A new law (a table activated, a parameter changed) is built here *in place* in the
+//! free one of the two static law buffers (`crate::laws`; `Follower::configure`, then
+//! one table copy), outside any critical section, then installed together with its
+//! valve null codes ([`ValveBank::publish_safe_codes`], read by the panic handler) in one
+//! critical section that only swaps references, only at a safe point (checked in that
+//! section; `Runtime::install` refuses otherwise). No law or table is ever moved by
+//! value: every frame of this module is small (the CI's stack check,
+//! `scripts/stack-check.py`).
 //!
-//! A copy of the active table is kept here for Save and for rebuilding the law when a
-//! gain changes, so this side never borrows the table the tick is using.
+//! A copy of the active table is kept in a static buffer for Save and for rebuilding the
+//! law when a gain changes, so this side never borrows the table the tick is using.
 
 use hydra_core::follower::FollowerConfig;
 use hydra_core::protocol::msg::StatusMsg;
@@ -29,8 +30,9 @@ use hydra_core::table::{CamTable, TableLimits};
 
 use crate::board::{SLAVES, SYSCLK_HZ};
 use crate::laws::{self, LawRef};
+use static_cell::ConstStaticCell;
 use crate::link::LinkIo;
-use crate::program::{Law, PERIOD_US, TABLE_NODES};
+use crate::program::{PERIOD_US, TABLE_NODES};
 use crate::tick;
 use crate::valves::ValveBank;
 
@@ -57,39 +59,64 @@ pub const FIRMWARE: [u8; 3] = [
     parse_u8(env!("CARGO_PKG_VERSION_PATCH")),
 ];
 
-/// What the link side keeps about the machine: gains, limits, the active table.
+/// The link side's copy of the running law's table: a static buffer (all-zero start,
+/// `.bss`), rewritten in place at each installation.
+static ACTIVE: ConstStaticCell<Table> = ConstStaticCell::new(Table::empty());
+
+/// What the link side keeps about the machine: gains, limits, the active table and the
+/// law buffers not given to the runtime. Small (a few hundred bytes): the tables and
+/// laws it points to are statics.
 pub struct DeviceState {
     /// The follower's configuration (gains, calibration); SetParam edits it.
     pub fcfg: FollowerConfig<SLAVES>,
     /// The limits tables are validated against; SetParam edits them.
     pub limits: TableLimits<SLAVES>,
-    /// Copy of the table inside the running law.
-    pub active: Option<Table>,
-    /// The law buffer not in use by the runtime (see [`install`]).
-    pub spare: Option<LawRef>,
+    /// Copy of the table inside the running law (valid while `has_active`).
+    active: &'static mut Table,
+    has_active: bool,
+    /// The law buffers the runtime does not hold.
+    pool: LawPool,
+}
+
+/// The law buffers the runtime does not hold (both at boot, one once a law runs).
+struct LawPool {
+    free: [Option<LawRef>; 2],
+    /// The law built before the tick runs (boot), for `main` to hand to the runtime.
+    boot_law: Option<LawRef>,
+}
+
+impl LawPool {
+    fn take_free(&mut self) -> Option<LawRef> {
+        self.free.iter_mut().find_map(Option::take)
+    }
+
+    fn give_back(&mut self, law: LawRef) {
+        if let Some(slot) = self.free.iter_mut().find(|s| s.is_none()) {
+            *slot = Some(law);
+        }
+    }
 }
 
 impl DeviceState {
-    /// The boot configuration (`crate::program`), no table.
-    pub fn new() -> Self {
-        Self {
+    /// The boot configuration (`crate::program`), no table, both law buffers free.
+    /// `None` if called twice (the static buffers are taken once).
+    pub fn new() -> Option<Self> {
+        let [a, b] = laws::take()?;
+        Some(Self {
             fcfg: crate::program::follower_config(),
             limits: crate::program::table_limits(),
-            active: None,
-            spare: None,
-        }
+            active: ACTIVE.try_take()?,
+            has_active: false,
+            pool: LawPool {
+                free: [Some(a), Some(b)],
+                boot_law: None,
+            },
+        })
     }
 
-    /// The law for the active table with the present configuration (boot).
-    pub fn law(&self) -> Option<Law> {
-        let t = self.active.clone()?;
-        match Law::new(&self.fcfg, t) {
-            Ok(l) => Some(l),
-            Err(e) => {
-                defmt::error!("follower rejected the table: {}", e);
-                None
-            }
-        }
+    /// The law built at boot (from a flash slot), once.
+    pub fn take_boot_law(&mut self) -> Option<LawRef> {
+        self.pool.boot_law.take()
     }
 }
 
@@ -102,23 +129,40 @@ pub struct BoardDevice<'a, 'b> {
     pub io: Option<&'a mut LinkIo<'b>>,
 }
 
-/// Installs `law` (and its null codes for the panic handler) if the tick runs; `false`
-/// if the runtime is not at a safe point. The law is first written into the spare law
-/// buffer (outside the critical section); the section only swaps references
-/// (`crate::laws`), and the buffer of the law that ran becomes the spare.
-fn install(st: &mut DeviceState, law: Law) -> bool {
-    let nulls = hydra_core::runtime::Controller::null_codes(&law);
-    let Some(new) = laws::place(law, st.spare.take()) else {
+/// Builds a law for `table` with `fcfg` in a free law buffer (in place: configure, then
+/// one table copy; outside any critical section) and installs it: at boot (the tick not
+/// running yet) it becomes the boot law; otherwise it is swapped in if the runtime is at
+/// a safe point — checked and installed in one critical section that only swaps
+/// references (`crate::laws`) — and the buffer of the law that ran becomes free. The
+/// valve nulls for the panic handler are published in the same section. On any refusal
+/// what runs is unchanged and the buffer is free again.
+fn install(pool: &mut LawPool, fcfg: &FollowerConfig<SLAVES>, table: &Table) -> Result<(), Nak> {
+    let Some(law) = pool.take_free() else {
         defmt::error!("no free law buffer");
-        return false;
+        return Err(refused(REFUSED_LAW));
     };
-    let mut new = Some(new);
-    // Checked and installed in one section: `install` cannot then refuse, so the
-    // reference is never dropped (a dropped one would leave no spare buffer).
+    if let Err(e) = law.configure(fcfg) {
+        defmt::error!("follower rejected the configuration: {}", e);
+        pool.give_back(law);
+        return Err(refused(REFUSED_LAW));
+    }
+    law.load_table(table);
+    let nulls = hydra_core::runtime::Controller::null_codes(&*law);
+    let running = tick::with_runtime(|_| ()).is_some();
+    if !running {
+        ValveBank::publish_safe_codes(&nulls);
+        if let Some(old) = pool.boot_law.replace(law) {
+            pool.give_back(old);
+        }
+        return Ok(());
+    }
+    let mut new = Some(law);
     let swapped = tick::with_runtime(|rt| {
         if !rt.at_safe_point() {
             return None;
         }
+        // At a safe point (checked in this section): `install` cannot refuse, so the
+        // reference is never dropped.
         let old = rt.install(new.take()?).ok()?;
         ValveBank::publish_safe_codes(&nulls);
         Some(old)
@@ -126,13 +170,17 @@ fn install(st: &mut DeviceState, law: Law) -> bool {
     .flatten();
     match swapped {
         Some(old) => {
-            // `None` at the first activation: the other buffer is still unused.
-            st.spare = old;
-            true
+            // `None` at the first activation after an empty boot.
+            if let Some(o) = old {
+                pool.give_back(o);
+            }
+            Ok(())
         }
         None => {
-            st.spare = new;
-            false
+            if let Some(n) = new {
+                pool.give_back(n);
+            }
+            Err(refused(REFUSED_NOT_SAFE))
         }
     }
 }
@@ -153,7 +201,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         self.st.limits
     }
     fn active_table(&self) -> Option<&Table> {
-        self.st.active.as_ref()
+        self.st.has_active.then_some(&*self.st.active)
     }
     fn at_safe_point(&self) -> bool {
         // Before the tick starts (boot) nothing runs: always safe.
@@ -162,26 +210,19 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
     fn all_idle(&self) -> bool {
         tick::with_runtime(|rt| matches!(rt.state(), State::Idle | State::Fault)).unwrap_or(true)
     }
-    fn install_table(&mut self, table: Table) -> Result<(), Nak> {
-        let law = match Law::new(&self.st.fcfg, table.clone()) {
-            Ok(l) => l,
-            Err(e) => {
-                defmt::error!("follower rejected the table: {}", e);
-                return Err(refused(REFUSED_LAW));
+    fn install_table(&mut self, table: &Table) -> Result<(), Nak> {
+        let fcfg = self.st.fcfg;
+        match install(&mut self.st.pool, &fcfg, table) {
+            Ok(()) => {
+                self.st.active.copy_from(table);
+                self.st.has_active = true;
+                defmt::info!("table installed ({} rows)", table.len());
+                Ok(())
             }
-        };
-        // Before the tick starts (boot) `main` builds the law from `st.active` itself.
-        let running = tick::with_runtime(|_| ()).is_some();
-        if !running || install(self.st, law) {
-            self.st.active = Some(table);
-            defmt::info!(
-                "table installed ({} rows)",
-                self.st.active.as_ref().map_or(0, |t| t.len())
-            );
-            Ok(())
-        } else {
-            defmt::warn!("table not installed: runtime not at a safe point");
-            Err(refused(REFUSED_NOT_SAFE))
+            Err(e) => {
+                defmt::warn!("table not installed: {}", e);
+                Err(e)
+            }
         }
     }
     fn command(&mut self, m: Motion) -> Result<(), Nak> {
@@ -208,19 +249,16 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         }
         let mut f = self.st.fcfg;
         let mut lim = self.st.limits;
-        apply_param(
-            &mut f,
-            &mut lim,
-            self.st.active.as_ref(),
-            axis,
-            param,
-            value,
-        )?;
-        // Rebuild the law if one runs.
-        if let Some(t) = self.st.active.clone() {
-            let law = Law::new(&f, t).map_err(|_| range)?;
-            if !install(self.st, law) {
-                return Err(Nak::new(NakCode::NotIdle));
+        let active = self.st.has_active.then_some(&*self.st.active);
+        apply_param(&mut f, &mut lim, active, axis, param, value)?;
+        // Rebuild the law if one runs (in the free buffer, from the copy of its table).
+        if self.st.has_active {
+            match install(&mut self.st.pool, &f, self.st.active) {
+                Ok(()) => {}
+                Err(n) if n.code == NakCode::Refused && n.detail == REFUSED_NOT_SAFE => {
+                    return Err(Nak::new(NakCode::NotIdle))
+                }
+                Err(_) => return Err(range),
             }
         }
         self.st.fcfg = f;
@@ -229,7 +267,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
     }
     fn reset_params(&mut self) -> Result<(), Nak> {
         // Only at boot, before a table is installed (no law to rebuild).
-        if self.st.active.is_some() {
+        if self.st.has_active {
             return Err(Nak::new(NakCode::NotIdle));
         }
         self.st.fcfg = crate::program::follower_config();

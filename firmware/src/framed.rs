@@ -16,6 +16,7 @@
 use heapless::Vec;
 use hydra_core::protocol::msg::{AxisSample, Telemetry};
 use hydra_core::protocol::{Handler, SlotHeader, Store, StoreError};
+use static_cell::ConstStaticCell;
 
 use crate::board::SLAVES;
 use crate::device::{BoardDevice, DeviceState};
@@ -28,29 +29,47 @@ use crate::tick::{BoardStatus, Reply, TickSample};
 /// 64 Nak frames of 15 wire bytes).
 const TX_LEN: usize = 1024;
 
-/// The framed protocol's state: handler, flash and the device's link-side state.
+/// The protocol handler with its staging and committed tables (≈ 17 KiB): a static,
+/// all-zero at link time (`.bss`), never built on the stack.
+static HANDLER: ConstStaticCell<Handler<SLAVES, TABLE_NODES>> =
+    ConstStaticCell::new(Handler::new(Store::UNATTACHED));
+
+/// Why the framed protocol could not start.
+#[derive(Clone, Copy, Debug, defmt::Format)]
+pub enum FramedError {
+    /// The flash slots' geometry.
+    Store(StoreError),
+    /// [`Framed::new`] called twice (its static buffers are taken once).
+    Taken,
+}
+
+/// The framed protocol's state: handler, flash and the device's link-side state (small:
+/// the tables are statics it points to).
 pub struct Framed {
-    handler: Handler<SLAVES, TABLE_NODES>,
+    handler: &'static mut Handler<SLAVES, TABLE_NODES>,
     flash: SlotFlash,
-    /// Gains, limits and the copy of the active table.
+    /// Gains, limits, the copy of the active table and the free law buffers.
     pub dev: DeviceState,
     tx: Vec<u8, TX_LEN>,
 }
 
 impl Framed {
     /// The handler on the two slots of `flash` (sectors 10 and 11).
-    pub fn new(flash: SlotFlash) -> Result<Self, StoreError> {
-        let store = Store::new::<_, SLAVES, TABLE_NODES>(&flash, SLOT0_OFFSET, SLOT_BYTES)?;
+    pub fn new(flash: SlotFlash) -> Result<Self, FramedError> {
+        let store = Store::new::<_, SLAVES, TABLE_NODES>(&flash, SLOT0_OFFSET, SLOT_BYTES)
+            .map_err(FramedError::Store)?;
+        let handler = HANDLER.try_take().ok_or(FramedError::Taken)?;
+        handler.set_store(store);
         Ok(Self {
-            handler: Handler::new(store),
+            handler,
             flash,
-            dev: DeviceState::new(),
+            dev: DeviceState::new().ok_or(FramedError::Taken)?,
             tx: Vec::new(),
         })
     }
 
-    /// Loads the newest valid slot into `dev.active` (call before the tick starts, then
-    /// build the boot law with [`DeviceState::law`]).
+    /// Loads the newest valid slot and builds its law in place (call before the tick
+    /// starts; then take the law with [`DeviceState::take_boot_law`]).
     pub fn boot(&mut self) -> Option<SlotHeader> {
         let mut dev = BoardDevice {
             st: &mut self.dev,

@@ -64,6 +64,7 @@ async fn main(spawner: Spawner) {
     #[cfg(not(feature = "console"))]
     let (proto, law) = {
         let flash = flash::SlotFlash::new(board.flash);
+        // `Framed` itself is small (its tables are statics): moved once into its cell.
         let fr = match framed::Framed::new(flash) {
             Ok(f) => FRAMED.init(f),
             Err(e) => defmt::panic!("table slots: {}", e),
@@ -78,7 +79,7 @@ async fn main(spawner: Spawner) {
             ),
             None => defmt::warn!("no valid table in flash: idle without a law"),
         }
-        let law = fr.dev.law();
+        let law = fr.dev.take_boot_law();
         (fr, law)
     };
     #[cfg(feature = "console")]
@@ -89,13 +90,13 @@ async fn main(spawner: Spawner) {
             (console::Console::default(), None)
         }
     };
+    // The boot law (built in place in a law buffer) and its valve nulls first: the DAC
+    // leaves mid-scale for the calibrated null before the runtime exists.
     let nulls = law.as_ref().map(|l| l.null_codes());
     if let Some(n) = nulls {
         ValveBank::publish_safe_codes(&n);
         board.io.valves.write(&n);
     }
-    // Into the first of the two law buffers (activation swaps references: `laws`).
-    let law = law.and_then(|l| laws::place(l, None));
     let coeffs = match program::runtime_coeffs() {
         Ok(c) => c,
         Err(e) => defmt::panic!("runtime configuration rejected: {}", e),

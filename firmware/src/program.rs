@@ -17,7 +17,7 @@ use hydra_core::follower::{Follower, FollowerConfig};
 use hydra_core::runtime::{RuntimeCoeffs, RuntimeConfig};
 use hydra_core::table::{AxisLimits, TableLimits};
 #[cfg(feature = "console")]
-use hydra_core::table::{CamTable, Node};
+use hydra_core::table::Node;
 #[cfg(feature = "console")]
 use hydra_core::units::Master;
 use hydra_core::units::{MasterRate, PosUm, VelUmPerS};
@@ -42,6 +42,9 @@ pub enum ProgramError {
     /// The follower configuration.
     #[cfg(feature = "console")]
     Follower(hydra_core::follower::FollowerError),
+    /// The law buffers were taken already.
+    #[cfg(feature = "console")]
+    Taken,
 }
 
 /// The runtime limits (reference machine defaults at [`PERIOD_US`]).
@@ -101,18 +104,21 @@ pub fn follower_config() -> FollowerConfig<SLAVES> {
     }
 }
 
-/// The reference cam table (see the module docs).
+/// The reference cam table's nodes (see the module docs): 181 nodes of 16 bytes, two
+/// passes over x_raw(θ) (range, then nodes) so no array of raw values sits beside them.
 #[cfg(feature = "console")]
-fn reference_table() -> Result<CamTable<SLAVES, TABLE_NODES>, ProgramError> {
+fn reference_nodes() -> Vec<Node<SLAVES>, 181> {
     const ROWS: usize = 181;
-    let mut raw = [0.0f64; ROWS];
-    for (j, r) in raw.iter_mut().enumerate() {
-        *r = x_raw_mm(j as f64 * 0.5);
+    let theta = |j: usize| j as f64 * 0.5;
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for j in 0..ROWS {
+        let r = x_raw_mm(theta(j));
+        lo = lo.min(r);
+        hi = hi.max(r);
     }
-    let lo = raw.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = raw.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let mut nodes: Vec<Node<SLAVES>, ROWS> = Vec::new();
-    for (j, r) in raw.iter().enumerate() {
+    for j in 0..ROWS {
+        let r = x_raw_mm(theta(j));
         let x_um = 1000.0 * (20.0 + (r - lo) * (480.0 - 20.0) / (hi - lo));
         let node = Node {
             // 0.5° = 500 master counts of 0.001°.
@@ -122,11 +128,17 @@ fn reference_table() -> Result<CamTable<SLAVES, TABLE_NODES>, ProgramError> {
         // ROWS ≤ capacity: cannot fail.
         let _ = nodes.push(node);
     }
-    CamTable::try_from_nodes(&nodes, &table_limits()).map_err(ProgramError::Table)
+    nodes
 }
 
-/// The follower with the reference table and gains for the reference valve/cylinder.
+/// The follower with the reference table and gains for the reference valve/cylinder,
+/// built in place in the first law buffer.
 #[cfg(feature = "console")]
-pub fn boot_law() -> Result<Law, ProgramError> {
-    Follower::new(&follower_config(), reference_table()?).map_err(ProgramError::Follower)
+pub fn boot_law() -> Result<crate::laws::LawRef, ProgramError> {
+    let [law, _spare] = crate::laws::take().ok_or(ProgramError::Taken)?;
+    law.configure(&follower_config())
+        .map_err(ProgramError::Follower)?;
+    law.rebuild_table_from_nodes(&reference_nodes(), &table_limits())
+        .map_err(ProgramError::Table)?;
+    Ok(law)
 }

@@ -31,16 +31,19 @@ use hydra_core::runtime::{
 use hydra_core::table::{AxisLimits, CamTable, TableLimits};
 use hydra_core::units::{Counts, MasterRate, PosUm, PressureBar, VelUmPerS};
 
-/// Table capacity of the virtual board, rows (as the firmware's).
-pub const CAPACITY: usize = 512;
+/// Table capacity of the virtual board, rows: the firmware's (`firmware/src/program.rs`
+/// `TABLE_NODES`), so a table the board would refuse is refused here too.
+pub const CAPACITY: usize = 256;
 /// Slave axes (the tangent cylinder).
 pub const AXES: usize = 1;
-/// Flash slot size, bytes (covers 512 rows of 12 bytes).
+/// Flash slot size, bytes (covers 256 rows of 12 bytes and every parameter record).
 pub const SLOT_BYTES: u32 = 8 * 1024;
 /// Firmware version reported by Info.
 pub const FIRMWARE: [u8; 3] = [0, 1, 0];
 
-type Law = Follower<AXES, CAPACITY>;
+/// The law, on the heap: built in place (`Follower::unconfigured` → `configure` →
+/// `load_table`) and installed by moving the pointer, as the firmware swaps references.
+type Law = Box<Follower<AXES, CAPACITY>>;
 
 /// The simulated machine plus the runtime: the protocol's [`Device`].
 pub struct Machine {
@@ -198,6 +201,17 @@ impl Machine {
     }
 }
 
+/// A law for `table` with `cfg`, built in place on the heap.
+fn build_law(
+    cfg: &FollowerConfig<AXES>,
+    table: &CamTable<AXES, CAPACITY>,
+) -> Result<Law, hydra_core::follower::FollowerError> {
+    let mut f: Law = Box::new(Follower::unconfigured());
+    f.configure(cfg)?;
+    f.load_table(table);
+    Ok(f)
+}
+
 impl Device<AXES, CAPACITY> for Machine {
     fn firmware(&self) -> [u8; 3] {
         FIRMWARE
@@ -217,8 +231,8 @@ impl Device<AXES, CAPACITY> for Machine {
     fn all_idle(&self) -> bool {
         matches!(self.rt.state(), State::Idle | State::Fault)
     }
-    fn install_table(&mut self, table: CamTable<AXES, CAPACITY>) -> Result<(), Nak> {
-        let f = Follower::new(&self.fcfg, table).map_err(|_| refused(REFUSED_LAW))?;
+    fn install_table(&mut self, table: &CamTable<AXES, CAPACITY>) -> Result<(), Nak> {
+        let f = build_law(&self.fcfg, table).map_err(|_| refused(REFUSED_LAW))?;
         // at_safe_point() was checked by the handler, so Busy would be a handler bug.
         self.rt
             .install(f)
@@ -248,8 +262,8 @@ impl Device<AXES, CAPACITY> for Machine {
         let active = self.rt.law().map(|l| l.table());
         apply_param(&mut f, &mut lim, active, axis, param, value)?;
         // Rebuild the law if one runs.
-        if let Some(t) = self.rt.law().map(|l| l.table().clone()) {
-            let law = Follower::new(&f, t).map_err(|_| range)?;
+        if let Some(t) = self.rt.law().map(|l| l.table()) {
+            let law = build_law(&f, t).map_err(|_| range)?;
             self.rt
                 .install(law)
                 .map_err(|_| Nak::new(NakCode::NotIdle))?;

@@ -54,6 +54,17 @@ pub struct PosState {
 }
 
 impl PosState {
+    /// The reset state (the same as `Default`, as a `const`).
+    pub(crate) const RESET: Self = Self {
+        e1: 0,
+        e2: 0,
+        integ: 0,
+        u_paper: 0,
+        primed: false,
+    };
+}
+
+impl PosState {
     /// Forgets the history and the integrator (after a fault or a mode change).
     pub fn reset(&mut self) {
         *self = Self::default();

@@ -55,14 +55,30 @@ pub(crate) struct FfPlan {
 impl Default for FfPlan {
     /// Zero gains, no segment.
     fn default() -> Self {
-        Self {
-            gains: [MantExp::ZERO; 3],
-            seg: Self::NONE,
-            m_v: [0; 2],
-            m_a: 0,
-            k_shl: 1 << 31,
-        }
+        Self::UNSET
     }
+}
+
+impl FfPlan {
+    /// Zero gains, no segment (`Default` as a `const`).
+    pub(crate) const UNSET: Self = Self {
+        gains: [MantExp::ZERO; 3],
+        seg: Self::NONE,
+        m_v: [0; 2],
+        m_a: 0,
+        k_shl: 1 << 31,
+    };
+
+    /// Every byte zero: the plan of an unconfigured law buffer (all-zero, so the buffer
+    /// is a `.bss` static, not 14 KiB of `.data`). Never used: `Follower::configure`
+    /// replaces it before a law runs.
+    pub(crate) const ZEROED: Self = Self {
+        gains: [MantExp::ZERO; 3],
+        seg: 0,
+        m_v: [0; 2],
+        m_a: 0,
+        k_shl: 0,
+    };
 }
 
 /// A positive number m·2^e with m < 2^32 (normalised: m ≥ 2^31, or m = 0): integer

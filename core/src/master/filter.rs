@@ -66,6 +66,17 @@ pub struct MasterFilterCoeffs {
     tps_q16: i32,
 }
 
+impl MasterFilterCoeffs {
+    /// Every coefficient zero (placeholder of an unconfigured law buffer, see
+    /// `ValveCoeffs::UNSET`).
+    pub(crate) const UNSET: Self = Self {
+        g_q31: 0,
+        h_q30: 0,
+        k2_q31: 0,
+        tps_q16: 0,
+    };
+}
+
 /// Largest extrapolation lead of [`MasterFilter::ahead`], ticks Q16 (2^14 ticks).
 pub const MAX_LEAD_Q16: i32 = 1 << 30;
 
@@ -166,6 +177,16 @@ pub struct MasterFilter {
     vel: i64, // Q32 counts/tick
     acc: i32, // Q32 counts/tick² (±0.5, saturated)
     started: bool,
+}
+
+impl MasterFilter {
+    /// Not started (the same as `Default`, as a `const`).
+    pub(crate) const START: Self = Self {
+        pos: 0,
+        vel: 0,
+        acc: 0,
+        started: false,
+    };
 }
 
 /// The master `n` ticks ahead in the loop's working formats.

@@ -66,9 +66,11 @@ pub trait Device<const S: usize, const N: usize> {
     fn at_safe_point(&self) -> bool;
     /// Every axis idle (valves at null, not following).
     fn all_idle(&self) -> bool;
-    /// Installs a table (only called at a safe point). Errors: [`NakCode::Refused`] if the
-    /// device cannot run it; what runs is then unchanged.
-    fn install_table(&mut self, table: CamTable<S, N>) -> Result<(), Nak>;
+    /// Installs a copy of `table` (only called at a safe point). Errors:
+    /// [`NakCode::Refused`] if the device cannot run it; what runs is then unchanged.
+    /// By reference: a table is 12 KiB on the board, and no table is ever moved by value
+    /// (the device copies it into its own buffer in place, [`CamTable::copy_from`]).
+    fn install_table(&mut self, table: &CamTable<S, N>) -> Result<(), Nak>;
     /// Start / Stop / Hold / ClearFault.
     fn command(&mut self, m: Motion) -> Result<(), Nak>;
     /// Sets one parameter (validated; typed error).
@@ -100,9 +102,14 @@ pub struct Handler<const S: usize, const N: usize> {
     last_seq: u16,
     upload: Option<Upload>,
     staging: Vec<Node<S>, N>,
-    committed: Option<(u32, CamTable<S, N>)>,
+    /// The committed table's buffer, rebuilt in place at each Commit (and used by
+    /// [`Handler::boot`] to build a slot's table); `committed_id` says whether it holds a
+    /// committed table.
+    committed: CamTable<S, N>,
+    committed_id: Option<u32>,
     pending: bool,
-    active_id: u32,
+    /// The active table's id (`None`: no table; all-zero, so a static handler is `.bss`).
+    active_id: Option<u32>,
     saved: Option<SlotHeader>,
     /// SetParams accepted since boot (plus those boot applied): what Save stores.
     overrides: ParamOverrides,
@@ -125,8 +132,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         }
     };
 
-    /// A handler using `store`; call [`Handler::boot`] once at power-up.
-    pub fn new(store: Store) -> Self {
+    /// A handler using `store`; call [`Handler::boot`] once at power-up. `const`: a
+    /// handler (≈ 17 KiB with a 256-row board's buffers) can be a static initialised at
+    /// link time.
+    pub const fn new(store: Store) -> Self {
         Self {
             dec: FrameDecoder::new(),
             store,
@@ -134,9 +143,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             last_seq: 0,
             upload: None,
             staging: Vec::new(),
-            committed: None,
+            committed: CamTable::empty(),
+            committed_id: None,
             pending: false,
-            active_id: NO_TABLE,
+            active_id: None,
             saved: None,
             overrides: ParamOverrides::new(),
             decimation: 0,
@@ -176,13 +186,17 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                     self.overrides.record(r.axis, r.param, r.value);
                 }
             }
-            let t = CamTable::try_from_nodes(&self.staging, &dev.table_limits());
+            // Built in place in the committed table's buffer (nothing is committed at boot).
+            self.committed_id = None;
+            let t = self
+                .committed
+                .rebuild_from_nodes(&self.staging, &dev.table_limits());
             self.staging.clear();
-            if let Ok(t) = t {
+            if t.is_ok() {
                 // The slot stays the saved one even if the device refuses its table.
                 self.saved = Some(h);
-                dev.install_table(t).ok()?;
-                self.active_id = h.id;
+                dev.install_table(&self.committed).ok()?;
+                self.active_id = Some(h.id);
                 return Some(h);
             }
             // Refused: back to the boot configuration before the older slot.
@@ -192,9 +206,15 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         None
     }
 
+    /// Attaches the flash store (a handler built with [`Store::UNATTACHED`] as a static
+    /// gets its store once the flash driver exists, before [`Handler::boot`]).
+    pub fn set_store(&mut self, store: Store) {
+        self.store = store;
+    }
+
     /// Id of the active table ([`NO_TABLE`] if none).
     pub fn active_id(&self) -> u32 {
-        self.active_id
+        self.active_id.unwrap_or(NO_TABLE)
     }
 
     /// Installs an armed activation once the device is at a safe point. Call every loop.
@@ -202,9 +222,9 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     pub fn poll<D: Device<S, N>>(&mut self, dev: &mut D) -> Result<(), Nak> {
         if self.pending && dev.at_safe_point() {
             self.pending = false;
-            if let Some((id, t)) = self.committed.take() {
-                dev.install_table(t)?;
-                self.active_id = id;
+            if let Some(id) = self.committed_id.take() {
+                dev.install_table(&self.committed)?;
+                self.active_id = Some(id);
             }
         }
         Ok(())
@@ -329,8 +349,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 self.staging.clear();
                 Ok(())
             }
-            Request::Activate { id } => match &self.committed {
-                Some((cid, _)) if *cid == id => {
+            Request::Activate { id } => match self.committed_id {
+                Some(cid) if cid == id => {
                     self.pending = true;
                     match self.poll(dev) {
                         Ok(()) => {
@@ -373,7 +393,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             capacity_rows: u16::try_from(N).unwrap_or(u16::MAX),
             max_chunk_rows: u8::try_from(Self::MAX_CHUNK_ROWS).unwrap_or(u8::MAX),
             period_us: dev.period_us(),
-            active_id: self.active_id,
+            active_id: self.active_id(),
         }
     }
 
@@ -387,15 +407,15 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         if self.upload.is_some() {
             flags |= 4;
         }
-        if self.committed.is_some() {
+        if self.committed_id.is_some() {
             flags |= 8;
         }
         if self.session {
             flags |= 16;
         }
         s.flags = flags;
-        s.active_id = self.active_id;
-        s.committed_id = self.committed.as_ref().map_or(NO_TABLE, |(id, _)| *id);
+        s.active_id = self.active_id();
+        s.committed_id = self.committed_id.unwrap_or(NO_TABLE);
         s.saved_id = self.saved.map_or(NO_TABLE, |h| h.id);
         s.upload_rows = u16::try_from(self.staging.len()).unwrap_or(u16::MAX);
         s
@@ -473,8 +493,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         if up.crc.finish() != crc {
             return Err(Nak::new(NakCode::TableCrc));
         }
-        let table = CamTable::try_from_nodes(&self.staging, &dev.table_limits())?;
-        self.committed = Some((up.id, table));
+        // In place; a refused table leaves the committed one as it was.
+        self.committed
+            .rebuild_from_nodes(&self.staging, &dev.table_limits())?;
+        self.committed_id = Some(up.id);
         self.pending = false;
         self.upload = None;
         self.staging.clear();
@@ -488,7 +510,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         let t = dev.active_table().ok_or(Nak::new(NakCode::NothingToSave))?;
         let h = self
             .store
-            .save(flash, self.active_id, t, &self.overrides)
+            .save(flash, self.active_id(), t, &self.overrides)
             .map_err(|_| Nak::new(NakCode::Flash))?;
         self.saved = Some(h);
         Ok(())

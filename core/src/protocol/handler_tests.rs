@@ -66,11 +66,11 @@ impl Device<S, N> for Mock {
     fn all_idle(&self) -> bool {
         !self.running
     }
-    fn install_table(&mut self, t: CamTable<S, N>) -> Result<(), Nak> {
+    fn install_table(&mut self, t: &CamTable<S, N>) -> Result<(), Nak> {
         if self.refuse {
             return Err(Nak::with(NakCode::Refused, 0, 0));
         }
-        self.table = Some(t);
+        self.table = Some(t.clone());
         self.ended = false;
         Ok(())
     }

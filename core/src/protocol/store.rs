@@ -85,6 +85,15 @@ pub struct Store {
 }
 
 impl Store {
+    /// No slots: a store not yet attached to a flash (the starting value of a handler
+    /// that is a static, see `Handler::new`). Every read of it finds no valid slot and
+    /// every save is refused with [`StoreError::Geometry`]; [`Store::new`] never returns
+    /// it (a slot has at least one erase unit).
+    pub const UNATTACHED: Self = Self {
+        base: 0,
+        slot_size: 0,
+    };
+
     /// Checks the geometry for a flash `F` holding tables of up to `N` rows of `S` columns.
     pub fn new<F: NorFlash, const S: usize, const N: usize>(
         flash: &F,
@@ -162,6 +171,9 @@ impl Store {
         mut each_param: impl FnMut(ParamRecord) -> Option<()>,
         mut each: impl FnMut(Node<S>) -> Option<()>,
     ) -> Option<SlotHeader> {
+        if self.slot_size == 0 {
+            return None;
+        }
         let at = self.slot_base(slot);
         let mut hdr = [0u8; HEADER];
         flash.read(at, &mut hdr).ok()?;
@@ -248,6 +260,9 @@ impl Store {
         table: &CamTable<S, N>,
         params: &ParamOverrides,
     ) -> Result<SlotHeader, StoreError> {
+        if self.slot_size == 0 {
+            return Err(StoreError::Geometry);
+        }
         let newest = self.newest::<F, S, N>(flash);
         let slot = match newest {
             Some(h) if h.slot == 0 => 1,

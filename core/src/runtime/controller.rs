@@ -98,6 +98,27 @@ impl<const S: usize, C: Controller<S> + ?Sized> Controller<S> for &mut C {
     }
 }
 
+/// A law on the heap (host builds): the host's laws with large tables are built in place
+/// in a `Box` (never on the stack) and installed by moving the pointer.
+#[cfg(feature = "std")]
+impl<const S: usize, C: Controller<S> + ?Sized> Controller<S> for std::boxed::Box<C> {
+    fn restart(&mut self, inputs: &ControlInputs<S>) {
+        (**self).restart(inputs);
+    }
+
+    fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S> {
+        (**self).tick(inputs)
+    }
+
+    fn null_codes(&self) -> [DacCode; S] {
+        (**self).null_codes()
+    }
+
+    fn master_span(&self) -> Option<(Master, Master)> {
+        (**self).master_span()
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod mock {
     //! A mock law: a proportional controller toward `target_um` (or a table-free

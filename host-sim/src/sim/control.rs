@@ -70,11 +70,13 @@ pub fn followers(s: &Scenario) -> Vec<&AxisCfg> {
 /// Builds the core's table from the CSV (master in degrees → master counts of the
 /// scenario's master encoder; slaves mm → µm) and validates it against the axes: stroke,
 /// and the slope against each axis' full-opening speed at the fastest master speed
-/// (nominal speed plus ripple). Errors name the CSV line.
+/// (nominal speed plus ripple), building it in place in `dst` (a 4 096-row table is
+/// 160 KiB: never on the stack). Errors name the CSV line.
 fn build_table<const S: usize>(
     s: &Scenario,
     csv: &CamCsv,
-) -> Result<CamTable<S, TABLE_CAPACITY>, ScenarioError> {
+    dst: &mut CamTable<S, TABLE_CAPACITY>,
+) -> Result<(), ScenarioError> {
     let axes = followers(s);
     let cols: Vec<&[f64]> = axes
         .iter()
@@ -123,7 +125,7 @@ fn build_table<const S: usize>(
         master_speed_per_s: MasterRate::saturating_from_num(fastest),
         axes: limits,
     };
-    CamTable::try_from_nodes(&nodes, &lim).map_err(|e| {
+    dst.rebuild_from_nodes(&nodes, &lim).map_err(|e| {
         let line = |row: usize| csv.lines.get(row).copied().unwrap_or(0);
         let path = csv.path.clone();
         let at = |row: usize, reason: String| {
@@ -170,9 +172,12 @@ fn build<const S: usize>(
     controller: Controller,
     period_us: u32,
 ) -> Result<Box<dyn FollowerDyn>, ScenarioError> {
-    let table = build_table::<S>(s, csv)?;
+    // The table and the law are built in place on the heap (no large value on the stack).
+    let mut table: Box<CamTable<S, TABLE_CAPACITY>> = Box::new(CamTable::empty());
+    build_table::<S>(s, csv, &mut table)?;
     let cfg = follower_config::<S>(s, t, controller, period_us)?;
-    let f = Follower::new(&cfg, table).map_err(|e| match e {
+    let mut f: Box<Follower<S, TABLE_CAPACITY>> = Box::new(Follower::unconfigured());
+    f.configure(&cfg).map_err(|e| match e {
         FollowerError::MasterFilter(_) => invalid(
             format!(
                 "tuning[{}@{}us].master_filter_hz",
@@ -196,7 +201,8 @@ fn build<const S: usize>(
             format!("rejected at the run's period of {period_us} µs"),
         ),
     })?;
-    Ok(Box::new(Fw::<S>(Box::new(f))))
+    f.load_table(&table);
+    Ok(Box::new(Fw::<S>(f)))
 }
 
 /// The follower of a run (`None` if the scenario has no follower axis).
