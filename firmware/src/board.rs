@@ -18,7 +18,7 @@
 //! | status LED | PD12 | GPIO out | green LED of the STM32F4-Discovery |
 //! | tick timer | — | TIM7 update IRQ, priority 0 | hard period (1 kHz default) |
 //! | time driver | — | TIM12 (embassy-time) | |
-//! | watchdog | — | IWDG, 50 ms nominal | fed by the tick only |
+//! | watchdog | — | IWDG, 50 ms nominal (34–94 ms) | started first at reset, fed by the tick only (`crate::watchdog`) |
 //!
 //! Interrupt priorities (0 = most urgent): TIM7 tick 0; DMA 2; USART2 and the time
 //! driver 3; thread-mode tasks (host link, status, LED) below every interrupt.
@@ -30,7 +30,6 @@ use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::qei::{Qei, QeiMode};
 use embassy_stm32::usart::{self, Uart};
-use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, dma, interrupt, pac, peripherals, Peri, Peripherals};
 use hydra_core::runtime::{EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};
 use hydra_core::units::{DacCode, PressureBar};
@@ -48,9 +47,6 @@ pub const PRESSURES: usize = 4;
 /// Host-link baud rate (the host tools' `host-sim … --port`: 921 600; USART2 on the
 /// 42 MHz APB1 with 16× oversampling: divider 45.5625, 0.02 % error).
 pub const LINK_BAUD: u32 = 921_600;
-/// Independent-watchdog timeout, µs (nominal LSI 32 kHz; the F407's LSI spans
-/// 17–47 kHz, so the real timeout is 34–94 ms).
-pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
 
 bind_interrupts!(
     /// Interrupt bindings of the drivers.
@@ -151,8 +147,6 @@ pub struct Board {
     pub link: Uart<'static, embassy_stm32::mode::Async>,
     /// The tick timer.
     pub tick_timer: Peri<'static, peripherals::TIM7>,
-    /// The watchdog peripheral (configured and started by the tick module).
-    pub iwdg: IndependentWatchdog<'static, peripherals::IWDG>,
     /// Status LED.
     pub led: Output<'static>,
     /// The internal flash (table slots in sectors 10 and 11).
@@ -211,7 +205,6 @@ impl Board {
         let link = Uart::new(p.USART2, p.PA3, p.PA2, p.DMA1_CH6, p.DMA1_CH5, Irqs, cfg)
             .unwrap_or_else(|_| defmt::panic!("USART2 configuration"));
 
-        let iwdg = IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US);
         let led = Output::new(p.PD12, Level::Low, Speed::Low);
 
         // Everything the drivers enabled at the reset priority (0) goes below the tick.
@@ -227,7 +220,6 @@ impl Board {
             },
             link,
             tick_timer: p.TIM7,
-            iwdg,
             led,
             flash: embassy_stm32::flash::Flash::new_blocking(p.FLASH),
         }

@@ -1,7 +1,7 @@
 //! The bring-up console: a line protocol on the host link, for a terminal.
 //!
 //! Until the framed table-upload protocol (issue 8) takes the link over — it implements
-//! the same [`LinkProtocol`] trait — the board answers plain text lines (115 200 8N1,
+//! the same [`LinkProtocol`] trait — the board answers plain text lines (the link's baud rate, `crate::board::LINK_BAUD`, 8N1,
 //! `\n` or `\r` terminated, case-insensitive):
 //!
 //! | line | effect | answer |
@@ -156,10 +156,13 @@ impl LinkProtocol for Console {
             Ok(()) => {
                 let _ = write!(line, "ok {}\r\n", cmd_name(reply.cmd));
             }
-            Err(e) => {
+            Err(Some(e)) => {
                 let _ = write!(line, "err {} ", cmd_name(reply.cmd));
                 error_text(e, &mut line);
                 let _ = line.push_str("\r\n");
+            }
+            Err(None) => {
+                let _ = write!(line, "err {} expired\r\n", cmd_name(reply.cmd));
             }
         }
         io.send(line.as_bytes());

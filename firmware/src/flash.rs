@@ -11,16 +11,24 @@
 //! 4 bytes, `ERASE_SIZE` 128 KiB, the largest sector) and refuses every write or erase
 //! outside the two slots, so a protocol bug can never touch the program.
 //!
-//! **Erasing stalls the CPU.** The F407 has one flash bank: while a sector erases
-//! (1 s typical, 2 s maximum for 128 KiB at x32 parallelism) every instruction fetch
-//! from flash waits, the tick interrupt included. The protocol handler therefore only
-//! accepts Save while every axis is idle (valves at null, power off), and the erase runs
-//! inside [`crate::tick::stalled`], which lengthens the watchdog for the pause and
-//! resynchronises the tick afterwards. Programming a 32-bit word stalls a fetch for
-//! 16 µs typical (100 µs maximum): the tick is late by that much at most, far below the
-//! 1.5-period overrun threshold at 1 kHz.
+//! **Erasing stalls the CPU.** The F407 has one flash bank: while a sector erases every
+//! instruction fetch from flash waits, the tick interrupt included. A 128 KiB sector
+//! takes 1 s typical, 2 s maximum at x32 parallelism, and 2 s / 4 s at x8 (DS8626
+//! t_ERASE128KB) — embassy-stm32 0.6's `blocking_erase` leaves `FLASH_CR.PSIZE` at x8
+//! (its word writes reset it to 0), so this module erases itself, by register, at x32
+//! ([`erase_sector_x32`]; x32 needs VDD ≥ 2.7 V: the board runs at 3.3 V). The protocol
+//! handler only accepts Save while every axis is idle (valves at null, power off), and
+//! the erase runs inside [`crate::tick::stalled`], which re-checks that inside its
+//! critical section, lengthens the watchdog for the pause and resynchronises the tick
+//! afterwards. Programming a 32-bit word stalls a fetch for 16 µs typical (100 µs
+//! maximum): the tick is late by that much at most, far below the 1.5-period overrun
+//! threshold at 1 kHz. After every program and erase the flash data cache is reset
+//! (`crate::flash_acr`), so a read-back never sees a stale cached line.
 
+use core::sync::atomic::{AtomicU32, Ordering};
 use embassy_stm32::flash::{Blocking, Error, Flash};
+use embassy_stm32::pac;
+use embassy_stm32::pac::flash::vals::Psize;
 use embedded_storage::nor_flash::ReadNorFlash;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashError, NorFlashErrorKind};
 
@@ -38,6 +46,9 @@ pub enum SlotFlashError {
     Driver(Error),
     /// A write or erase outside sectors 10–11.
     OutsideSlots,
+    /// An erase while an axis is following or holding (refused inside the tick's
+    /// critical section, `crate::tick::stalled`).
+    NotIdle,
 }
 
 impl NorFlashError for SlotFlashError {
@@ -47,6 +58,7 @@ impl NorFlashError for SlotFlashError {
             SlotFlashError::Driver(Error::Size) | SlotFlashError::OutsideSlots => {
                 NorFlashErrorKind::OutOfBounds
             }
+            SlotFlashError::NotIdle => NorFlashErrorKind::Other,
             SlotFlashError::Driver(_) => NorFlashErrorKind::Other,
         }
     }
@@ -98,19 +110,93 @@ impl NorFlash for SlotFlash {
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
         let len = u32::try_from(bytes.len()).map_err(|_| SlotFlashError::OutsideSlots)?;
         in_slots(offset, len)?;
-        self.inner
+        let r = self
+            .inner
             .blocking_write(offset, bytes)
-            .map_err(SlotFlashError::Driver)
+            .map_err(SlotFlashError::Driver);
+        crate::flash_acr::reset_data_cache();
+        r
     }
 
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
         in_slots(from, to.saturating_sub(from))?;
-        let inner = &mut self.inner;
-        defmt::info!(
-            "erasing flash 0x{=u32:08x}..0x{=u32:08x} (tick paused)",
-            from,
-            to
-        );
-        crate::tick::stalled(|| inner.blocking_erase(from, to)).map_err(SlotFlashError::Driver)
+        if !from.is_multiple_of(SLOT_BYTES) || !to.is_multiple_of(SLOT_BYTES) {
+            return Err(SlotFlashError::Driver(Error::Unaligned));
+        }
+        let mut at = from;
+        while at < to {
+            let snb = sector_of(at).ok_or(SlotFlashError::OutsideSlots)?;
+            defmt::info!(
+                "erasing flash sector {=u8} at 0x{=u32:08x} (x32, tick paused)",
+                snb,
+                at
+            );
+            let t0 = cortex_m::peripheral::DWT::cycle_count();
+            let r = crate::tick::stalled(|| erase_sector_x32(snb))
+                .map_err(|_| SlotFlashError::NotIdle)?;
+            crate::flash_acr::reset_data_cache();
+            let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0);
+            let ms = cycles / (crate::board::SYSCLK_HZ / 1000);
+            LAST_ERASE_MS.store(ms, Ordering::Relaxed);
+            defmt::info!("sector {=u8} erased in {=u32} ms", snb, ms);
+            r.map_err(SlotFlashError::Driver)?;
+            at = at.saturating_add(SLOT_BYTES);
+        }
+        Ok(())
     }
 }
+
+/// Duration of the last sector erase, ms (DWT cycles; logged, and for the docs' figure
+/// once measured on a board).
+pub static LAST_ERASE_MS: AtomicU32 = AtomicU32::new(0);
+
+/// The sector number of a 128 KiB sector at `offset` from the start of flash (sectors 5
+/// … 11 of the F407's single bank start at 0x2_0000 · (n − 4)).
+fn sector_of(offset: u32) -> Option<u8> {
+    if offset < 0x2_0000 || !offset.is_multiple_of(0x2_0000) {
+        return None;
+    }
+    u8::try_from(offset / 0x2_0000 + 4)
+        .ok()
+        .filter(|n| (5..=11).contains(n))
+}
+
+/// Erases sector `snb` at x32 parallelism by register (RM0090 §3.6.3): unlock, wait
+/// until not busy, clear the error flags, SER + SNB + PSIZE = x32, STRT, wait until not
+/// busy (the CPU's own fetches stall meanwhile), read the errors, lock. Call only inside
+/// [`crate::tick::stalled`].
+fn erase_sector_x32(snb: u8) -> Result<(), Error> {
+    let f = pac::FLASH;
+    if f.cr().read().lock() {
+        f.keyr().write_value(0x4567_0123);
+        f.keyr().write_value(0xCDEF_89AB);
+    }
+    while f.sr().read().bsy() {}
+    // The error flags are write-1-to-clear: writing back what was read clears them.
+    f.sr().modify(|_| {});
+    f.cr().write(|w| {
+        w.set_ser(true);
+        w.set_snb(snb);
+        w.set_psize(Psize::PSIZE32);
+    });
+    f.cr().modify(|w| w.set_strt(true));
+    while f.sr().read().bsy() {}
+    let sr = f.sr().read();
+    f.cr().write(|w| w.set_ser(false));
+    f.sr().modify(|_| {});
+    f.cr().modify(|w| w.set_lock(true));
+    if sr.pgserr() {
+        Err(Error::Seq)
+    } else if sr.pgperr() {
+        Err(Error::Parallelism)
+    } else if sr.pgaerr() {
+        Err(Error::Unaligned)
+    } else if sr.wrperr() {
+        Err(Error::Protected)
+    } else if sr.operr() {
+        Err(Error::Prog)
+    } else {
+        Ok(())
+    }
+}
+

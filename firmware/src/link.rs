@@ -23,13 +23,15 @@ use core::sync::atomic::{AtomicU8, Ordering};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::mode::Async;
 use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
-use embassy_time::Timer;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::signal::Signal;
+use embassy_time::{Duration, Instant, Timer};
 use heapless::spsc::{Consumer, Producer};
 use heapless::Vec;
 use hydra_core::protocol::report::state_code;
 use hydra_core::runtime::{Command, CommandError};
 
-use crate::tick::{BoardStatus, Reply, TickSample};
+use crate::tick::{BoardStatus, Reply, TickCommand, TickSample};
 
 /// The protocol the link task runs.
 #[cfg(not(feature = "console"))]
@@ -42,46 +44,72 @@ pub type Proto = crate::console::Console;
 pub const OUT_LEN: usize = 2048;
 /// RX DMA ring size.
 pub const RX_RING_LEN: usize = 1024;
-/// How long [`LinkIo::command_wait`] waits for the tick's answer: 10 periods.
-pub const COMMAND_WAIT_CYCLES: u32 =
-    (crate::board::SYSCLK_HZ / 1_000_000) * crate::program::PERIOD_US * 10;
+/// How long [`LinkIo::command_wait`] waits for the tick's answer, ms (10 periods at
+/// 1 kHz; the tick drops a command older than this less one period unapplied,
+/// `crate::tick::COMMAND_MAX_AGE_US`).
+pub const COMMAND_WAIT_MS: u32 = 10;
+
+/// The tick's latest answer, with the token of the command it answers (the tick signals
+/// every reply; [`LinkIo::command_wait`] waits on it).
+pub static REPLY: Signal<CriticalSectionRawMutex, Reply> = Signal::new();
 
 /// What a protocol handler can do on the link.
 pub struct LinkIo<'a> {
-    cmd_tx: &'a mut Producer<'static, Command>,
+    cmd_tx: &'a mut Producer<'static, TickCommand>,
     reply_rx: &'a mut Consumer<'static, Reply>,
+    token: &'a mut u16,
     out: &'a mut Vec<u8, OUT_LEN>,
     latest: Option<&'a BoardStatus>,
 }
 
 impl LinkIo<'_> {
+    fn queue(&mut self, c: Command) -> Option<u16> {
+        *self.token = self.token.wrapping_add(1);
+        let token = *self.token;
+        let queued_at = cortex_m::peripheral::DWT::cycle_count();
+        self.cmd_tx
+            .enqueue(TickCommand {
+                cmd: c,
+                token,
+                queued_at,
+            })
+            .ok()?;
+        Some(token)
+    }
+
     /// Queues a command for the next tick; `false` if the queue is full.
     #[cfg_attr(not(feature = "console"), allow(dead_code))]
     pub fn command(&mut self, c: Command) -> bool {
-        self.cmd_tx.enqueue(c).is_ok()
+        self.queue(c).is_some()
     }
 
-    /// Queues a command and busy-waits (thread mode: only the LED task waits meanwhile)
-    /// for the tick's answer, at most [`COMMAND_WAIT_CYCLES`]. `None`: the queue was
-    /// full or the tick did not answer in time. Answers to earlier commands still
-    /// queued are discarded first.
+    /// Queues a command and waits for the tick's answer to *that* command (matched by
+    /// token on the [`REPLY`] signal), at most [`COMMAND_WAIT_MS`] of embassy time. The
+    /// wait sleeps (`WFE`) between interrupts: the tick's own interrupt, 1 ms later,
+    /// wakes it with the answer. `None`: the queue was full or the tick did not answer
+    /// in time — and then the command is never applied: the tick drops a command older
+    /// than the wait (`crate::tick::COMMAND_MAX_AGE_US`).
     #[cfg_attr(feature = "console", allow(dead_code))]
     pub fn command_wait(&mut self, c: Command) -> Option<Result<(), CommandError>> {
-        while self.reply_rx.dequeue().is_some() {}
-        self.cmd_tx.enqueue(c).ok()?;
-        let t0 = cortex_m::peripheral::DWT::cycle_count();
-        // Backstop if the cycle counter is not running: ≥ 10 cycles per spin.
-        for _ in 0..COMMAND_WAIT_CYCLES / 10 {
-            if let Some(r) = self.reply_rx.dequeue() {
-                if r.cmd == c {
-                    return Some(r.result);
+        REPLY.reset();
+        let token = self.queue(c)?;
+        let deadline = Instant::now() + Duration::from_millis(u64::from(COMMAND_WAIT_MS));
+        loop {
+            if let Some(r) = REPLY.try_take() {
+                if r.token == token {
+                    return match r.result {
+                        Ok(()) => Some(Ok(())),
+                        Err(Some(e)) => Some(Err(e)),
+                        Err(None) => None,
+                    };
                 }
             }
-            if cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0) > COMMAND_WAIT_CYCLES {
-                break;
+            if Instant::now() >= deadline {
+                return None;
             }
+            // Woken by any interrupt (the tick's every period, the time driver's).
+            cortex_m::asm::wfe();
         }
-        None
     }
 
     /// Queues bytes only if all of them fit (a frame is never cut); returns whether
@@ -131,7 +159,7 @@ pub static STATE_CODE: AtomicU8 = AtomicU8::new(0);
 /// The link's channels to the tick.
 pub struct LinkChannels {
     /// Commands to the tick.
-    pub cmd_tx: Producer<'static, Command>,
+    pub cmd_tx: Producer<'static, TickCommand>,
     /// Replies from the tick.
     pub reply_rx: Consumer<'static, Reply>,
     /// Status snapshots from the tick.
@@ -152,6 +180,7 @@ pub async fn link_task(
     let mut buf = [0u8; 64];
     let mut out: Vec<u8, OUT_LEN> = Vec::new();
     let mut latest: Option<BoardStatus> = None;
+    let mut token = 0u16;
     loop {
         let got = match select(rx.read(&mut buf), Timer::after_millis(10)).await {
             Either::First(Ok(n)) => n,
@@ -175,6 +204,7 @@ pub async fn link_task(
         let mut io = LinkIo {
             cmd_tx: &mut ch.cmd_tx,
             reply_rx: &mut ch.reply_rx,
+            token: &mut token,
             out: &mut out,
             latest: latest.as_ref(),
         };

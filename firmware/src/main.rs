@@ -21,6 +21,7 @@ mod console;
 #[cfg(not(feature = "console"))]
 mod device;
 mod encoders;
+mod flash_acr;
 #[cfg(not(feature = "console"))]
 mod flash;
 #[cfg(not(feature = "console"))]
@@ -33,18 +34,19 @@ mod program;
 mod safety;
 mod tick;
 mod valves;
+mod watchdog;
 
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use heapless::spsc::Queue;
-use hydra_core::runtime::{Command, Controller, Runtime};
+use hydra_core::runtime::{Controller, Runtime};
 use static_cell::StaticCell;
 
 use board::Board;
-use tick::{BoardStatus, Reply, Tick, TickLinks, TickSample};
+use tick::{BoardStatus, Reply, Tick, TickCommand, TickLinks, TickSample};
 use valves::ValveBank;
 
-static CMD_Q: StaticCell<Queue<Command, 8>> = StaticCell::new();
+static CMD_Q: StaticCell<Queue<TickCommand, 8>> = StaticCell::new();
 static REPLY_Q: StaticCell<Queue<Reply, 8>> = StaticCell::new();
 static STATUS_Q: StaticCell<Queue<BoardStatus, 4>> = StaticCell::new();
 /// Per-tick samples: 32 ticks of slack for the link task (it wakes at least every 10 ms).
@@ -55,8 +57,12 @@ static RX_RING: StaticCell<[u8; link::RX_RING_LEN]> = StaticCell::new();
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
+    // The watchdog first: every later step (the HSE wait has no timeout) is covered.
+    watchdog::start(watchdog::Timeout::BOOT);
     let boot = panic::boot_cause();
     let p = embassy_stm32::init(board::hal_config());
+    // embassy sets only the wait states: prefetch and caches on (RM0090 §3.5.2).
+    flash_acr::enable_accelerator();
     let mut board = Board::new(p);
 
     // The law and its valve nulls first: the DAC leaves mid-scale for the calibrated
@@ -103,10 +109,11 @@ async fn main(spawner: Spawner) {
     };
     let rt = Runtime::new(coeffs, law, boot);
     defmt::info!(
-        "hydra firmware: boot {}, period {} us, state {}",
+        "hydra firmware: boot {}, period {} us, state {}, flash prefetch+caches {}",
         boot,
         coeffs.period_us,
-        rt.state()
+        rt.state(),
+        flash_acr::accelerator_on()
     );
 
     if let Some(mut cp) = cortex_m::Peripherals::take() {
@@ -126,7 +133,6 @@ async fn main(spawner: Spawner) {
         io,
         link,
         tick_timer,
-        iwdg,
         led,
         ..
     } = board;
@@ -134,7 +140,6 @@ async fn main(spawner: Spawner) {
         rt,
         io,
         tick_timer,
-        iwdg,
         TickLinks {
             cmd_rx,
             reply_tx,

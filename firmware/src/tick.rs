@@ -27,16 +27,16 @@ use core::cell::RefCell;
 use critical_section::Mutex;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
-use embassy_stm32::peripherals::{IWDG, TIM7};
+use embassy_stm32::peripherals::TIM7;
 use embassy_stm32::timer::low_level::{RoundTo, Timer};
-use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::Peri;
 use heapless::spsc::{Consumer, Producer};
-use hydra_core::runtime::{Command, CommandError, Runtime, Status};
+use hydra_core::runtime::{Command, CommandError, Runtime, State, Status};
 use static_cell::StaticCell;
 
 use crate::board::{BoardIo, PRESSURES, SLAVES, SYSCLK_HZ};
 use crate::laws::LawRef;
+use crate::watchdog::{self, Timeout};
 
 /// The runtime as this board runs it: the law in one of the two static law buffers
 /// (`crate::laws`), so installing one swaps a reference.
@@ -44,13 +44,34 @@ pub type BoardRuntime = Runtime<LawRef, SLAVES, PRESSURES>;
 /// The status snapshot of this board.
 pub type BoardStatus = Status<SLAVES, PRESSURES>;
 
+/// A command for the tick, with the token its answer carries and when it was queued.
+#[derive(Clone, Copy, Debug, defmt::Format)]
+pub struct TickCommand {
+    /// The command.
+    pub cmd: Command,
+    /// Chosen by the sender; the reply carries it back.
+    pub token: u16,
+    /// DWT cycle count when it was queued: a command older than [`COMMAND_MAX_AGE_US`]
+    /// when the tick takes it is dropped, never applied (its sender has given up waiting
+    /// and answered the host already).
+    pub queued_at: u32,
+}
+
+/// Age beyond which a queued command is dropped unapplied, µs: the link's wait for an
+/// answer (`crate::link::COMMAND_WAIT_MS`) less one period, so a command whose wait
+/// timed out can never take effect later (e.g. a Start after a flash erase).
+pub const COMMAND_MAX_AGE_US: u32 = crate::link::COMMAND_WAIT_MS * 1000 - crate::program::PERIOD_US;
+
 /// A command's answer, sent back to the host link.
 #[derive(Clone, Copy, Debug, defmt::Format)]
 pub struct Reply {
     /// The command.
     pub cmd: Command,
-    /// Accepted, or why not.
-    pub result: Result<(), CommandError>,
+    /// The sender's token ([`TickCommand::token`]).
+    pub token: u16,
+    /// Applied and accepted (`Ok`), refused by the runtime (`Err(Some(e))`), or dropped
+    /// unapplied because it was older than [`COMMAND_MAX_AGE_US`] (`Err(None)`).
+    pub result: Result<(), Option<CommandError>>,
 }
 
 /// One tick's telemetry sample (raw fixed-point bits, as on the wire).
@@ -77,8 +98,7 @@ pub struct Tick {
     rt: BoardRuntime,
     io: BoardIo,
     timer: Timer<'static, TIM7>,
-    iwdg: IndependentWatchdog<'static, IWDG>,
-    cmd_rx: Consumer<'static, Command>,
+    cmd_rx: Consumer<'static, TickCommand>,
     reply_tx: Producer<'static, Reply>,
     status_tx: Producer<'static, BoardStatus>,
     sample_tx: Producer<'static, TickSample>,
@@ -92,7 +112,7 @@ pub struct Tick {
 /// The channels between the tick and the host link.
 pub struct TickLinks {
     /// Commands in.
-    pub cmd_rx: Consumer<'static, Command>,
+    pub cmd_rx: Consumer<'static, TickCommand>,
     /// Replies out.
     pub reply_tx: Producer<'static, Reply>,
     /// Status snapshots out.
@@ -112,7 +132,6 @@ impl Tick {
         rt: BoardRuntime,
         io: BoardIo,
         tim7: Peri<'static, TIM7>,
-        iwdg: IndependentWatchdog<'static, IWDG>,
         links: TickLinks,
     ) -> Self {
         let period_us = rt.coeffs().period_us;
@@ -125,7 +144,6 @@ impl Tick {
             rt,
             io,
             timer,
-            iwdg,
             cmd_rx: links.cmd_rx,
             reply_tx: links.reply_tx,
             status_tx: links.status_tx,
@@ -144,16 +162,31 @@ impl Tick {
         // The update flag is cleared first, so the check at the end sees only the *next*
         // period's update event.
         self.timer.clear_update_interrupt();
-        let cmd = self.cmd_rx.dequeue();
+        let queued = self.cmd_rx.dequeue();
+        // A command older than its sender's wait is dropped, never applied.
+        let max_age = (SYSCLK_HZ / 1_000_000).saturating_mul(COMMAND_MAX_AGE_US);
+        let fresh = queued.filter(|c| t0.wrapping_sub(c.queued_at) <= max_age);
         let overrun = self.overrun_pending || self.skipped(t0);
         // 1.–2. latch, step, write (encoders are the first thing tick_io touches).
-        let reply = self.rt.tick_io(&mut self.io, cmd, overrun);
+        let reply = self.rt.tick_io(&mut self.io, fresh.map(|c| c.cmd), overrun);
         self.overrun_pending = false;
         // 3. the watchdog is fed here and nowhere else.
-        self.iwdg.pet();
-        if let (Some(cmd), Some(result)) = (cmd, reply) {
+        watchdog::pet();
+        if let Some(c) = queued {
+            let result = match (fresh, reply) {
+                (Some(_), Some(r)) => r.map_err(Some),
+                // Applied with no answer cannot happen (`tick_io` answers every command).
+                (Some(_), None) => Ok(()),
+                (None, _) => Err(None),
+            };
+            let reply = Reply {
+                cmd: c.cmd,
+                token: c.token,
+                result,
+            };
+            crate::link::REPLY.signal(reply);
             // A full reply queue drops the reply; the command was applied regardless.
-            let _ = self.reply_tx.enqueue(Reply { cmd, result });
+            let _ = self.reply_tx.enqueue(reply);
         }
         // 4. status for the host link.
         self.status_countdown = self.status_countdown.saturating_sub(1);
@@ -199,66 +232,58 @@ pub fn with_runtime<R>(f: impl FnOnce(&mut BoardRuntime) -> R) -> Option<R> {
 }
 
 #[cfg(not(feature = "console"))]
+/// Why [`stalled`] refused to run its function.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum StallError {
+    /// An axis is following or holding (checked inside the critical section, so it
+    /// cannot start between the check and the stall).
+    NotIdle,
+}
+
+#[cfg(not(feature = "console"))]
 /// Runs `f` — something that stalls the CPU for longer than a period, i.e. a flash
 /// sector erase — with the tick held off, then resynchronises it so the pause is not
-/// an overrun. Only call while every axis is idle (valves at null, power off).
+/// an overrun. Refused ([`StallError::NotIdle`]) unless the runtime is Idle or in Fault,
+/// checked inside the same critical section as `f`.
 ///
-/// Inside one critical section: the watchdog is lengthened to
-/// [`STALL_WATCHDOG_RELOAD`] (prescaler /256: 8.2 s at the fastest LSI, 47 kHz), `f`
-/// runs, the runtime's encoder history is dropped (`Runtime::set_coeffs` with the same
-/// coefficients: the next sample is not compared with the one before the pause, so
-/// a drift while the valves were unpowered is not an encoder jump), the start-to-start
-/// overrun check restarts, and the watchdog gets its normal timeout back. The tick
-/// pending during the pause runs as soon as the section ends.
-pub fn stalled<R>(f: impl FnOnce() -> R) -> R {
+/// Inside one critical section: the state is checked; every command still queued is
+/// dropped unapplied (its sender gave up waiting, or it would run after a pause of
+/// seconds); the watchdog is lengthened to [`Timeout::STALL`] (≥ 8.2 s at the fastest
+/// LSI); `f` runs; the runtime's encoder history is dropped (`Runtime::set_coeffs` with
+/// the same coefficients: the next sample is not compared with the one before the pause,
+/// so a drift while the valves were unpowered is not an encoder jump — the 16-bit TIM3
+/// extension itself stays exact unless that slave drifts 32 767 counts, 32.8 mm, during
+/// the pause); the start-to-start overrun check restarts; the watchdog gets its previous
+/// timeout back. The tick pending during the pause runs as soon as the section ends.
+pub fn stalled<R>(f: impl FnOnce() -> R) -> Result<R, StallError> {
     critical_section::with(|cs| {
-        let iwdg = embassy_stm32::pac::IWDG;
-        let (pr, rlr) = (iwdg.pr().read().pr(), iwdg.rlr().read().rl());
-        set_watchdog(
-            embassy_stm32::pac::iwdg::vals::Pr::DIVIDE_BY256,
-            STALL_WATCHDOG_RELOAD,
-        );
+        let mut cell = TICK.borrow_ref_mut(cs);
+        if let Some(t) = cell.as_mut() {
+            if !matches!(t.rt.state(), State::Idle | State::Fault) {
+                return Err(StallError::NotIdle);
+            }
+            while t.cmd_rx.dequeue().is_some() {}
+        }
+        let before = watchdog::current();
+        watchdog::set(Timeout::STALL);
         let r = f();
-        if let Some(t) = TICK.borrow_ref_mut(cs).as_mut() {
+        if let Some(t) = cell.as_mut() {
             let c = *t.rt.coeffs();
-            // In Idle/Fault (the caller's precondition) this cannot be refused.
+            // Idle/Fault was checked above and nothing ran since: cannot be refused.
             let _ = t.rt.set_coeffs(c);
             t.last_start = None;
             t.overrun_pending = false;
         }
-        set_watchdog(pr, rlr);
-        r
+        watchdog::set(before);
+        Ok(r)
     })
-}
-
-#[cfg(not(feature = "console"))]
-/// Watchdog reload value while the CPU is stalled by a flash erase (see [`stalled`]):
-/// 1500 × 256 / LSI = 8.2 s at 47 kHz … 22.6 s at 17 kHz, against a 128 KiB sector
-/// erase of 1 s typical, 2 s maximum (x32 parallelism, RM0090 / DS8626).
-pub const STALL_WATCHDOG_RELOAD: u16 = 1500;
-
-#[cfg(not(feature = "console"))]
-/// Reprograms the IWDG's prescaler and reload and restarts its count.
-fn set_watchdog(pr: embassy_stm32::pac::iwdg::vals::Pr, rlr: u16) {
-    let iwdg = embassy_stm32::pac::IWDG;
-    // Reload first (the full present timeout to make the change in), then unlock PR/RLR
-    // (writing the reload key again locks them).
-    iwdg.kr()
-        .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::RESET));
-    iwdg.kr()
-        .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::ENABLE));
-    iwdg.pr().write(|w| w.set_pr(pr));
-    iwdg.rlr().write(|w| w.set_rl(rlr));
-    // The new values reach the LSI domain within a few LSI cycles (< 1 ms).
-    while iwdg.sr().read().pvu() || iwdg.sr().read().rvu() {}
-    iwdg.kr()
-        .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::RESET));
 }
 
 /// Hands the tick to its interrupt and starts the period timer.
 pub fn start(tick: Tick) {
     let t = TICK_CELL.init(tick);
-    t.iwdg.unleash();
+    // From the boot timeout to the running one (fed by every tick from now on).
+    watchdog::set(Timeout::TICK);
     t.timer.start();
     critical_section::with(|cs| {
         TICK.borrow_ref_mut(cs).replace(t);
