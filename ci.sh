@@ -13,6 +13,8 @@ step "toolchain"
 rustup target add "$TARGET" >/dev/null 2>&1 || rustup target add "$TARGET"
 rustup component add rustfmt clippy llvm-tools >/dev/null 2>&1 || rustup component add rustfmt clippy llvm-tools
 rustc --version
+# flip-link: the firmware's linker (.cargo/config.toml), stack below .data/.bss.
+command -v flip-link >/dev/null 2>&1 || cargo install flip-link --version 0.1.12 --locked
 
 step "rustfmt"
 cargo fmt --all -- --check
@@ -35,6 +37,11 @@ echo "host tests: $passed passed, 0 failed"
 step "firmware (release, thumbv7em)"
 RUSTFLAGS="-D warnings" cargo build -p firmware --release --target "$TARGET"
 ./scripts/fw-size.sh
+
+step "firmware stack (release ELF: frames <= 4 KiB, worst path leaves >= 8 KiB; no blocking logger)"
+python3 scripts/stack-check.py "${CARGO_TARGET_DIR:-target}/$TARGET/release/firmware" \
+  --allow-cycle rust_begin_unwind --forbid-symbol defmt_rtt::channel::Channel::blocking_write \
+  | grep -vE '^ {2,}[0-9]+  ' # the per-function paths are in `python3 scripts/stack-check.py ELF`
 
 step "Cortex-M4 cost (QEMU mps2-an386, budgets in bench-budget.toml)"
 ./bench-m4.sh

@@ -63,7 +63,7 @@ DEFAULT_RULES = [(c, t) for c in ("Executor::run", "SyncExecutor::poll")
                  for t in ("embassy_executor::raw::TaskStorage<", "embassy_executor::raw::poll_exited")]
 DEFAULT_RULES += [(c, "embassy_executor::raw::waker::") for c in (
     "embassy_executor::raw::TaskStorage<", "embassy_stm32::", "embassy_time", "embassy_sync::",
-    "USART2", "TIM8_BRK_TIM12")]
+    "USART2", "USART1", "TIM8_BRK_TIM12", "TIM7")]
 DEFAULT_RULES += [("core::fmt", ">::fmt"), ("core::fmt", "core::fmt::Write"),
                   ("_defmt_", "defmt_rtt::channel::Channel::")]
 DEFAULT_ALLOW = ["core::fmt"]
@@ -352,6 +352,10 @@ def main():
     ap.add_argument("--allow-cycle", action="append", default=[], metavar="SUBSTR")
     ap.add_argument("--priority", action="append", default=[], metavar="HANDLER=N")
     ap.add_argument("--ram-origin", type=lambda s: int(s, 0), default=0x20000000)
+    ap.add_argument("--forbid-symbol", action="append", default=[], metavar="SUBSTR",
+                    help="fail if any function's name contains SUBSTR (e.g. a logger's blocking write)")
+    ap.add_argument("--allow-unresolved", action="store_true",
+                    help="do not fail on indirect calls no rule covers")
     a = ap.parse_args()
     rules, prio = list(DEFAULT_RULES), dict(DEFAULT_PRIO)
     for kind, spec in [("indirect", s) for s in a.indirect] + [("priority", s) for s in a.priority]:
@@ -407,7 +411,9 @@ def main():
     dyn = [f["name"] for f in frames if f["dynamic"]]
     probe = [f["name"] for f in frames if "probestack" in f["name"]]
     unresolved = sorted({u for r in roots for u in r["unresolved_indirect"]})
-    fail = bool(big or dyn or any(not c["allowed"] for c in cycles) or stack - worst < a.min_headroom)
+    forbidden = sorted({f["name"] for f in funcs.values() for sub in a.forbid_symbol if sub in f["name"]})
+    fail = bool(big or dyn or any(not c["allowed"] for c in cycles) or stack - worst < a.min_headroom
+                or forbidden or (unresolved and not a.allow_unresolved))
     if a.json:
         print(json.dumps({
             "stack_bytes": stack, "worst_case_bytes": worst, "headroom_bytes": stack - worst,
@@ -416,7 +422,8 @@ def main():
                                 "largest_single_bytes": f["largest"]} for f in frames[:10]],
             "over_max_frame": [{"function": f["name"], "bytes": f["frame"]} for f in big],
             "roots": roots, "levels": [{"level": k, "root": levels[k][1], "bytes": levels[k][0]} for k in order],
-            "unresolved_indirect": unresolved, "cycles": cycles, "dynamic_sp": dyn, "probestack": probe},
+            "unresolved_indirect": unresolved, "cycles": cycles, "dynamic_sp": dyn, "probestack": probe,
+            "forbidden": forbidden},
             indent=1))
         return 1 if fail else 0
     print("stack-check %s\nlayout: %s\nstack: [%#010x, %#010x) = %d bytes" % (a.elf, layout, bottom, top, stack))
@@ -443,6 +450,10 @@ def main():
     print("  %-22s %7d\nheadroom: %d - %d = %d bytes (minimum %d)" % (
         "total", worst, stack, worst, stack - worst, a.min_headroom))
     print("indirect calls not covered by the bound: %d" % len(unresolved))
+    if unresolved and not a.allow_unresolved:
+        print("FAIL indirect calls no rule covers (add an --indirect rule)")
+    for n in forbidden:
+        print("FAIL forbidden symbol linked: %s" % n)
     if stack - worst < a.min_headroom:
         print("FAIL headroom %d < --min-headroom %d" % (stack - worst, a.min_headroom))
     print("\nstack-check: %s" % ("FAIL" if fail else "ok"))

@@ -30,11 +30,11 @@ use hydra_core::table::{CamTable, TableLimits};
 
 use crate::board::{SLAVES, SYSCLK_HZ};
 use crate::laws::{self, LawRef};
-use static_cell::ConstStaticCell;
 use crate::link::LinkIo;
 use crate::program::{PERIOD_US, TABLE_NODES};
 use crate::tick;
 use crate::valves::ValveBank;
+use static_cell::ConstStaticCell;
 
 /// The board's table type.
 pub type Table = CamTable<SLAVES, TABLE_NODES>;

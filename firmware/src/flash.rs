@@ -199,4 +199,3 @@ fn erase_sector_x32(snb: u8) -> Result<(), Error> {
         Ok(())
     }
 }
-

@@ -21,9 +21,9 @@ mod console;
 #[cfg(not(feature = "console"))]
 mod device;
 mod encoders;
-mod flash_acr;
 #[cfg(not(feature = "console"))]
 mod flash;
+mod flash_acr;
 #[cfg(not(feature = "console"))]
 mod framed;
 mod laws;

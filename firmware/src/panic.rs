@@ -10,6 +10,10 @@
 //! only an operator can clear. The writes are single stores to registers whose clocks
 //! `Board::new` enabled; a panic earlier than that finds the enable pin still in its
 //! reset state (input, held low by the board's pull-down) and the DAC off.
+//!
+//! A boot failure is visible: the panic loop blinks the status LED at 10 Hz and the
+//! hard-fault loop at 20 Hz (LED register writes, no driver), for the watchdog's fault
+//! timeout (≥ 22 s), then the board resets and tries again. docs/firmware.md "Boot".
 
 use core::panic::PanicInfo;
 use core::sync::atomic::{AtomicBool, Ordering};
@@ -17,6 +21,7 @@ use embassy_stm32::pac;
 
 use crate::board::{ENABLE_PIN, ENABLE_PORT};
 use crate::valves::SAFE_CODES;
+use crate::watchdog::{self, Timeout};
 
 static PANICKED: AtomicBool = AtomicBool::new(false);
 
@@ -38,21 +43,76 @@ fn panic(info: &PanicInfo) -> ! {
     if !PANICKED.swap(true, Ordering::Relaxed) {
         defmt::error!("PANIC: {}", defmt::Display2Format(info));
     }
+    fault_loop(BLINK_PANIC_HALF_PERIOD)
+}
+
+/// LED half-period in the panic loop, CPU cycles (≈ 50 ms at 168 MHz: 10 Hz blink; at the
+/// 16 MHz HSI of a board whose clock init never finished, 0.5 s: 1 Hz).
+const BLINK_PANIC_HALF_PERIOD: u32 = 8_400_000;
+/// LED half-period in the hard-fault loop (≈ 25 ms: 20 Hz, told apart from a panic).
+const BLINK_HARDFAULT_HALF_PERIOD: u32 = 4_200_000;
+
+/// The end of every panic and hard fault, valves already safe: the watchdog is set to
+/// its longest timeout ([`Timeout::FAULT`], ≥ 22 s) and never fed, and meanwhile the
+/// status LED (PD12) blinks by direct register writes (its clock enabled here, so this
+/// works before `Board::new` too). Then the IWDG resets the board, which boots latched
+/// in `Fault::Watchdog`. Uses a few words of stack only.
+#[inline(never)]
+fn fault_loop(half_period_cycles: u32) -> ! {
+    watchdog::set(Timeout::FAULT);
+    pac::RCC.ahb1enr().modify(|w| w.set_gpioden(true));
+    pac::GPIOD
+        .moder()
+        .modify(|w| w.set_moder(LED_PIN, pac::gpio::vals::Moder::OUTPUT));
+    let mut on = false;
     loop {
-        // No watchdog feed: the IWDG resets the board.
-        cortex_m::asm::nop();
+        on = !on;
+        pac::GPIOD.bsrr().write(|w| {
+            if on {
+                w.set_bs(LED_PIN, true)
+            } else {
+                w.set_br(LED_PIN, true)
+            }
+        });
+        cortex_m::asm::delay(half_period_cycles);
     }
 }
 
-// Note(unsafe): cortex-m-rt requires the HardFault handler to be an `unsafe fn`; it only
-// performs the register stores of `safe_state`.
+/// The status LED's pin on port D (PD12, `crate::board`).
+const LED_PIN: usize = 12;
+
+// The hard-fault entry. A stack overflow (flip-link puts the stack at the bottom of RAM,
+// so it runs off into unmapped memory below 0x2000_0000) faults on a push; the stack
+// pointer is then invalid, so the handler's first instruction moves it back to the top
+// of the stack (`_stack_start`) before any Rust code pushes a register. Nothing returns
+// from a hard fault here, so the old stack is not needed. If even the exception entry's
+// own stacking fails, the core can lock up instead: the watchdog (tick timeout, ≤ 94 ms)
+// then resets the board, whose pins come out of reset with the valve power off (PE7 an
+// input, pulled down on the board) and the DAC disabled.
+// Note(unsafe): three instructions that only reload MSP and branch; replaces
+// cortex-m-rt's `HardFault` (its trampoline would push onto the broken stack first).
 #[allow(unsafe_code)]
-#[cortex_m_rt::exception]
-unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+mod hard_fault_entry {
+    core::arch::global_asm!(
+    ".section .text.HardFault,\"ax\",%progbits",
+    ".global HardFault",
+    ".type HardFault,%function",
+    ".thumb_func",
+    "HardFault:",
+    "    ldr r0, =_stack_start",
+    "    msr msp, r0",
+    "    b {handler}",
+    ".ltorg",
+    ".size HardFault, . - HardFault",
+    handler = sym super::hard_fault_on_fresh_stack,
+    );
+}
+
+/// The hard fault, on a fresh stack (see the `HardFault` entry above): valves safe, then
+/// the fault loop.
+pub(crate) extern "C" fn hard_fault_on_fresh_stack() -> ! {
     safe_state();
-    loop {
-        cortex_m::asm::nop();
-    }
+    fault_loop(BLINK_HARDFAULT_HALF_PERIOD)
 }
 
 /// How the board came out of reset: reads and clears the reset flags (call first).

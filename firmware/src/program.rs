@@ -15,9 +15,9 @@ use heapless::Vec;
 use hydra_core::axis::{AxisConfig, ControlMode};
 use hydra_core::follower::{Follower, FollowerConfig};
 use hydra_core::runtime::{RuntimeCoeffs, RuntimeConfig};
-use hydra_core::table::{AxisLimits, TableLimits};
 #[cfg(feature = "console")]
 use hydra_core::table::Node;
+use hydra_core::table::{AxisLimits, TableLimits};
 #[cfg(feature = "console")]
 use hydra_core::units::Master;
 use hydra_core::units::{MasterRate, PosUm, VelUmPerS};

@@ -128,12 +128,7 @@ static TICK: Mutex<RefCell<Option<&'static mut Tick>>> = Mutex::new(RefCell::new
 
 impl Tick {
     /// Assembles the tick; the period is the runtime's.
-    pub fn new(
-        rt: BoardRuntime,
-        io: BoardIo,
-        tim7: Peri<'static, TIM7>,
-        links: TickLinks,
-    ) -> Self {
+    pub fn new(rt: BoardRuntime, io: BoardIo, tim7: Peri<'static, TIM7>, links: TickLinks) -> Self {
         let period_us = rt.coeffs().period_us;
         let timer = Timer::new(tim7);
         timer.set_period_us(period_us, RoundTo::Slower);

@@ -122,4 +122,3 @@ pub fn current() -> Timeout {
         reload: rl.saturating_add(1),
     }
 }
-
