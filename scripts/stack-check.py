@@ -41,7 +41,7 @@ Method
   DefaultHandler, is a handler (each address once), whose entry costs 104 B (FPU extended
   frame, 26 words) + 4 B alignment.  Priorities are not in the ELF: --priority HANDLER=N
   (0..15, 0 most urgent), defaults TIM7=0, DMA1_STREAM5=2, DMA1_STREAM6=2, DMA2_STREAM0=2,
-  USART2=3, USART1=3, TIM8_BRK_TIM12=3; a handler without one is a level of its own.
+  DMA2_STREAM2=2, DMA2_STREAM7=2, USART2=3, USART1=3, TIM8_BRK_TIM12=3; a handler without one is a level of its own.
   Same-level handlers do not nest: worst case = thread depth + per level (deepest handler +
   108) + HardFault (+ NMI unless DefaultHandler), which can come on top of everything.
 - Stack: flip-link (_stack_start at or below the RAM sections): [_stack_end if below
@@ -57,7 +57,8 @@ that moves sp and code run from RAM are not analysed.
 import argparse, bisect, glob, json, os, re, shutil, struct, subprocess, sys
 
 EXC_FRAME, CYCLE_PASSES = 104 + 4, 2
-DEFAULT_PRIO = {"TIM7": 0, "DMA1_STREAM5": 2, "DMA1_STREAM6": 2, "DMA2_STREAM0": 2,
+DEFAULT_PRIO = {"TIM7": 0, "DMA1_STREAM5": 2, "DMA1_STREAM6": 2, "DMA2_STREAM0": 2, "DMA2_STREAM2": 2,
+                "DMA2_STREAM7": 2,
                 "USART2": 3, "USART1": 3, "TIM8_BRK_TIM12": 3}
 DEFAULT_RULES = [(c, t) for c in ("Executor::run", "SyncExecutor::poll")
                  for t in ("embassy_executor::raw::TaskStorage<", "embassy_executor::raw::poll_exited")]

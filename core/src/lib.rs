@@ -27,6 +27,7 @@ extern crate std;
 
 pub mod axis;
 pub mod contour;
+pub mod dac;
 pub mod follower;
 pub mod master;
 pub mod npid;

@@ -712,6 +712,9 @@ pub(crate) fn float_recip(len: u64) -> (u32, u32) {
 }
 
 #[cfg(test)]
+mod in_place_tests;
+
+#[cfg(test)]
 mod tests {
     use super::*;
     use proptest::prelude::*;

@@ -5,13 +5,13 @@
 //!
 //! | function | pin(s) | peripheral | notes |
 //! |---|---|---|---|
-//! | valve 1 (slave 0) | PA4 | DAC1 ch 1 | 12-bit, 0–3.3 V, mid-scale 2048 = code 0 |
+//! | valve 1 (slave 0) | PA4 | DAC1 ch 1 | 12-bit, output buffer on: swings 0.2 V … VDDA − 0.2 V; code 0 = 2048 = VDDA/2 = 1.500 V at [`VDDA_MV`] = 3.0 V; usable codes ±1774 ([`DAC_RANGE`]) |
 //! | valve 2 (slave 1) | PA5 | DAC1 ch 2 | |
 //! | master encoder A/B | PA0 / PA1 | TIM5 ch 1/2 (32-bit) | rotary table, 0.001°/count |
 //! | slave 0 encoder A/B | PA15 / PB3 | TIM2 ch 1/2 (32-bit) | PA15/PB3 are JTDI/SWO: debug with SWD only |
 //! | slave 1 encoder A/B | PB4 / PB5 | TIM3 ch 1/2 (16-bit, extended in software) | |
 //! | pressure 0…3 | PC1 / PC2 / PB0 / PB1 | ADC1 IN11 / IN12 / IN8 / IN9, DMA2 stream 0 | continuous scan, 144-cycle samples |
-//! | host link TX / RX | PA2 / PA3 | USART2, DMA1 stream 6 / 5 | 921 600 8N1 |
+//! | host link TX / RX | PA9 / PA10 | USART1, DMA2 stream 7 / 2 (channel 4) | 921 600 8N1, +0.16 % (see [`LINK_BAUD`]); also the ST system bootloader's USART |
 //! | table slots | — | flash sectors 10 / 11 (0x080C_0000 / 0x080E_0000) | `crate::flash` |
 //! | valve-power enable | PE7 | GPIO push-pull out | high = valves powered; external pull-down |
 //! | E-stop chain | PE8 | GPIO in, pull-down | high = chain closed (run permitted) |
@@ -20,7 +20,7 @@
 //! | time driver | — | TIM12 (embassy-time) | |
 //! | watchdog | — | IWDG, 50 ms nominal (34–94 ms) | started first at reset, fed by the tick only (`crate::watchdog`) |
 //!
-//! Interrupt priorities (0 = most urgent): TIM7 tick 0; DMA 2; USART2 and the time
+//! Interrupt priorities (0 = most urgent): TIM7 tick 0; DMA 2; USART1 and the time
 //! driver 3; thread-mode tasks (host link, status, LED) below every interrupt.
 
 use embassy_stm32::adc::{Adc, AdcChannel, SampleTime};
@@ -31,6 +31,7 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::qei::{Qei, QeiMode};
 use embassy_stm32::usart::{self, Uart};
 use embassy_stm32::{bind_interrupts, dma, interrupt, pac, peripherals, Peri, Peripherals};
+use hydra_core::dac::DacRange;
 use hydra_core::runtime::{EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};
 use hydra_core::units::{DacCode, PressureBar};
 use static_cell::StaticCell;
@@ -44,16 +45,36 @@ use crate::valves::{OnChipDac, ValveBank};
 pub const SLAVES: usize = 2;
 /// Pressure channels.
 pub const PRESSURES: usize = 4;
-/// Host-link baud rate (the host tools' `host-sim … --port`: 921 600; USART2 on the
-/// 42 MHz APB1 with 16× oversampling: divider 45.5625, 0.02 % error).
+/// Host-link baud rate (the host tools' `host-sim … --port`: 921 600). USART1 on the
+/// 84 MHz APB2 with 16× oversampling: USARTDIV = 84 MHz / (16 · 921 600) = 5.696 →
+/// 5 + 11/16 = 5.6875, 923 077 Bd, +0.16 %. (On USART2 and the 42 MHz APB1 it would be
+/// 2 + 14/16 = 2.875 → 913 043 Bd, −0.93 %: that is why the link moved, docs/firmware.md.)
 pub const LINK_BAUD: u32 = 921_600;
+
+/// The host link's actual baud rate: APB2 / (16 · USARTDIV), USARTDIV in 1/16 steps
+/// rounded to nearest (RM0090 §30.3.4).
+pub const fn link_baud_actual(pclk_hz: u32, baud: u32) -> u32 {
+    // USARTDIV·16 = pclk / baud, rounded.
+    let div16 = (pclk_hz + baud / 2) / baud;
+    pclk_hz / div16
+}
+
+/// APB2 clock, Hz (USART1's kernel clock).
+pub const APB2_HZ: u32 = 84_000_000;
+
+// +0.16 %: within ±0.5 % (the host adapter's own error adds to it; 16× oversampling
+// tolerates ≈ ±3.75 % in all).
+const _: () = {
+    let actual = link_baud_actual(APB2_HZ, LINK_BAUD);
+    assert!(actual > LINK_BAUD && actual - LINK_BAUD < LINK_BAUD / 200);
+};
 
 bind_interrupts!(
     /// Interrupt bindings of the drivers.
     pub struct Irqs {
-        USART2 => usart::InterruptHandler<peripherals::USART2>;
-        DMA1_STREAM5 => dma::InterruptHandler<peripherals::DMA1_CH5>;
-        DMA1_STREAM6 => dma::InterruptHandler<peripherals::DMA1_CH6>;
+        USART1 => usart::InterruptHandler<peripherals::USART1>;
+        DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
+        DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
     }
 );
@@ -91,6 +112,19 @@ pub fn hal_config() -> embassy_stm32::Config {
 pub const ENABLE_PORT: pac::gpio::Gpio = pac::GPIOE;
 /// See [`ENABLE_PORT`].
 pub const ENABLE_PIN: usize = 7;
+
+/// The board's analog supply (VDDA = VREF+), mV: 3.0 V, as on the STM32F4-Discovery.
+/// The valve amplifiers' null must be set to VDDA/2 = 1.500 V.
+pub const VDDA_MV: u32 = 3000;
+/// How close to each rail the DAC's buffered output gets, mV (DS8626: ≈ 0.2 V).
+pub const DAC_SWING_MARGIN_MV: u32 = 200;
+/// The usable valve-DAC code range on this board: ±1774 LSB around mid-scale (273 codes
+/// lost at each end). Every code written is clamped to it (`crate::valves`), and the
+/// valve calibration's clamp is set to it (`crate::program`).
+pub const DAC_RANGE: DacRange = match DacRange::new(VDDA_MV, DAC_SWING_MARGIN_MV) {
+    Ok(r) => r,
+    Err(_) => panic!("VDDA_MV / DAC_SWING_MARGIN_MV"),
+};
 
 /// Core clock, Hz (DWT cycles per second).
 pub const SYSCLK_HZ: u32 = 168_000_000;
@@ -202,13 +236,13 @@ impl Board {
 
         let mut cfg = usart::Config::default();
         cfg.baudrate = LINK_BAUD;
-        let link = Uart::new(p.USART2, p.PA3, p.PA2, p.DMA1_CH6, p.DMA1_CH5, Irqs, cfg)
-            .unwrap_or_else(|_| defmt::panic!("USART2 configuration"));
+        let link = Uart::new(p.USART1, p.PA10, p.PA9, p.DMA2_CH7, p.DMA2_CH2, Irqs, cfg)
+            .unwrap_or_else(|_| defmt::panic!("USART1 configuration"));
 
         let led = Output::new(p.PD12, Level::Low, Speed::Low);
 
         // Everything the drivers enabled at the reset priority (0) goes below the tick.
-        interrupt::USART2.set_priority(Priority::P3);
+        interrupt::USART1.set_priority(Priority::P3);
         interrupt::TIM8_BRK_TIM12.set_priority(Priority::P3);
 
         Self {

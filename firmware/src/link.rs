@@ -1,4 +1,4 @@
-//! The host link: USART2 with DMA, served by one thread-mode task below every
+//! The host link: USART1 with DMA, served by one thread-mode task below every
 //! interrupt, so it can never delay the tick.
 //!
 //! RX is a DMA ring buffer ([`RingBufferedUartRx`], [`RX_RING_LEN`] = 1024 bytes: 11 ms

@@ -22,7 +22,8 @@ use hydra_core::table::{AxisLimits, TableLimits};
 use hydra_core::units::Master;
 use hydra_core::units::{MasterRate, PosUm, VelUmPerS};
 
-use crate::board::SLAVES;
+use crate::board::{DAC_RANGE, SLAVES};
+use hydra_core::valve::ValveCal;
 
 /// Table capacity (nodes).
 pub const TABLE_NODES: usize = 256;
@@ -95,6 +96,13 @@ pub fn follower_config() -> FollowerConfig<SLAVES> {
         ka_lsb_per_um_s2: 0.0001,
         valve_lag_us: 4200.0,
         following_error_um: 5000.0,
+        valve: ValveCal {
+            // The law's own output clamp is the board's usable DAC range, so it never
+            // commands a code the pin cannot follow (its integrator then sees the real
+            // limit).
+            clamp_lsb: DAC_RANGE.max_code().unsigned_abs(),
+            ..ValveCal::default()
+        },
         ..AxisConfig::default()
     };
     FollowerConfig::<SLAVES> {

@@ -16,6 +16,8 @@ use embassy_stm32::gpio::Output;
 use embassy_stm32::mode::Blocking;
 use hydra_core::units::DacCode;
 
+use crate::board::DAC_RANGE;
+
 /// A converter channel that drives one proportional valve.
 pub trait ValveChannel {
     /// Outputs a signed code (0 = mid-scale, ±2047 full scale).
@@ -83,15 +85,16 @@ impl<const S: usize> ValveBank<S> {
     /// Publishes the calibrated null codes for the panic handler (on-chip channels).
     pub fn publish_safe_codes(codes: &[DacCode; S]) {
         for (slot, c) in SAFE_CODES.iter().zip(codes.iter()) {
-            slot.store(c.to_unipolar(), Ordering::Relaxed);
+            slot.store(DAC_RANGE.clamp(*c).to_unipolar(), Ordering::Relaxed);
         }
     }
 
-    /// Writes every channel's code.
+    /// Writes every channel's code, clamped to the board's usable range
+    /// ([`crate::board::DAC_RANGE`]: beyond it the buffered output cannot follow).
     #[inline]
     pub fn write(&mut self, codes: &[DacCode; S]) {
         for (ch, &c) in self.ch.iter_mut().zip(codes.iter()) {
-            ch.write(c);
+            ch.write(DAC_RANGE.clamp(c));
         }
     }
 

@@ -7,6 +7,7 @@ use crate::table::{AxisLimits, Node, TableLimits};
 use crate::units::MasterRate;
 use crate::units::VelUmPerS;
 use proptest::prelude::*;
+use std::boxed::Box;
 use std::vec::Vec;
 
 fn limits<const S: usize>() -> TableLimits<S> {
@@ -561,4 +562,57 @@ fn replaced_table_gives_a_fresh_followers_outputs() {
         moved |= a.cmd_lsb[0].abs() > CmdLsb::from_num(10);
     }
     assert!(moved, "the feed-forward acted");
+}
+
+/// A law built in place — the board's way: `unconfigured` → `configure` → `load_table`
+/// in a buffer that ran another law before — gives, tick for tick, what `new` gives; a
+/// refused configuration changes nothing; an unconfigured or tableless law is not ready.
+#[test]
+fn built_in_place_equals_new_and_refusals_change_nothing() {
+    let cfg = FollowerConfig {
+        axes: [ff_axis()],
+        ..FollowerConfig::default()
+    };
+    let other = FollowerConfig {
+        axes: [AxisConfig {
+            mode: ControlMode::Paper,
+            kp_lsb_per_um: 1.0,
+            ..ff_axis()
+        }],
+        ..FollowerConfig::default()
+    };
+    let steeper: Vec<(f64, f64)> = sine_nodes()
+        .iter()
+        .map(|&(m, x)| (m, 20_000.0 + 2.0 * (x - 20_000.0)))
+        .collect();
+    let mut buf: Box<Follower<1, 256>> = Box::new(Follower::unconfigured());
+    assert!(!buf.is_ready());
+    buf.configure(&other).unwrap();
+    assert!(!buf.is_ready(), "configured but no table");
+    buf.load_table(&table1(&steeper));
+    assert!(buf.is_ready());
+    for k in 0..500 {
+        buf.tick(&inputs(f64::from(k) * 7.0, 20_000.0));
+    }
+    // Reused for another law, in place.
+    buf.configure(&cfg).unwrap();
+    buf.load_table(&table1(&sine_nodes()));
+    let mut fresh = Follower::new(&cfg, table1(&sine_nodes())).unwrap();
+    // A refused configuration (NaN gain) leaves the law as it was.
+    let bad = FollowerConfig {
+        axes: [AxisConfig {
+            kp_lsb_per_um: f32::NAN,
+            ..ff_axis()
+        }],
+        ..FollowerConfig::default()
+    };
+    assert!(buf.configure(&bad).is_err());
+    for k in 0..2000 {
+        let m = 1000.0 + f64::from(k) * 3.07;
+        let (a, b) = (
+            buf.tick(&inputs(m.floor(), 20_000.0)),
+            fresh.tick(&inputs(m.floor(), 20_000.0)),
+        );
+        assert_eq!(a, b, "tick {k}");
+    }
 }
