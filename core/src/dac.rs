@@ -45,7 +45,7 @@ impl DacRange {
             return Err(DacRangeError::Margin);
         }
         // ⌈4095·m/V⌉ ≤ 2047 here (m < V/2); both products < 2^32.
-        let lost = (4095 * margin_mv).div_ceil(vdda_mv);
+        let lost = 4095u32.saturating_mul(margin_mv).div_ceil(vdda_mv);
         let max = 2047u32.saturating_sub(lost);
         if max == 0 {
             return Err(DacRangeError::Margin);
@@ -69,14 +69,17 @@ impl DacRange {
     /// The output voltage of `code`, mV (rounded down): VDDA·(2048 + code)/4095.
     pub const fn code_mv(&self, code: DacCode) -> u32 {
         let u = code.to_unipolar() as u32;
-        self.vdda_mv * u / 4095
+        // vdda ≤ 3600, u ≤ 4095: the product fits u32.
+        self.vdda_mv.saturating_mul(u) / 4095
     }
 
     /// `code` clamped to the usable range.
     #[inline(always)]
     pub fn clamp(&self, code: DacCode) -> DacCode {
         let c = code.get();
-        DacCode::new_clamped(i32::from(c.clamp(-self.max_code, self.max_code)))
+        // max_code ∈ [1, 2047]: its negation cannot overflow.
+        let lo = self.max_code.saturating_neg();
+        DacCode::new_clamped(i32::from(c.clamp(lo, self.max_code)))
     }
 }
 

@@ -10,6 +10,8 @@
 //! | master encoder A/B | PA0 / PA1 | TIM5 ch 1/2 (32-bit) | rotary table, 0.001°/count |
 //! | slave 0 encoder A/B | PA15 / PB3 | TIM2 ch 1/2 (32-bit) | PA15/PB3 are JTDI/SWO: debug with SWD only |
 //! | slave 1 encoder A/B | PB4 / PB5 | TIM3 ch 1/2 (16-bit, extended in software) | |
+//! | slave 0 reference (index Z or switch) | PA2 | TIM2 ch 3, input capture | rising edge latches the count (`crate::encoders`); pull-down |
+//! | slave 1 reference (index Z or switch) | PC8 | TIM3 ch 3, input capture | |
 //! | pressure 0…3 | PC1 / PC2 / PB0 / PB1 | ADC1 IN11 / IN12 / IN8 / IN9, DMA2 stream 0 | continuous scan, 144-cycle samples |
 //! | host link TX / RX | PA9 / PA10 | USART1, DMA2 stream 7 / 2 (channel 4) | 921 600 8N1, +0.16 % (see [`LINK_BAUD`]); also the ST system bootloader's USART |
 //! | table slots | — | flash sectors 10 / 11 (0x080C_0000 / 0x080E_0000) | `crate::flash` |
@@ -33,7 +35,7 @@ use embassy_stm32::usart::{self, Uart};
 use embassy_stm32::{bind_interrupts, dma, interrupt, pac, peripherals, Peri, Peripherals};
 use hydra_core::dac::DacRange;
 use hydra_core::runtime::{EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};
-use hydra_core::units::{DacCode, PressureBar};
+use hydra_core::units::{Counts, DacCode, PressureBar};
 use static_cell::StaticCell;
 
 use crate::encoders::{Encoder16, Encoder32, Encoders};
@@ -146,12 +148,20 @@ impl EncoderInput<SLAVES> for BoardIo {
     fn latch(&mut self) -> EncoderSample<SLAVES> {
         self.encoders.latch()
     }
+    #[inline]
+    fn reference_edges(&mut self) -> [Option<Counts>; SLAVES] {
+        self.encoders.reference_edges()
+    }
 }
 
 impl PressureInput<PRESSURES> for BoardIo {
     #[inline]
     fn read(&mut self) -> [PressureBar; PRESSURES] {
         self.pressures.read()
+    }
+    #[inline]
+    fn healthy(&mut self) -> bool {
+        self.pressures.healthy()
     }
 }
 
@@ -211,8 +221,9 @@ impl Board {
         };
         let master = Encoder32::new(Qei::new(p.TIM5, p.PA0, p.PA1, qei_cfg), pac::TIM5);
         let slave0 = Encoder32::new(Qei::new(p.TIM2, p.PA15, p.PB3, qei_cfg), pac::TIM2);
-        let slave1 = Encoder16::new(Qei::new(p.TIM3, p.PB4, p.PB5, qei_cfg));
+        let slave1 = Encoder16::new(Qei::new(p.TIM3, p.PB4, p.PB5, qei_cfg), pac::TIM3);
         let encoders = Encoders::new(master, slave0, slave1);
+        crate::encoders::reference_pins();
 
         let adc = Adc::new(p.ADC1);
         let buf = ADC_BUF.init([0; ADC_BUF_LEN]);

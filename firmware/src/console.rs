@@ -35,6 +35,8 @@ fn cmd_name(c: Command) -> &'static str {
         Command::Hold => "hold",
         Command::Stop => "stop",
         Command::ClearFault => "clear",
+        Command::SetPosition { .. } => "set-position",
+        Command::Home { .. } => "home",
     }
 }
 
@@ -56,6 +58,8 @@ fn error_text(e: CommandError, out: &mut String<96>) {
         CommandError::MasterMoved => write!(out, "master-moved"),
         CommandError::EndOfTable => write!(out, "end-of-table"),
         CommandError::Busy => write!(out, "busy"),
+        CommandError::NotReferenced { axis } => write!(out, "not-referenced {}", axis),
+        CommandError::NoAxis { axis } => write!(out, "no-axis {}", axis),
     };
 }
 

@@ -22,11 +22,12 @@
 use hydra_core::follower::FollowerConfig;
 use hydra_core::protocol::msg::StatusMsg;
 use hydra_core::protocol::report::{
-    bad_state, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
+    command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
 use hydra_core::protocol::{apply_param, Device, Motion, Nak, NakCode, ParamId};
 use hydra_core::runtime::State;
 use hydra_core::table::{CamTable, TableLimits};
+use hydra_core::units::PosUm;
 
 use crate::board::{SLAVES, SYSCLK_HZ};
 use crate::laws::{self, LawRef};
@@ -76,6 +77,9 @@ pub struct DeviceState {
     has_active: bool,
     /// The law buffers the runtime does not hold.
     pool: LawPool,
+    /// Reference offsets of absolute slaves restored from flash at boot, before the
+    /// runtime exists (`main` applies them).
+    pub boot_offsets: [Option<PosUm>; SLAVES],
 }
 
 /// The law buffers the runtime does not hold (both at boot, one once a law runs).
@@ -107,6 +111,7 @@ impl DeviceState {
             limits: crate::program::table_limits(),
             active: ACTIVE.try_take()?,
             has_active: false,
+            boot_offsets: [None; SLAVES],
             pool: LawPool {
                 free: [Some(a), Some(b)],
                 boot_law: None,
@@ -236,14 +241,38 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
             Some(Ok(())) => Ok(()),
             Some(Err(e)) => {
                 defmt::info!("command {} refused: {}", cmd, e);
-                Err(bad_state(state))
+                Err(command_nak(state, e))
             }
             // The tick did not answer in time (or the queue is full): detail 0xFFFF.
             None => Err(Nak::with(NakCode::BadState, 0xFFFF, 0)),
         }
     }
+    fn persisted_offset_um(&self, axis: u8) -> Option<f32> {
+        tick::with_runtime(|rt| rt.absolute_offset_um(axis))
+            .flatten()
+            .map(|o| o.to_num())
+    }
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
         let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+        if param == ParamId::SlaveOffsetUm {
+            let off = PosUm::checked_from_num(value)
+                .filter(|_| value.abs() <= 8.0e6)
+                .ok_or(range)?;
+            // Before the tick starts (boot) the runtime does not exist yet: kept for
+            // `main` to restore once it does.
+            return match tick::with_runtime(|rt| rt.restore_reference_offset(axis, off)) {
+                Some(r) => r.map_err(|_| range),
+                None => {
+                    let slot = self
+                        .st
+                        .boot_offsets
+                        .get_mut(usize::from(axis))
+                        .ok_or(range)?;
+                    *slot = Some(off);
+                    Ok(())
+                }
+            };
+        }
         if !self.all_idle() {
             return Err(Nak::new(NakCode::NotIdle));
         }

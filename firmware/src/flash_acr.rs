@@ -36,6 +36,7 @@ pub fn enable_accelerator() {
 }
 
 /// Discards the data cache's lines (after a program or erase), leaving it on if it was.
+#[cfg_attr(feature = "console", allow(dead_code))]
 pub fn reset_data_cache() {
     let acr = pac::FLASH.acr();
     let on = acr.read().dcen();

@@ -139,6 +139,11 @@ impl LinkProtocol for Framed {
         if let Err(e) = self.handler.poll(&mut dev) {
             defmt::warn!("deferred activation refused: {}", e);
         }
+        // The host-link watchdog (off unless `LinkTimeoutMs` is set).
+        let now_ms = embassy_time::Instant::now().as_millis() as u32;
+        if self.handler.watch_link(&mut dev, now_ms) {
+            defmt::warn!("host link silent while following: axes held");
+        }
     }
 
     fn on_sample(&mut self, sample: &TickSample, io: &mut LinkIo<'_>) {

@@ -107,7 +107,17 @@ async fn main(spawner: Spawner) {
         Ok(c) => c,
         Err(e) => defmt::panic!("runtime configuration rejected: {}", e),
     };
-    let rt = Runtime::new(coeffs, law, boot);
+    #[allow(unused_mut)] // mutable for the framed build's offsets
+    let mut rt = Runtime::new(coeffs, law, boot);
+    // Persisted offsets of absolute slaves (none on this board's incremental encoders).
+    #[cfg(not(feature = "console"))]
+    for (axis, off) in (0u8..).zip(proto.dev.boot_offsets.iter()) {
+        if let Some(o) = off {
+            if rt.restore_reference_offset(axis, *o).is_err() {
+                defmt::warn!("slave {}: persisted offset not restored", axis);
+            }
+        }
+    }
     defmt::info!(
         "hydra firmware: boot {}, period {} us, state {}, flash prefetch+caches {}",
         boot,

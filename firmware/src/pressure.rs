@@ -7,8 +7,17 @@
 //! bandwidth) and keeps the previous value if no new scan arrived (at 10 kHz ticks
 //! about 3 scans arrive per tick). The average is kept in 1/16 LSB and scaled to bar by
 //! `hydra_core::runtime::pressure::PressureScale`.
+//!
+//! **Overrun.** If the DMA ever misses a conversion (ADC_SR.OVR), the F4's ADC stops
+//! issuing DMA requests (RM0090 §13.8.1) and the pressures would freeze silently. Each
+//! read checks the flag and, if set, restarts the chain (DMA stream paused, ADC_CR2.DMA
+//! off, OVR cleared, ring cleared, DMA on, stream and conversions restarted) and counts
+//! it. Independently, no new scan for [`STALE_US`] makes the input unhealthy
+//! (`PressureInput::healthy`): reported in Status, and a fault when a force axis depends
+//! on the pressures (`RuntimeConfig::pressure_required`).
 
 use embassy_stm32::adc::RingBufferedAdc;
+use embassy_stm32::pac;
 use embassy_stm32::peripherals::ADC1;
 use hydra_core::runtime::pressure::{PressureCal, PressureScale};
 use hydra_core::units::PressureBar;
@@ -19,6 +28,17 @@ use crate::board::PRESSURES;
 pub const AVG_SCANS: usize = 8;
 /// DMA ring length: 64 scans of four channels.
 pub const ADC_BUF_LEN: usize = PRESSURES * 64;
+/// No new scan for this long (µs; ≈ 67 scan periods) makes the input stale.
+pub const STALE_US: u32 = 2000;
+/// [`STALE_US`] in ticks (at least 1).
+const STALE_TICKS: u32 = {
+    let t = STALE_US / crate::program::PERIOD_US;
+    if t == 0 {
+        1
+    } else {
+        t
+    }
+};
 
 /// The pressure inputs.
 pub struct Pressures {
@@ -26,6 +46,10 @@ pub struct Pressures {
     scale: [PressureScale; PRESSURES],
     last: [PressureBar; PRESSURES],
     scratch: [u16; PRESSURES * AVG_SCANS],
+    /// Ticks since the last new scan.
+    stale_ticks: u32,
+    /// Overruns recovered since boot.
+    pub overruns: u32,
 }
 
 impl Pressures {
@@ -41,14 +65,24 @@ impl Pressures {
             scale: [default; PRESSURES],
             last: [PressureBar::ZERO; PRESSURES],
             scratch: [0; PRESSURES * AVG_SCANS],
+            stale_ticks: 0,
+            overruns: 0,
         }
     }
 
     /// The newest averaged pressures (the previous ones if no scan completed).
     #[inline]
     pub fn read(&mut self) -> [PressureBar; PRESSURES] {
+        if pac::ADC1.sr().read().ovr() {
+            self.restart();
+        }
         let n = self.ring.read_latest(&mut self.scratch);
         let scans = n / PRESSURES;
+        self.stale_ticks = if scans > 0 {
+            0
+        } else {
+            self.stale_ticks.saturating_add(1)
+        };
         if scans > 0 {
             let mut sum = [0u32; PRESSURES];
             for scan in self.scratch.chunks_exact(PRESSURES).take(scans) {
@@ -62,5 +96,25 @@ impl Pressures {
             }
         }
         self.last
+    }
+
+    /// Whether a scan arrived within [`STALE_US`].
+    #[inline]
+    pub fn healthy(&self) -> bool {
+        self.stale_ticks < STALE_TICKS
+    }
+
+    /// Restarts conversions and DMA after an overrun (see the module docs).
+    #[cold]
+    fn restart(&mut self) {
+        self.ring.stop();
+        let adc = pac::ADC1;
+        adc.cr2().modify(|w| w.set_dma(false));
+        // OVR is cleared by writing 0.
+        adc.sr().modify(|w| w.set_ovr(false));
+        self.ring.clear();
+        adc.cr2().modify(|w| w.set_dma(true));
+        self.ring.start();
+        self.overruns = self.overruns.saturating_add(1);
     }
 }

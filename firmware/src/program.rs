@@ -14,7 +14,7 @@
 use heapless::Vec;
 use hydra_core::axis::{AxisConfig, ControlMode};
 use hydra_core::follower::{Follower, FollowerConfig};
-use hydra_core::runtime::{RuntimeCoeffs, RuntimeConfig};
+use hydra_core::runtime::{ReferenceMode, RuntimeCoeffs, RuntimeConfig};
 #[cfg(feature = "console")]
 use hydra_core::table::Node;
 use hydra_core::table::{AxisLimits, TableLimits};
@@ -52,6 +52,13 @@ pub enum ProgramError {
 pub fn runtime_coeffs() -> Result<RuntimeCoeffs<SLAVES>, ProgramError> {
     RuntimeConfig::<SLAVES> {
         period_us: PERIOD_US,
+        // Incremental linear encoders: each slave is referenced (set-position or
+        // homing to its index / reference input) before Start.
+        slave_reference: [ReferenceMode::Incremental; SLAVES],
+        // The reference marks of the reference machine's cylinders sit at 20 mm.
+        home_position_um: [20_000.0; SLAVES],
+        // No force axis on this board's law: stale pressures are reported, not a fault.
+        pressure_required: false,
         ..RuntimeConfig::default()
     }
     .build()
@@ -103,7 +110,6 @@ pub fn follower_config() -> FollowerConfig<SLAVES> {
             clamp_lsb: DAC_RANGE.max_code().unsigned_abs(),
             ..ValveCal::default()
         },
-        ..AxisConfig::default()
     };
     FollowerConfig::<SLAVES> {
         period_us: PERIOD_US,

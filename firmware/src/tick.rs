@@ -31,7 +31,9 @@ use embassy_stm32::peripherals::TIM7;
 use embassy_stm32::timer::low_level::{RoundTo, Timer};
 use embassy_stm32::Peri;
 use heapless::spsc::{Consumer, Producer};
-use hydra_core::runtime::{Command, CommandError, Runtime, State, Status};
+#[cfg(not(feature = "console"))]
+use hydra_core::runtime::State;
+use hydra_core::runtime::{Command, CommandError, Runtime, Status};
 use static_cell::StaticCell;
 
 use crate::board::{BoardIo, PRESSURES, SLAVES, SYSCLK_HZ};

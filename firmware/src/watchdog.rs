@@ -113,6 +113,7 @@ pub fn set(t: Timeout) -> bool {
 }
 
 /// The timeout now in force (read back from the registers).
+#[cfg_attr(feature = "console", allow(dead_code))]
 pub fn current() -> Timeout {
     let iwdg = pac::IWDG;
     let pr = iwdg.pr().read().pr().to_bits();

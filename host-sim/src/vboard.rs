@@ -22,7 +22,7 @@ use hydra_core::follower::{Follower, FollowerConfig};
 use hydra_core::protocol::msg::{AxisSample, StatusMsg, Telemetry};
 use hydra_core::protocol::ramflash::RamFlash;
 use hydra_core::protocol::report::{
-    bad_state, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
+    command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
 use hydra_core::protocol::{apply_param, Device, Handler, Motion, Nak, NakCode, ParamId, Store};
 use hydra_core::runtime::{
@@ -243,7 +243,7 @@ impl Device<AXES, CAPACITY> for Machine {
         let cmd = motion_command(m);
         let state = state_code(self.rt.state());
         match self.tick(Some(cmd)) {
-            Some(Err(_)) => Err(bad_state(state)),
+            Some(Err(e)) => Err(command_nak(state, e)),
             _ => {
                 if m == Motion::Start {
                     self.started = true;
@@ -252,8 +252,20 @@ impl Device<AXES, CAPACITY> for Machine {
             }
         }
     }
+    fn persisted_offset_um(&self, axis: u8) -> Option<f32> {
+        self.rt.absolute_offset_um(axis).map(|o| o.to_num())
+    }
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
         let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+        if param == ParamId::SlaveOffsetUm {
+            let off = PosUm::checked_from_num(value)
+                .filter(|_| value.abs() <= 8.0e6)
+                .ok_or(range)?;
+            return self
+                .rt
+                .restore_reference_offset(axis, off)
+                .map_err(|_| range);
+        }
         if !self.all_idle() {
             return Err(Nak::new(NakCode::NotIdle));
         }
@@ -323,6 +335,11 @@ impl VBoard {
         self.machine.tick(None);
         // A refused deferred activation keeps the running table; Status shows the id.
         let _ = self.handler.poll(&mut self.machine);
+        // The host-link watchdog on the board's own clock (ticks × period).
+        let ms = u64::from(self.machine.runtime().status().tick)
+            * u64::from(self.machine.runtime().coeffs().period_us)
+            / 1000;
+        self.handler.watch_link(&mut self.machine, ms as u32);
         let m = &self.machine;
         self.handler.on_tick(tx, || m.telemetry());
     }

@@ -29,7 +29,7 @@ use super::crc::Crc32;
 use super::frame::{self, FrameDecoder, FrameError, MAX_PAYLOAD, MAX_WIRE};
 use super::msg::{
     read_row, row_len, ty, Info, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
-    NO_TABLE, PROTOCOL_VERSION,
+    FLAG_LINK_LOST, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, NO_TABLE, PROTOCOL_VERSION,
 };
 use super::overrides::ParamOverrides;
 use super::store::{SlotHeader, Store};
@@ -49,6 +49,18 @@ pub enum Motion {
     Hold,
     /// Clear a latched fault.
     ClearFault,
+    /// Set-position: slave `axis` is at `pos_um` (Idle or Fault).
+    SetPosition {
+        /// Slave axis.
+        axis: u8,
+        /// Where it is, µm.
+        pos_um: crate::units::PosUm,
+    },
+    /// Arm homing of slave `axis` (Idle or Fault).
+    Home {
+        /// Slave axis.
+        axis: u8,
+    },
 }
 
 /// What the handler needs from the machine it controls: the runtime on the board, the
@@ -83,6 +95,11 @@ pub trait Device<const S: usize, const N: usize> {
     fn reset_params(&mut self) -> Result<(), Nak>;
     /// Fills state, faults, timing, master and per-axis fields of a status.
     fn status(&self, out: &mut StatusMsg);
+    /// The reference offset of slave `axis` if it is absolute (worth persisting, see
+    /// [`ParamId::SlaveOffsetUm`]), µm; `None` for an incremental axis.
+    fn persisted_offset_um(&self, _axis: u8) -> Option<f32> {
+        None
+    }
 }
 
 /// An upload in progress.
@@ -116,6 +133,22 @@ pub struct Handler<const S: usize, const N: usize> {
     decimation: u16,
     tick_count: u16,
     tel_seq: u16,
+    /// Host-link watchdog ([`ParamId::LinkTimeoutMs`], 0 = off).
+    link: LinkWatch,
+}
+
+/// The host-link watchdog's state (see [`Handler::watch_link`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct LinkWatch {
+    timeout_ms: u32,
+    /// Valid frames received (wrapping), and the count at the last watch.
+    frames: u32,
+    seen: u32,
+    last_ms: u32,
+    /// A Start from this link is in force (cleared by Stop, Hold, a trip).
+    host_started: bool,
+    /// Tripped since the last Start ([`super::msg::FLAG_LINK_LOST`]).
+    lost: bool,
 }
 
 /// Ack flag: Activate armed for the next safe point.
@@ -152,7 +185,55 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             decimation: 0,
             tick_count: 0,
             tel_seq: 0,
+            link: LinkWatch {
+                timeout_ms: 0,
+                frames: 0,
+                seen: 0,
+                last_ms: 0,
+                host_started: false,
+                lost: false,
+            },
         }
+    }
+
+    /// The host-link watchdog; call every few ms (the firmware's link task: every
+    /// wake-up, ≤ 10 ms) with a millisecond clock (wrapping). If
+    /// [`ParamId::LinkTimeoutMs`] is set and the axes follow after a Start from this link,
+    /// no valid frame for that long holds them (`Motion::Hold`: the slaves hold the
+    /// table position of the frozen master; valves stay powered and controlled) and
+    /// sets [`super::msg::FLAG_LINK_LOST`] until the next Start. Returns whether it
+    /// tripped now.
+    pub fn watch_link<D: Device<S, N>>(&mut self, dev: &mut D, now_ms: u32) -> bool {
+        let w = &mut self.link;
+        if w.frames != w.seen {
+            w.seen = w.frames;
+            w.last_ms = now_ms;
+            return false;
+        }
+        if w.timeout_ms == 0 || !w.host_started || now_ms.wrapping_sub(w.last_ms) < w.timeout_ms {
+            return false;
+        }
+        w.host_started = false;
+        if dev.all_idle() {
+            return false;
+        }
+        let held = dev.command(Motion::Hold).is_ok();
+        self.link.lost = true;
+        held
+    }
+
+    fn set_link_timeout(&mut self, value: f32) -> Result<(), Nak> {
+        let ok = value == 0.0 || (10.0..=60_000.0).contains(&value);
+        if !ok || !value.is_finite() {
+            return Err(Nak::with(
+                NakCode::ParamRange,
+                0,
+                ParamId::LinkTimeoutMs as u8,
+            ));
+        }
+        // In range: the cast is exact for whole ms and truncates a fraction.
+        self.link.timeout_ms = value as u32;
+        Ok(())
     }
 
     /// Loads the newest valid flash slot: applies its parameters through
@@ -182,7 +263,12 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 continue;
             }
             for r in params.iter() {
-                if dev.set_param(r.axis, r.param, r.value).is_ok() {
+                let applied = if r.param == ParamId::LinkTimeoutMs {
+                    self.set_link_timeout(r.value)
+                } else {
+                    dev.set_param(r.axis, r.param, r.value)
+                };
+                if applied.is_ok() {
                     self.overrides.record(r.axis, r.param, r.value);
                 }
             }
@@ -271,6 +357,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                     )
                 }
                 Some(Ok(f)) => {
+                    self.link.frames = self.link.frames.wrapping_add(1);
                     // Copy out of the decoder's buffer so `self` is free for dispatch.
                     let mut p = [0u8; MAX_PAYLOAD];
                     let len = f.payload.len();
@@ -362,11 +449,33 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 }
                 _ => Err(Nak::new(NakCode::UnknownTable)),
             },
-            Request::Start => dev.command(Motion::Start),
-            Request::Stop => dev.command(Motion::Stop),
-            Request::Hold => dev.command(Motion::Hold),
+            Request::Start => dev.command(Motion::Start).map(|()| {
+                self.link.host_started = true;
+                self.link.lost = false;
+            }),
+            Request::Stop => dev.command(Motion::Stop).map(|()| {
+                self.link.host_started = false;
+            }),
+            Request::Hold => dev.command(Motion::Hold).map(|()| {
+                self.link.host_started = false;
+            }),
             Request::ClearFault => dev.command(Motion::ClearFault),
+            Request::SetPosition { axis, pos_um } => dev
+                .command(Motion::SetPosition {
+                    axis,
+                    pos_um: crate::units::PosUm::from_bits(pos_um),
+                })
+                .map(|()| {
+                    // An absolute axis keeps its new offset across a power cycle (Save).
+                    if let Some(off) = dev.persisted_offset_um(axis) {
+                        self.overrides.record(axis, ParamId::SlaveOffsetUm, off);
+                    }
+                }),
+            Request::Home { axis } => dev.command(Motion::Home { axis }),
             Request::SetParam { axis, param, value } => match ParamId::from_u8(param) {
+                Some(ParamId::LinkTimeoutMs) => self.set_link_timeout(value).map(|()| {
+                    self.overrides.record(0, ParamId::LinkTimeoutMs, value);
+                }),
                 Some(p) => dev.set_param(axis, p, value).map(|()| {
                     self.overrides.record(axis, p, value);
                 }),
@@ -400,7 +509,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     fn status<D: Device<S, N>>(&self, dev: &D) -> StatusMsg {
         let mut s = StatusMsg::default();
         dev.status(&mut s);
-        let mut flags = s.flags & 1;
+        let mut flags = s.flags & (1 | FLAG_UNREFERENCED | FLAG_PRESSURE_STALE);
+        if self.link.lost {
+            flags |= FLAG_LINK_LOST;
+        }
         if self.pending {
             flags |= 2;
         }

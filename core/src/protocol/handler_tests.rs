@@ -34,6 +34,12 @@ struct Mock {
     max_um: i32,
     /// `reset_params` fails (a device that cannot undo parameters).
     no_reset: bool,
+    /// Hold commands received.
+    holds: u32,
+    /// The last set-position.
+    position: Option<PosUm>,
+    /// A restored reference offset (`ParamId::SlaveOffsetUm`).
+    offset: Option<f32>,
 }
 
 impl Device<S, N> for Mock {
@@ -85,8 +91,23 @@ impl Device<S, N> for Mock {
                 self.running = false;
                 Ok(())
             }
-            Motion::Hold | Motion::ClearFault => Ok(()),
+            Motion::Hold => {
+                self.holds += 1;
+                Ok(())
+            }
+            Motion::ClearFault => Ok(()),
+            Motion::SetPosition { axis, .. } | Motion::Home { axis } if usize::from(axis) >= S => {
+                Err(Nak::with(NakCode::NoAxis, u16::from(axis), 0))
+            }
+            Motion::SetPosition { pos_um, .. } => {
+                self.position = Some(pos_um);
+                Ok(())
+            }
+            Motion::Home { .. } => Ok(()),
         }
+    }
+    fn persisted_offset_um(&self, _axis: u8) -> Option<f32> {
+        self.position.map(|p| p.to_num::<f32>() - 1.0)
     }
     fn set_param(&mut self, axis: u8, p: ParamId, v: f32) -> Result<(), Nak> {
         if usize::from(axis) >= S {
@@ -95,6 +116,10 @@ impl Device<S, N> for Mock {
         match p {
             ParamId::KpLsbPerUm if (0.0..=1000.0).contains(&v) => {
                 self.kp = v;
+                Ok(())
+            }
+            ParamId::SlaveOffsetUm => {
+                self.offset = Some(v);
                 Ok(())
             }
             _ => Err(Nak::with(NakCode::ParamRange, u16::from(axis), p as u8)),
@@ -891,4 +916,99 @@ proptest! {
         prop_assert!(r.dev.table.is_none());
         prop_assert!(r.flash.mem.iter().all(|b| *b == 0xFF));
     }
+}
+
+/// The host-link watchdog: off by default; once set, a Start from the link followed by
+/// silence longer than the timeout holds the axes (one Hold) and is reported in Status
+/// until the next Start; frames keep it quiet; bad timeouts are refused.
+#[test]
+fn link_watchdog_holds_after_silence_only_when_set() {
+    let mut r = loaded_rig();
+    r.ack(&Request::Start);
+    assert!(!r.h.watch_link(&mut r.dev, 0));
+    assert!(!r.h.watch_link(&mut r.dev, 1_000_000), "off by default");
+    r.ack(&Request::Stop);
+    for bad in [5.0, 60_001.0, f32::NAN, -1.0] {
+        let q = Request::SetParam {
+            axis: 0,
+            param: ParamId::LinkTimeoutMs as u8,
+            value: bad,
+        };
+        assert_eq!(nak_code(&r.req(&q)), NakCode::ParamRange, "{bad}");
+    }
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::LinkTimeoutMs as u8,
+        value: 100.0,
+    });
+    // Not started from the link: silence is fine.
+    assert!(!r.h.watch_link(&mut r.dev, 2_000_000));
+    r.ack(&Request::Start);
+    let t0 = 3_000_000;
+    assert!(!r.h.watch_link(&mut r.dev, t0), "the Start frame was seen");
+    assert!(!r.h.watch_link(&mut r.dev, t0 + 60));
+    // A frame at +60 ms keeps it alive past +100.
+    let _ = r.req(&Request::GetStatus);
+    assert!(!r.h.watch_link(&mut r.dev, t0 + 90));
+    assert!(!r.h.watch_link(&mut r.dev, t0 + 150));
+    assert_eq!(r.dev.holds, 0);
+    assert!(r.h.watch_link(&mut r.dev, t0 + 191), "100 ms of silence");
+    assert_eq!(r.dev.holds, 1);
+    assert!(
+        !r.h.watch_link(&mut r.dev, t0 + 500),
+        "one Hold, not one per call"
+    );
+    let flags = |r: &mut Rig| match r.req(&Request::GetStatus) {
+        Response::Status(s) => s.flags,
+        x => panic!("{x:?}"),
+    };
+    assert_ne!(flags(&mut r) & super::msg::FLAG_LINK_LOST, 0);
+    r.ack(&Request::Start);
+    assert_eq!(flags(&mut r) & super::msg::FLAG_LINK_LOST, 0);
+    // Wraps with the millisecond clock.
+    r.ack(&Request::Stop);
+    r.ack(&Request::Start);
+    assert!(!r.h.watch_link(&mut r.dev, u32::MAX - 10));
+    assert!(r.h.watch_link(&mut r.dev, 95));
+}
+
+/// A set-position on an absolute axis is persisted (as its reference offset) by Save and
+/// restored at boot; the link timeout too.
+#[test]
+fn set_position_offset_and_link_timeout_are_saved() {
+    let mut r = loaded_rig();
+    r.ack(&Request::SetPosition {
+        axis: 0,
+        pos_um: PosUm::from_num(250).to_bits(),
+    });
+    assert_eq!(r.dev.position, Some(PosUm::from_num(250)));
+    assert_eq!(
+        nak_code(&r.req(&Request::Home { axis: 3 })),
+        NakCode::NoAxis
+    );
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::LinkTimeoutMs as u8,
+        value: 250.0,
+    });
+    r.ack(&Request::Save);
+    let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
+    let mut h2 = Handler::<S, N>::new(store);
+    let mut dev2 = Mock::default();
+    let hd = h2.boot(&mut dev2, &mut r.flash).unwrap();
+    assert_eq!(hd.params, 2);
+    // The mock's absolute offset is position − 1 µm.
+    assert_eq!(dev2.offset, Some(249.0));
+    // The restored timeout acts after a Start.
+    dev2.running = true;
+    let mut r2 = Rig {
+        h: h2,
+        dev: dev2,
+        flash: r.flash.clone(),
+        seq: 0,
+    };
+    assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
+    r2.ack(&Request::Start);
+    assert!(!r2.h.watch_link(&mut r2.dev, 10));
+    assert!(r2.h.watch_link(&mut r2.dev, 261));
 }

@@ -42,6 +42,10 @@ pub mod ty {
     pub const HOLD: u8 = 0x22;
     /// Request: clear a latched fault.
     pub const CLEAR_FAULT: u8 = 0x23;
+    /// Request: set-position — a slave is at a stated position (Idle or Fault).
+    pub const SET_POSITION: u8 = 0x24;
+    /// Request: arm homing of a slave (referenced at its next reference edge).
+    pub const HOME: u8 = 0x25;
     /// Request: set one parameter.
     pub const SET_PARAM: u8 = 0x30;
     /// Request: persist the active table to flash.
@@ -127,13 +131,18 @@ pub enum NakCode {
     /// be built with the present parameters, 1: the runtime was not at a safe point). The
     /// running table and the active id are unchanged; the committed table is consumed.
     Refused = 30,
+    /// Start (or Hold from Idle) while a slave is not referenced (detail: that slave):
+    /// set its position or home it first.
+    NotReferenced = 31,
+    /// A command for a slave the board does not have (detail: the axis asked for).
+    NoAxis = 32,
 }
 
 impl NakCode {
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use NakCode::*;
-        const ALL: [NakCode; 30] = [
+        const ALL: [NakCode; 32] = [
             UnknownType,
             Truncated,
             Oversized,
@@ -164,6 +173,8 @@ impl NakCode {
             NothingToSave,
             Flash,
             Refused,
+            NotReferenced,
+            NoAxis,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -249,11 +260,19 @@ pub enum ParamId {
     MasterSpeedPerS = 10,
     /// Valve calibration: null offset, DAC LSB.
     ValveNullLsb = 11,
+    /// Host-link watchdog, ms (axis byte ignored): while following after a Start from
+    /// the link, no valid frame for this long holds the axes. 0 = off (the default; 10 …
+    /// 60 000 otherwise). Kept by the protocol handler, not the device.
+    LinkTimeoutMs = 12,
+    /// Reference offset of an absolute slave, µm (|x| ≤ 8 000 000): written by the
+    /// handler when a set-position on an absolute axis succeeds, so Save persists it and
+    /// boot restores it (`runtime::reference`).
+    SlaveOffsetUm = 13,
 }
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 11;
+    pub const COUNT: usize = 13;
 
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
@@ -270,6 +289,8 @@ impl ParamId {
             MaxSpeedUmPerS,
             MasterSpeedPerS,
             ValveNullLsb,
+            LinkTimeoutMs,
+            SlaveOffsetUm,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -345,6 +366,18 @@ pub enum Request<'a> {
     Hold,
     /// Clear a latched fault.
     ClearFault,
+    /// Set-position: slave `axis` is at `pos_um`.
+    SetPosition {
+        /// Slave axis (0-based).
+        axis: u8,
+        /// Where it is, `I24F8` µm raw.
+        pos_um: i32,
+    },
+    /// Arm homing of slave `axis`.
+    Home {
+        /// Slave axis (0-based).
+        axis: u8,
+    },
     /// Set one parameter.
     SetParam {
         /// Axis (ignored by board-wide parameters).
@@ -398,6 +431,13 @@ impl<'a> Request<'a> {
             ty::STOP => Request::Stop,
             ty::HOLD => Request::Hold,
             ty::CLEAR_FAULT => Request::ClearFault,
+            ty::SET_POSITION => Request::SetPosition {
+                axis: r.u8().ok_or(t)?,
+                pos_um: r.i32().ok_or(t)?,
+            },
+            ty::HOME => Request::Home {
+                axis: r.u8().ok_or(t)?,
+            },
             ty::SET_PARAM => Request::SetParam {
                 axis: r.u8().ok_or(t)?,
                 param: r.u8().ok_or(t)?,
@@ -429,6 +469,8 @@ impl<'a> Request<'a> {
             Request::Stop => ty::STOP,
             Request::Hold => ty::HOLD,
             Request::ClearFault => ty::CLEAR_FAULT,
+            Request::SetPosition { .. } => ty::SET_POSITION,
+            Request::Home { .. } => ty::HOME,
             Request::SetParam { .. } => ty::SET_PARAM,
             Request::Save => ty::SAVE,
             Request::SetTelemetry { .. } => ty::SET_TELEMETRY,
@@ -463,6 +505,11 @@ impl<'a> Request<'a> {
             }
             Request::TableCommit { crc } => w.u32(crc)?,
             Request::Activate { id } => w.u32(id)?,
+            Request::SetPosition { axis, pos_um } => {
+                w.u8(axis)?;
+                w.i32(pos_um)?;
+            }
+            Request::Home { axis } => w.u8(axis)?,
             Request::SetParam { axis, param, value } => {
                 w.u8(axis)?;
                 w.u8(param)?;
@@ -493,6 +540,13 @@ pub struct Info {
     pub active_id: u32,
 }
 
+/// `StatusMsg::flags`: a slave is not referenced (Start is refused).
+pub const FLAG_UNREFERENCED: u8 = 1 << 5;
+/// `StatusMsg::flags`: the host-link watchdog held the axes since the last Start.
+pub const FLAG_LINK_LOST: u8 = 1 << 6;
+/// `StatusMsg::flags`: the pressure inputs stopped updating this tick.
+pub const FLAG_PRESSURE_STALE: u8 = 1 << 7;
+
 /// Per-axis part of `Status`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AxisStatus {
@@ -512,7 +566,10 @@ pub struct StatusMsg {
     /// Runtime state: 0 Idle, 1 Following, 2 Holding, 3 Fault.
     pub state: u8,
     /// Flags: bit 0 end of table, bit 1 activation pending, bit 2 upload in progress,
-    /// bit 3 a committed table waits, bit 4 session open.
+    /// bit 3 a committed table waits, bit 4 session open, bit 5 a slave is not
+    /// referenced ([`FLAG_UNREFERENCED`]), bit 6 the host-link watchdog held the axes
+    /// since the last Start ([`FLAG_LINK_LOST`]), bit 7 the pressure inputs are stale
+    /// ([`FLAG_PRESSURE_STALE`]).
     pub flags: u8,
     /// Latched fault code (0 = none; the runtime's 16-bit codes).
     pub fault_code: u16,
@@ -749,7 +806,9 @@ mod tests {
         assert_eq!(NakCode::from_u8(29), Some(NakCode::Flash));
         assert_eq!(NakCode::from_u8(0), None);
         assert_eq!(NakCode::from_u8(30), Some(NakCode::Refused));
-        assert_eq!(NakCode::from_u8(31), None);
+        assert_eq!(NakCode::from_u8(31), Some(NakCode::NotReferenced));
+        assert_eq!(NakCode::from_u8(32), Some(NakCode::NoAxis));
+        assert_eq!(NakCode::from_u8(33), None);
     }
 
     #[test]

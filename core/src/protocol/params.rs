@@ -57,6 +57,15 @@ pub fn apply_param<const S: usize, const N: usize>(
                 return Err(range);
             }
         }
+        // Not follower parameters: the handler (link timeout) and the device (reference
+        // offset) take them before this function.
+        ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm => {
+            return Err(Nak::with(
+                NakCode::UnknownParam,
+                u16::from(axis),
+                param as u8,
+            ))
+        }
         ParamId::MasterSpeedPerS => {
             lim.master_speed_per_s = MasterRate::checked_from_num(value)
                 .filter(|v| *v > 0)

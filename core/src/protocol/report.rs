@@ -2,8 +2,8 @@
 //! [`super::Device`] (the firmware and the host's virtual board).
 
 use super::handler::Motion;
-use super::msg::{AxisStatus, Nak, NakCode, StatusMsg};
-use crate::runtime::{Command, Fault, State, Status};
+use super::msg::{AxisStatus, Nak, NakCode, StatusMsg, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED};
+use crate::runtime::{Command, CommandError, Fault, RefState, State, Status};
 
 /// `Refused` detail: the device's law cannot be built from the table with the present
 /// parameters.
@@ -18,6 +18,18 @@ pub const fn motion_command(m: Motion) -> Command {
         Motion::Stop => Command::Stop,
         Motion::Hold => Command::Hold,
         Motion::ClearFault => Command::ClearFault,
+        Motion::SetPosition { axis, pos_um } => Command::SetPosition { axis, pos_um },
+        Motion::Home { axis } => Command::Home { axis },
+    }
+}
+
+/// The Nak of a command the runtime refused with `e` in state `state`: the typed codes
+/// for a reference problem (naming the slave), else [`bad_state`].
+pub const fn command_nak(state: u8, e: CommandError) -> Nak {
+    match e {
+        CommandError::NotReferenced { axis } => Nak::with(NakCode::NotReferenced, axis as u16, 0),
+        CommandError::NoAxis { axis } => Nak::with(NakCode::NoAxis, axis as u16, 0),
+        _ => bad_state(state),
     }
 }
 
@@ -55,6 +67,12 @@ pub fn fill_status<const S: usize, const P: usize>(
         st.state,
         State::Holding(crate::runtime::HoldReason::EndOfTable)
     ));
+    if st.reference.iter().any(|r| *r != RefState::Referenced) {
+        out.flags |= FLAG_UNREFERENCED;
+    }
+    if !st.pressure_ok {
+        out.flags |= FLAG_PRESSURE_STALE;
+    }
     out.fault_code = st.fault.map_or(0, |f| f.fault.code());
     out.fault_axis = match st.fault.map(|f| f.fault) {
         Some(Fault::FollowingError { axis } | Fault::Controller { axis }) => axis,
@@ -107,7 +125,27 @@ mod tests {
             estop: false,
             pressure_bar: [PressureBar::ZERO; 4],
             timing,
+            reference: [RefState::Referenced; 2],
+            pressure_ok: true,
         }
+    }
+
+    #[test]
+    fn reference_and_pressure_flags() {
+        let mut out = StatusMsg::default();
+        let mut st = status(State::Idle, None);
+        st.reference[1] = RefState::Homing;
+        st.pressure_ok = false;
+        fill_status(&st, |c| c, &mut out);
+        assert_eq!(out.flags, FLAG_UNREFERENCED | FLAG_PRESSURE_STALE);
+        assert_eq!(
+            command_nak(0, CommandError::NotReferenced { axis: 1 }),
+            Nak::with(NakCode::NotReferenced, 1, 0)
+        );
+        assert_eq!(
+            command_nak(3, CommandError::Faulted),
+            Nak::with(NakCode::BadState, 3, 0)
+        );
     }
 
     #[test]

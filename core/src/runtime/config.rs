@@ -9,6 +9,7 @@
 //! with T the control period. Defaults are those of the reference machine (PLANT.md):
 //! 1 kHz, master 0.001°/count on an encoder, slaves 1 µm/count.
 
+use super::reference::ReferenceMode;
 use fixed::types::{I24F8, I32F32};
 
 /// Where the master position comes from.
@@ -55,6 +56,16 @@ pub struct RuntimeConfig<const S: usize> {
     /// Holding → Following is refused if the master moved more than this while holding,
     /// master counts.
     pub resume_window_counts: u32,
+    /// How each slave's position is referenced (`super::reference`; default
+    /// `Absolute`: the count is the position). An `Incremental` slave must be
+    /// referenced (set-position or homing) before Start.
+    pub slave_reference: [ReferenceMode; S],
+    /// Each slave's position at its reference edge (homing), µm (|x| ≤ 8 000 000).
+    pub home_position_um: [f32; S],
+    /// A law that depends on the pressure inputs runs (a force axis): a pressure input
+    /// that stops updating (`PressureInput::healthy` false) latches
+    /// `Fault::PressureInput`. Without one, a stale pressure is only reported.
+    pub pressure_required: bool,
 }
 
 impl<const S: usize> Default for RuntimeConfig<S> {
@@ -74,6 +85,9 @@ impl<const S: usize> Default for RuntimeConfig<S> {
             stall_min_move_counts: 10,
             stall_end_window_counts: 100,
             resume_window_counts: 100,
+            slave_reference: [ReferenceMode::Absolute; S],
+            home_position_um: [0.0; S],
+            pressure_required: false,
         }
     }
 }
@@ -109,6 +123,11 @@ pub enum RuntimeConfigError {
     },
     /// `stall_timeout_s` not in 0.01 … 600 or `stall_min_move_counts` is 0.
     Stall,
+    /// A slave's home position beyond ±8 000 000 µm.
+    Home {
+        /// Slave axis.
+        axis: u8,
+    },
 }
 
 /// Largest per-tick step limit: below 2^14 so a 16-bit extension can never alias a
@@ -143,6 +162,12 @@ pub struct RuntimeCoeffs<const S: usize> {
     pub stall_end_window_counts: u32,
     /// Resume window, master counts.
     pub resume_window_counts: u32,
+    /// Reference mode per slave.
+    pub slave_reference: [ReferenceMode; S],
+    /// Home position per slave, µm (`I24F8`).
+    pub home_position_um: [I24F8; S],
+    /// Pressure inputs required (see [`RuntimeConfig::pressure_required`]).
+    pub pressure_required: bool,
 }
 
 fn finite_in(x: f32, lo: f32, hi: f32) -> bool {
@@ -196,7 +221,22 @@ impl<const S: usize> RuntimeConfig<S> {
             stall_min_move_counts: self.stall_min_move_counts,
             stall_end_window_counts: self.stall_end_window_counts,
             resume_window_counts: self.resume_window_counts,
+            slave_reference: self.slave_reference,
+            home_position_um: [I24F8::ZERO; S],
+            pressure_required: self.pressure_required,
         };
+        for (i, (o, &h)) in c
+            .home_position_um
+            .iter_mut()
+            .zip(self.home_position_um.iter())
+            .enumerate()
+        {
+            if !finite_in(h, -8.0e6, 8.0e6) {
+                let axis = u8::try_from(i).unwrap_or(u8::MAX);
+                return Err(RuntimeConfigError::Home { axis });
+            }
+            *o = I24F8::saturating_from_num(h);
+        }
         let axes = self
             .slave_um_per_count
             .iter()

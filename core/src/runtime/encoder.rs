@@ -49,6 +49,14 @@ impl Extender16 {
     pub const fn count(&self) -> Counts {
         Counts(self.count)
     }
+
+    /// The extended count of an earlier raw value `raw` (e.g. a hardware capture of
+    /// the counter at a reference edge), from the last reading: exact while the counter
+    /// moved less than 32 768 counts between that value and the last reading.
+    pub const fn extend_past(&self, raw: u16) -> Counts {
+        let back = self.last_raw.wrapping_sub(raw) as i16;
+        Counts(self.count.wrapping_sub(back as i32))
+    }
 }
 
 /// A 32-bit timer's counter as a count (two's complement, wraps like the extender).
@@ -117,5 +125,17 @@ mod tests {
             let b = counts_from_u32(start.wrapping_add(s as u32));
             prop_assert_eq!(step(a, b), s);
         }
+    }
+
+    #[test]
+    fn extends_a_capture_from_the_past() {
+        let mut e = Extender16::new(65_530, 1000);
+        // Through the wrap: 65 530 → 20 is +26.
+        assert_eq!(e.update(20), Counts(1026));
+        // A capture at 65 535 (before the wrap) and one at 10 (after it).
+        assert_eq!(e.extend_past(65_535), Counts(1005));
+        assert_eq!(e.extend_past(10), Counts(1016));
+        // A capture "after" the reading cannot happen; it extends forward all the same.
+        assert_eq!(e.extend_past(25), Counts(1031));
     }
 }

@@ -16,6 +16,7 @@
 //! | `0x05cc` | encoder jump, channel `cc` (0 = master, 1… = slaves) | one tick's count change exceeds the channel's plausible maximum | the tick that clears has no jump |
 //! | `0x06aa` | following error, slave `aa` (0-based) | following or holding, \|target − position\| > the axis limit | at once (not controlling) |
 //! | `0x07aa` | controller fault on slave `aa` | the control law flags the axis (e.g. output saturated too long) | at once (not controlling) |
+//! | `0x0800` | pressure input | `pressure_required` and the pressure inputs stopped updating (an ADC overrun stopped its DMA) | the tick that clears has live pressures again (the board restarts the converter) |
 
 /// One fault cause.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,6 +45,8 @@ pub enum Fault {
         /// Slave axis (0-based).
         axis: u8,
     },
+    /// The pressure inputs stopped updating while a law that depends on them runs.
+    PressureInput,
 }
 
 /// The kind of a fault, without its index (bit position in a [`FaultSet`]).
@@ -65,6 +68,8 @@ pub enum FaultKind {
     FollowingError = 6,
     /// See [`Fault::Controller`].
     Controller = 7,
+    /// [`Fault::PressureInput`].
+    PressureInput = 8,
 }
 
 impl Fault {
@@ -78,6 +83,7 @@ impl Fault {
             Fault::EncoderJump { .. } => FaultKind::EncoderJump,
             Fault::FollowingError { .. } => FaultKind::FollowingError,
             Fault::Controller { .. } => FaultKind::Controller,
+            Fault::PressureInput => FaultKind::PressureInput,
         }
     }
 
@@ -106,6 +112,7 @@ impl Fault {
             5 => Fault::EncoderJump { channel: index },
             6 => Fault::FollowingError { axis: index },
             7 => Fault::Controller { axis: index },
+            8 => Fault::PressureInput,
             _ => return None,
         };
         if f.code() == code {
@@ -166,6 +173,7 @@ mod tests {
             Fault::EncoderJump { channel: 2 },
             Fault::FollowingError { axis: 1 },
             Fault::Controller { axis: 3 },
+            Fault::PressureInput,
         ];
         for (i, a) in all.iter().enumerate() {
             assert_eq!(Fault::from_code(a.code()), Some(*a));
@@ -177,7 +185,8 @@ mod tests {
         assert_eq!(Fault::EncoderJump { channel: 2 }.code(), 0x0502);
         assert_eq!(Fault::FollowingError { axis: 1 }.code(), 0x0601);
         assert_eq!(Fault::from_code(0x0101), None);
-        assert_eq!(Fault::from_code(0x0800), None);
+        assert_eq!(Fault::PressureInput.code(), 0x0800);
+        assert_eq!(Fault::from_code(0x0900), None);
         assert_eq!(Fault::from_code(0), None);
     }
 

@@ -25,12 +25,26 @@ pub struct EncoderSample<const S: usize> {
 pub trait EncoderInput<const S: usize> {
     /// Reads every channel, back to back.
     fn latch(&mut self) -> EncoderSample<S>;
+
+    /// Per slave, the count latched in hardware at the last edge of its reference input
+    /// or encoder index since the previous call (`None`: no edge). Read right after
+    /// [`EncoderInput::latch`]; a board without reference inputs keeps the default.
+    fn reference_edges(&mut self) -> [Option<Counts>; S] {
+        [None; S]
+    }
 }
 
 /// Chamber pressure inputs.
 pub trait PressureInput<const P: usize> {
     /// The latest pressures, bar (the board's own filtering applied).
     fn read(&mut self) -> [PressureBar; P];
+
+    /// Whether the pressures are live: `false` when the converter has stopped updating
+    /// (e.g. an ADC overrun stopped its DMA, until the board restarted it). Read after
+    /// [`PressureInput::read`].
+    fn healthy(&mut self) -> bool {
+        true
+    }
 }
 
 /// The E-stop input.

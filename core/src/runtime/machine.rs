@@ -35,6 +35,7 @@ use super::controller::{ControlInputs, Controller, LawFault};
 use super::encoder::{plausible, step};
 use super::fault::{Fault, FaultRecord, FaultSet};
 use super::io::{Board, EncoderSample};
+use super::reference::{RefState, References};
 use super::stall::StallMonitor;
 use super::timing::TickTiming;
 use crate::q::sat_i32;
@@ -76,6 +77,19 @@ pub enum Command {
     Stop,
     /// Fault → Idle, if the cause is gone.
     ClearFault,
+    /// Idle or Fault: slave `axis` is at `pos_um` (set-position, `super::reference`).
+    SetPosition {
+        /// Slave axis (0-based).
+        axis: u8,
+        /// Where it is, µm.
+        pos_um: PosUm,
+    },
+    /// Idle or Fault: arm homing of slave `axis` (referenced at its next reference
+    /// edge, `super::reference`).
+    Home {
+        /// Slave axis (0-based).
+        axis: u8,
+    },
 }
 
 /// Why a command was refused (nothing changed).
@@ -92,8 +106,19 @@ pub enum CommandError {
     MasterMoved,
     /// Resume refused: holding at the end of the table.
     EndOfTable,
-    /// A new law can only be installed in Idle, Fault or at the end of the table.
+    /// A new law can only be installed in Idle, Fault or at the end of the table; a
+    /// reference can only be set in Idle or Fault.
     Busy,
+    /// Start (or Hold from Idle) while a slave is not referenced (`super::reference`).
+    NotReferenced {
+        /// The first unreferenced slave.
+        axis: u8,
+    },
+    /// A reference command for a slave the runtime does not have.
+    NoAxis {
+        /// The axis asked for.
+        axis: u8,
+    },
 }
 
 /// Whether the board came out of a watchdog reset.
@@ -162,6 +187,10 @@ pub struct Status<const S: usize, const P: usize> {
     pub pressure_bar: [PressureBar; P],
     /// Tick execution time.
     pub timing: TickTiming,
+    /// Each slave's reference state.
+    pub reference: [RefState; S],
+    /// The pressure inputs were live this tick ([`super::io::PressureInput::healthy`]).
+    pub pressure_ok: bool,
 }
 
 /// The runtime: states, fault rules and outputs around a control law `C`.
@@ -177,6 +206,9 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     held_master: Master,
     stall: StallMonitor,
     status: Status<S, P>,
+    refs: References<S>,
+    /// The board's pressure inputs were live at the last `tick_io`.
+    pressure_ok: bool,
 }
 
 /// Slave position from a count: `count · scale + offset` (scale in Q.32, result I24F8).
@@ -214,8 +246,13 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 estop: false,
                 pressure_bar: [PressureBar::ZERO; P],
                 timing: TickTiming::default(),
+                reference: [RefState::Unreferenced; S],
+                pressure_ok: true,
             },
+            refs: References::new(cfg.slave_reference, cfg.home_position_um),
+            pressure_ok: true,
         };
+        rt.status.reference = *rt.refs.states();
         rt.status.dac = rt.null_codes();
         if boot == BootCause::Watchdog {
             rt.raise(Fault::Watchdog);
@@ -286,6 +323,37 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         Ok(self.law.replace(law))
     }
 
+    /// Each slave's reference ([`super::reference`]).
+    pub fn references(&self) -> &References<S> {
+        &self.refs
+    }
+
+    /// The reference offset of slave `axis` if it is an absolute axis (the value to
+    /// persist), µm.
+    pub fn absolute_offset_um(&self, axis: u8) -> Option<PosUm> {
+        if self.refs.is_absolute(axis) {
+            self.refs.offsets().get(usize::from(axis)).copied()
+        } else {
+            None
+        }
+    }
+
+    /// Restores a persisted reference offset of slave `axis` (boot; Idle or Fault only).
+    pub fn restore_reference_offset(
+        &mut self,
+        axis: u8,
+        offset_um: PosUm,
+    ) -> Result<(), CommandError> {
+        if !matches!(self.state, State::Idle | State::Fault) {
+            return Err(CommandError::Busy);
+        }
+        self.refs
+            .restore_offset(axis, offset_um)
+            .ok_or(CommandError::NoAxis { axis })?;
+        self.status.reference = *self.refs.states();
+        Ok(())
+    }
+
     /// Replaces the configuration (allowed in Idle and Fault only).
     pub fn set_coeffs(&mut self, cfg: RuntimeCoeffs<S>) -> Result<(), CommandError> {
         if !matches!(self.state, State::Idle | State::Fault) {
@@ -341,6 +409,9 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         if s.overrun {
             cause(self, Fault::Overrun);
         }
+        if self.cfg.pressure_required && !self.pressure_ok {
+            cause(self, Fault::PressureInput);
+        }
         if let Some(prev) = self.prev_enc {
             let master_used = self.cfg.master_source == MasterSource::Encoder;
             if master_used
@@ -392,7 +463,22 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         first_cause: Option<Fault>,
     ) -> Result<(), CommandError> {
         let has_law = self.law.is_some();
+        let unreferenced = self.refs.first_unreferenced();
         match (cmd, self.state) {
+            (Command::SetPosition { axis, pos_um: at }, State::Idle | State::Fault) => {
+                let measured = *pos_um
+                    .get(usize::from(axis))
+                    .ok_or(CommandError::NoAxis { axis })?;
+                self.refs
+                    .set_position(axis, measured, at)
+                    .map(|_| ())
+                    .ok_or(CommandError::NoAxis { axis })
+            }
+            (Command::Home { axis }, State::Idle | State::Fault) => self
+                .refs
+                .arm_home(axis)
+                .ok_or(CommandError::NoAxis { axis }),
+            (Command::SetPosition { .. } | Command::Home { .. }, _) => Err(CommandError::Busy),
             (Command::ClearFault, State::Fault) => match first_cause {
                 Some(f) => Err(CommandError::CauseActive(f)),
                 None => {
@@ -411,6 +497,11 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             (Command::Start | Command::Hold, State::Fault) => Err(CommandError::Faulted),
             (Command::Start | Command::Hold, _) if !has_law => Err(CommandError::NoController),
             (Command::Start, State::Following) | (Command::Hold, State::Holding(_)) => Ok(()),
+            (Command::Start | Command::Hold, State::Idle) if unreferenced.is_some() => {
+                Err(CommandError::NotReferenced {
+                    axis: unreferenced.unwrap_or(0),
+                })
+            }
             (Command::Start | Command::Hold, State::Idle) => {
                 self.time_master = 0;
                 let m = if self.cfg.master_source == MasterSource::Time {
@@ -466,8 +557,8 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             .iter()
             .zip(self.cfg.slave_scale_q32.iter())
             .zip(self.cfg.slave_offset_um.iter());
-        for (p, ((&c, &k), &off)) in pos_um.iter_mut().zip(axes) {
-            *p = pos_from_counts(c, k, off);
+        for ((p, ((&c, &k), &off)), &r) in pos_um.iter_mut().zip(axes).zip(self.refs.offsets()) {
+            *p = pos_from_counts(c, k, off).saturating_add(r);
         }
         let live_master = self.master_from(s.enc.master);
 
@@ -546,6 +637,8 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         st.enable = enable;
         st.estop = s.estop;
         st.pressure_bar = s.pressure_bar;
+        st.reference = *self.refs.states();
+        st.pressure_ok = self.pressure_ok;
         TickOutputs { dac, enable, reply }
     }
 
@@ -585,8 +678,20 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         overrun: bool,
     ) -> Option<Result<(), CommandError>> {
         let enc = board.latch();
+        let edges = board.reference_edges();
+        for (i, ((e, &k), &off)) in edges
+            .iter()
+            .zip(self.cfg.slave_scale_q32.iter())
+            .zip(self.cfg.slave_offset_um.iter())
+            .enumerate()
+        {
+            if let Some(c) = e {
+                self.refs.on_edge(i, pos_from_counts(*c, k, off));
+            }
+        }
         let estop = board.estop_active();
         let pressure_bar = super::io::PressureInput::read(board);
+        self.pressure_ok = super::io::PressureInput::healthy(board);
         let out = self.step(
             &Sample {
                 enc,

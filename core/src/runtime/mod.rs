@@ -13,7 +13,8 @@
 //! - [`io`]: the traits a board implements (encoders, pressures, E-stop, valves);
 //! - [`encoder`]: 16 → 32-bit counter extension and the plausibility check;
 //! - [`stall`]: master-stall detection; [`timing`]: tick execution-time statistics;
-//! - [`pressure`]: transducer scaling.
+//! - [`pressure`]: transducer scaling;
+//! - [`reference`]: where each slave is (set-position, homing, absolute encoders).
 
 pub mod config;
 pub mod controller;
@@ -23,11 +24,14 @@ pub mod follower_law;
 pub mod io;
 pub mod machine;
 pub mod pressure;
+pub mod reference;
 pub mod stall;
 pub mod timing;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_reference;
 
 pub use config::{MasterSource, RuntimeCoeffs, RuntimeConfig, RuntimeConfigError};
 pub use controller::{ControlInputs, ControlOutputs, Controller, LawFault};
@@ -36,3 +40,4 @@ pub use io::{Board, EncoderInput, EncoderSample, PressureInput, SafetyInput, Val
 pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
 };
+pub use reference::{RefState, ReferenceMode, References};

@@ -1,0 +1,195 @@
+//! Runtime tests of the position reference (set-position, homing, Start refused while a
+//! slave is unreferenced) and of the pressure-input health rule.
+
+use super::controller::mock::MockLaw;
+use super::*;
+use crate::units::{Counts, DacCode, PosUm, PressureBar};
+
+type Rt = Runtime<MockLaw<2>, 2, 1>;
+
+fn rt(cfg: RuntimeConfig<2>) -> Rt {
+    Runtime::new(
+        cfg.build().unwrap(),
+        Some(MockLaw::new()),
+        BootCause::Normal,
+    )
+}
+
+fn incremental() -> RuntimeConfig<2> {
+    RuntimeConfig {
+        slave_reference: [ReferenceMode::Incremental, ReferenceMode::Absolute],
+        home_position_um: [150_000.0, 0.0],
+        ..RuntimeConfig::default()
+    }
+}
+
+/// A board whose encoders, reference edges and pressure health the test sets.
+#[derive(Default)]
+struct Board1 {
+    master: i32,
+    slaves: [i32; 2],
+    edge: [Option<Counts>; 2],
+    pressure_dead: bool,
+    codes: [DacCode; 2],
+    enable: bool,
+}
+
+impl EncoderInput<2> for Board1 {
+    fn latch(&mut self) -> EncoderSample<2> {
+        EncoderSample {
+            master: Counts(self.master),
+            slaves: [Counts(self.slaves[0]), Counts(self.slaves[1])],
+        }
+    }
+    fn reference_edges(&mut self) -> [Option<Counts>; 2] {
+        core::mem::take(&mut self.edge)
+    }
+}
+impl PressureInput<1> for Board1 {
+    fn read(&mut self) -> [PressureBar; 1] {
+        [PressureBar::from_num(80)]
+    }
+    fn healthy(&mut self) -> bool {
+        !self.pressure_dead
+    }
+}
+impl SafetyInput for Board1 {
+    fn estop_active(&mut self) -> bool {
+        false
+    }
+}
+impl ValveOutput<2> for Board1 {
+    fn write(&mut self, codes: &[DacCode; 2]) {
+        self.codes = *codes;
+    }
+    fn set_enable(&mut self, on: bool) {
+        self.enable = on;
+    }
+}
+
+#[test]
+fn start_is_refused_until_every_slave_is_referenced() {
+    let mut r = rt(incremental());
+    let mut b = Board1 {
+        slaves: [1234, 0],
+        ..Board1::default()
+    };
+    assert_eq!(
+        r.tick_io(&mut b, Some(Command::Start), false),
+        Some(Err(CommandError::NotReferenced { axis: 0 }))
+    );
+    // Hold from Idle also starts control: refused the same way.
+    assert_eq!(
+        r.tick_io(&mut b, Some(Command::Hold), false),
+        Some(Err(CommandError::NotReferenced { axis: 0 }))
+    );
+    assert_eq!(r.state(), State::Idle);
+    assert!(!b.enable);
+    assert_eq!(r.status().reference[0], RefState::Unreferenced);
+    // The operator states that slave 0 is at 3 µm (where the mock law's target is, so
+    // Start does not trip the following error): it measured 1234 µm.
+    let at = PosUm::from_num(3);
+    assert_eq!(
+        r.tick_io(
+            &mut b,
+            Some(Command::SetPosition {
+                axis: 0,
+                pos_um: at
+            }),
+            false
+        ),
+        Some(Ok(()))
+    );
+    r.tick_io(&mut b, None, false);
+    assert_eq!(r.status().pos_um[0], at);
+    assert_eq!(r.status().reference, [RefState::Referenced; 2]);
+    assert_eq!(r.tick_io(&mut b, Some(Command::Start), false), Some(Ok(())));
+    assert_eq!(r.state(), State::Following);
+    // No reference change while controlling; no such axis.
+    assert_eq!(
+        r.tick_io(&mut b, Some(Command::Home { axis: 0 }), false),
+        Some(Err(CommandError::Busy))
+    );
+    r.tick_io(&mut b, Some(Command::Stop), false);
+    assert_eq!(
+        r.tick_io(
+            &mut b,
+            Some(Command::SetPosition {
+                axis: 2,
+                pos_um: at
+            }),
+            false
+        ),
+        Some(Err(CommandError::NoAxis { axis: 2 }))
+    );
+}
+
+#[test]
+fn homing_references_at_the_latched_edge_count() {
+    let mut r = rt(incremental());
+    let mut b = Board1::default();
+    r.tick_io(&mut b, Some(Command::Home { axis: 0 }), false);
+    assert_eq!(r.status().reference[0], RefState::Homing);
+    // The axis moves across its index: the count at the edge was 400, the axis is at
+    // 520 when the tick reads it. Home position 150 mm at the edge.
+    b.slaves[0] = 520;
+    b.edge[0] = Some(Counts(400));
+    r.tick_io(&mut b, None, false);
+    assert_eq!(r.status().reference[0], RefState::Referenced);
+    assert_eq!(r.status().pos_um[0], PosUm::from_num(150_120));
+    assert_eq!(r.tick_io(&mut b, Some(Command::Start), false), Some(Ok(())));
+    // An edge that is not armed changes nothing.
+    r.tick_io(&mut b, Some(Command::Stop), false);
+    b.edge[0] = Some(Counts(0));
+    r.tick_io(&mut b, None, false);
+    assert_eq!(r.status().pos_um[0], PosUm::from_num(150_120));
+}
+
+#[test]
+fn absolute_offsets_are_restored_and_reported() {
+    let mut r = rt(RuntimeConfig::default());
+    assert_eq!(r.absolute_offset_um(1), Some(PosUm::ZERO));
+    r.restore_reference_offset(1, PosUm::from_num(-30)).unwrap();
+    let mut b = Board1 {
+        slaves: [0, 100],
+        ..Board1::default()
+    };
+    r.tick_io(&mut b, None, false);
+    assert_eq!(r.status().pos_um[1], PosUm::from_num(70));
+    assert_eq!(
+        r.restore_reference_offset(5, PosUm::ZERO),
+        Err(CommandError::NoAxis { axis: 5 })
+    );
+    let r2 = rt(incremental());
+    assert_eq!(r2.absolute_offset_um(0), None, "incremental: not persisted");
+}
+
+#[test]
+fn dead_pressure_inputs_fault_only_when_required() {
+    let mut b = Board1 {
+        pressure_dead: true,
+        ..Board1::default()
+    };
+    let mut free = rt(RuntimeConfig::default());
+    free.tick_io(&mut b, Some(Command::Start), false);
+    free.tick_io(&mut b, None, false);
+    assert_eq!(free.state(), State::Following, "reported, not a fault");
+    assert!(!free.status().pressure_ok);
+    let mut req = rt(RuntimeConfig {
+        pressure_required: true,
+        ..RuntimeConfig::default()
+    });
+    req.tick_io(&mut b, Some(Command::Start), false);
+    assert_eq!(req.state(), State::Fault);
+    assert_eq!(req.fault().map(|f| f.fault), Some(Fault::PressureInput));
+    assert!(!b.enable, "valves unpowered in the tick that saw it");
+    assert_eq!(
+        req.tick_io(&mut b, Some(Command::ClearFault), false),
+        Some(Err(CommandError::CauseActive(Fault::PressureInput)))
+    );
+    b.pressure_dead = false;
+    assert_eq!(
+        req.tick_io(&mut b, Some(Command::ClearFault), false),
+        Some(Ok(()))
+    );
+}

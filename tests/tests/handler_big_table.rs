@@ -1,0 +1,273 @@
+//! A valid, non-flat 512-row table uploaded through `Handler<1, 512>` must commit
+//! (and activate) — the protocol path of the `TableTooSteep` report (the first-power-up
+//! issue): with the table built by value, a frame of two tables (> 32 KiB) made x86-64's
+//! stack-probe loop clobber the register holding the master top speed in builds with 16
+//! codegen units and no LTO — the `bench` profile `ci.sh` runs the host tests with — and
+//! every non-flat table of ≥ 409 rows was refused. On d327636 all three tests below fail
+//! under `cargo test --profile bench` ("TableCommit of a valid 512-row table: Nak {
+//! code: TableTooSteep, detail: 1 }"); tables are now built in place.
+
+use hydra_core::protocol::crc::crc32;
+use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
+use hydra_core::protocol::handler::encode_request;
+use hydra_core::protocol::msg::{row_len, write_row, StatusMsg};
+use hydra_core::protocol::ramflash::RamFlash;
+use hydra_core::protocol::wire::Writer;
+use hydra_core::protocol::{Device, Handler, Motion, Nak, ParamId, Request, Response, Store};
+use hydra_core::table::{AxisLimits, CamTable, Node, TableLimits};
+use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
+
+const S: usize = 1;
+const N: usize = 512;
+const SLOT: u32 = 8 * 1024;
+
+fn limits() -> TableLimits<S> {
+    TableLimits {
+        master_speed_per_s: MasterRate::from_num(10_000),
+        axes: [AxisLimits {
+            min_um: PosUm::from_num(0),
+            max_um: PosUm::from_num(500_000),
+            max_speed_um_per_s: VelUmPerS::from_num(250_000),
+        }],
+    }
+}
+
+/// 500 counts per row, a sine between 20 and 480 mm: steepest segment 5 750 µm per
+/// 500 counts = 115 000 µm/s at 10 000 counts/s, well inside 250 000 µm/s.
+fn wavy(rows: usize) -> Vec<Node<S>> {
+    (0..rows)
+        .map(|j| Node {
+            master: Master::from_num(j as i64 * 500),
+            slave_um: [PosUm::from_num(
+                250_000.0 + 230_000.0 * (j as f64 * 0.05).sin(),
+            )],
+        })
+        .collect()
+}
+
+#[derive(Default)]
+struct Dev {
+    table: Option<CamTable<S, N>>,
+}
+
+impl Device<S, N> for Dev {
+    fn firmware(&self) -> [u8; 3] {
+        [0, 1, 0]
+    }
+    fn period_us(&self) -> u32 {
+        1000
+    }
+    fn table_limits(&self) -> TableLimits<S> {
+        limits()
+    }
+    fn active_table(&self) -> Option<&CamTable<S, N>> {
+        self.table.as_ref()
+    }
+    fn at_safe_point(&self) -> bool {
+        true
+    }
+    fn all_idle(&self) -> bool {
+        true
+    }
+    fn install_table(&mut self, t: &CamTable<S, N>) -> Result<(), Nak> {
+        self.table = Some(t.clone());
+        Ok(())
+    }
+    fn command(&mut self, _: Motion) -> Result<(), Nak> {
+        Ok(())
+    }
+    fn set_param(&mut self, _: u8, _: ParamId, _: f32) -> Result<(), Nak> {
+        Ok(())
+    }
+    fn reset_params(&mut self) -> Result<(), Nak> {
+        Ok(())
+    }
+    fn status(&self, _: &mut StatusMsg) {}
+}
+
+fn rows_bytes(ns: &[Node<S>]) -> Vec<u8> {
+    let mut b = vec![0u8; ns.len() * row_len(S)];
+    let mut w = Writer::new(&mut b);
+    for n in ns {
+        write_row(&mut w, n).unwrap();
+    }
+    b
+}
+
+struct Rig {
+    h: Box<Handler<S, N>>,
+    dev: Box<Dev>,
+    flash: RamFlash,
+    seq: u16,
+}
+
+impl Rig {
+    fn new() -> Self {
+        let flash = RamFlash::new(2 * SLOT as usize);
+        let store = Store::new::<_, S, N>(&flash, 0, SLOT).unwrap();
+        Self {
+            h: Box::new(Handler::new(store)),
+            dev: Box::default(),
+            flash,
+            seq: 0,
+        }
+    }
+
+    fn req(&mut self, q: &Request<'_>) -> Response {
+        let s = if matches!(q, Request::Hello) {
+            self.seq
+        } else {
+            self.seq.wrapping_add(1)
+        };
+        let mut b = [0u8; MAX_WIRE + 1];
+        let n = encode_request(s, q, &mut b).unwrap();
+        let mut out = Vec::new();
+        self.h
+            .on_bytes(&mut *self.dev, &mut self.flash, &b[..n], &mut |f| {
+                out.extend_from_slice(f)
+            });
+        let mut d = FrameDecoder::new();
+        let mut rs = Vec::new();
+        for &x in &out {
+            if let Some(f) = d.push(x) {
+                let f = f.unwrap();
+                rs.push((f.seq, Response::decode(f.ty, f.payload).unwrap()));
+            }
+        }
+        assert_eq!(rs.len(), 1, "one answer per request");
+        if !matches!(rs[0].1, Response::Nak { .. }) {
+            self.seq = s;
+        }
+        rs.remove(0).1
+    }
+}
+
+#[test]
+fn a_valid_512_row_table_commits_through_the_handler() {
+    let nodes = wavy(N);
+    let mut r = Rig::new();
+    assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
+    let begin = r.req(&Request::TableBegin {
+        id: 5,
+        columns: S as u8,
+        rows: N as u16,
+    });
+    assert!(
+        matches!(begin, Response::Ack { .. }),
+        "TableBegin: {begin:?}"
+    );
+    let per = Handler::<S, N>::MAX_CHUNK_ROWS;
+    for (k, c) in nodes.chunks(per).enumerate() {
+        let bytes = rows_bytes(c);
+        let q = Request::TableChunk {
+            offset: (k * per) as u16,
+            count: c.len() as u8,
+            data: &bytes,
+        };
+        let a = r.req(&q);
+        assert!(matches!(a, Response::Ack { .. }), "TableChunk {k}: {a:?}");
+    }
+    let commit = r.req(&Request::TableCommit {
+        crc: crc32(&rows_bytes(&nodes)),
+    });
+    assert!(
+        matches!(commit, Response::Ack { .. }),
+        "TableCommit of a valid 512-row table: {commit:?}"
+    );
+    let act = r.req(&Request::Activate { id: 5 });
+    assert!(matches!(act, Response::Ack { .. }), "Activate: {act:?}");
+    let t = r.dev.table.as_ref().expect("installed");
+    assert_eq!(t.len(), N);
+    for (i, n) in nodes.iter().enumerate() {
+        assert_eq!(t.node(i), Some(*n), "node {i}");
+    }
+}
+
+/// The same table, built directly (no handler): the shortest form of the failure.
+#[test]
+fn a_valid_512_row_table_builds_directly() {
+    let nodes = wavy(N);
+    let t = CamTable::<S, N>::try_from_nodes(&nodes, &limits());
+    assert!(
+        t.is_ok(),
+        "try_from_nodes of a valid 512-row table: {:?}",
+        t.err()
+    );
+}
+
+/// The virtual board (host-sim's `Machine` as the `Device`, `Handler<1, CAPACITY>`):
+/// a gentle, non-flat table of `CAPACITY` rows inside the board's limits (5 000 counts/s,
+/// 500 mm stroke): at most 1 mm per 500-count segment = 10 mm/s.
+#[test]
+fn a_valid_full_table_commits_on_the_virtual_board() {
+    use host_sim::scenario::Scenario;
+    use host_sim::vboard::{VBoard, CAPACITY};
+    let nodes: Vec<Node<1>> = (0..CAPACITY)
+        .map(|j| Node {
+            master: Master::from_num(j as i64 * 500),
+            slave_um: [PosUm::from_num(
+                250_000.0 + 20_000.0 * (j as f64 * 0.05).sin(),
+            )],
+        })
+        .collect();
+    let mut b = VBoard::new(&Scenario::default()).unwrap();
+    let mut seq = 0u16;
+    let mut send = |b: &mut VBoard, q: &Request<'_>| -> Response {
+        let s = if matches!(q, Request::Hello) {
+            seq
+        } else {
+            seq.wrapping_add(1)
+        };
+        let mut f = [0u8; MAX_WIRE + 1];
+        let n = encode_request(s, q, &mut f).unwrap();
+        let mut out = Vec::new();
+        b.on_bytes(&f[..n], &mut |x| out.extend_from_slice(x));
+        let mut d = FrameDecoder::new();
+        let mut rs = Vec::new();
+        for &x in &out {
+            if let Some(fr) = d.push(x) {
+                let fr = fr.unwrap();
+                rs.push(Response::decode(fr.ty, fr.payload).unwrap());
+            }
+        }
+        assert_eq!(rs.len(), 1, "one answer per request");
+        if !matches!(rs[0], Response::Nak { .. }) {
+            seq = s;
+        }
+        rs.remove(0)
+    };
+    assert!(matches!(send(&mut b, &Request::Hello), Response::Info(_)));
+    let a = send(
+        &mut b,
+        &Request::TableBegin {
+            id: 9,
+            columns: 1,
+            rows: CAPACITY as u16,
+        },
+    );
+    assert!(matches!(a, Response::Ack { .. }), "TableBegin: {a:?}");
+    let per = Handler::<1, CAPACITY>::MAX_CHUNK_ROWS;
+    for (k, c) in nodes.chunks(per).enumerate() {
+        let bytes = rows_bytes(c);
+        let q = Request::TableChunk {
+            offset: (k * per) as u16,
+            count: c.len() as u8,
+            data: &bytes,
+        };
+        let a = send(&mut b, &q);
+        assert!(matches!(a, Response::Ack { .. }), "TableChunk {k}: {a:?}");
+    }
+    let commit = send(
+        &mut b,
+        &Request::TableCommit {
+            crc: crc32(&rows_bytes(&nodes)),
+        },
+    );
+    assert!(
+        matches!(commit, Response::Ack { .. }),
+        "TableCommit of a valid {CAPACITY}-row table on the virtual board: {commit:?}"
+    );
+    let a = send(&mut b, &Request::Activate { id: 9 });
+    assert!(matches!(a, Response::Ack { .. }), "Activate: {a:?}");
+    assert_eq!(b.handler.active_id(), 9);
+}
