@@ -43,9 +43,9 @@ RUSTFLAGS="-D warnings" cargo build -p firmware --release --target "$TARGET"
 ./scripts/fw-size.sh
 
 step "firmware stack (release ELF: frames <= 4 KiB, worst path leaves >= 8 KiB; no blocking logger)"
-python3 scripts/stack-check.py "${CARGO_TARGET_DIR:-target}/$TARGET/release/firmware" \
-  --allow-cycle rust_begin_unwind --forbid-symbol defmt_rtt::channel::Channel::blocking_write \
-  | grep -vE '^ {2,}[0-9]+  ' # the per-function paths are in `python3 scripts/stack-check.py ELF`
+# (the per-function call paths: the same command without --brief)
+python3 scripts/stack-check.py "${CARGO_TARGET_DIR:-target}/$TARGET/release/firmware" --brief \
+  --allow-cycle rust_begin_unwind --forbid-symbol defmt_rtt::channel::Channel::blocking_write
 
 step "Cortex-M4 cost (QEMU mps2-an386, budgets in bench-budget.toml)"
 ./bench-m4.sh

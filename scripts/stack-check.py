@@ -355,6 +355,8 @@ def main():
     ap.add_argument("--ram-origin", type=lambda s: int(s, 0), default=0x20000000)
     ap.add_argument("--forbid-symbol", action="append", default=[], metavar="SUBSTR",
                     help="fail if any function's name contains SUBSTR (e.g. a logger's blocking write)")
+    ap.add_argument("--brief", action="store_true",
+                    help="text report without the per-root call paths")
     ap.add_argument("--allow-unresolved", action="store_true",
                     help="do not fail on indirect calls no rule covers")
     a = ap.parse_args()
@@ -440,7 +442,7 @@ def main():
     for r in roots:
         print("\nroot %s (%s), priority %s: depth %d%s" % (r["root"], r["function"], r["priority"], r["depth_bytes"],
               " + exception frame %d" % r["exception_frame_bytes"] if r["exception_frame_bytes"] else ""))
-        for s in r["path"]:
+        for s in ([] if a.brief else r["path"]):
             via = "" if s["via"] in ("call", "root") else "  [%s]" % s["via"]
             print("  %7d  %s%s" % (s["frame"], s["function"], via))
         for u in r["unresolved_indirect"]:

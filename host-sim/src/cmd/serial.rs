@@ -12,6 +12,18 @@ use std::time::{Duration, Instant};
 pub const BAUD: u32 = 921_600;
 /// How long to wait for an answer.
 pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(3);
+/// How long to wait for Save's answer: the board erases a 128 KiB flash sector, 1 s
+/// typical and 2 s at most at x32 (4 s at most at x8, as firmware before the x32 erase
+/// did), then programs ≤ 4 KiB (≤ 0.1 s at 100 µs per word) and reads it back.
+pub const SAVE_TIMEOUT: Duration = Duration::from_secs(6);
+
+/// The answer timeout of request `q`.
+pub fn timeout_for(q: &Request<'_>) -> Duration {
+    match q {
+        Request::Save => SAVE_TIMEOUT,
+        _ => ANSWER_TIMEOUT,
+    }
+}
 
 /// A request the board refused.
 #[derive(Debug, thiserror::Error)]
@@ -77,7 +89,8 @@ impl Link {
             .ok_or_else(|| anyhow::anyhow!("request too large for one frame"))?;
         self.port.write_all(&buf[..n])?;
         self.port.flush()?;
-        let deadline = Instant::now() + ANSWER_TIMEOUT;
+        let timeout = timeout_for(q);
+        let deadline = Instant::now() + timeout;
         loop {
             for (s, r) in self.read_frames()? {
                 match r {
@@ -91,7 +104,7 @@ impl Link {
                 }
             }
             if Instant::now() > deadline {
-                anyhow::bail!("no answer to {q:?} within {ANSWER_TIMEOUT:?}");
+                anyhow::bail!("no answer to {q:?} within {timeout:?}");
             }
         }
     }

@@ -119,6 +119,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     }
     if args.save {
+        eprintln!(
+            "saving to flash: the board erases a sector (up to 2 s, its tick paused, axes idle) …"
+        );
         link.expect_ack(&Request::Save)?;
         eprintln!("saved to flash");
     }
