@@ -43,6 +43,10 @@ RUSTFLAGS="-D warnings" cargo build -p firmware --release --target "$TARGET"
 ./scripts/fw-size.sh
 
 step "firmware stack (release ELF: frames <= 4 KiB, worst path leaves >= 8 KiB; no blocking logger)"
+# The RTT logger is non-blocking by feature (a full buffer never masks the tick) ...
+cargo tree -p firmware --target "$TARGET" -e features -i defmt-rtt | grep -q 'defmt-rtt feature "disable-blocking-mode"' \
+  || { echo "defmt-rtt is not built with disable-blocking-mode"; exit 1; }
+# ... and its blocking write is not linked at all (--forbid-symbol).
 # (the per-function call paths: the same command without --brief)
 python3 scripts/stack-check.py "${CARGO_TARGET_DIR:-target}/$TARGET/release/firmware" --brief \
   --allow-cycle rust_begin_unwind --forbid-symbol defmt_rtt::channel::Channel::blocking_write

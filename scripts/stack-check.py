@@ -30,7 +30,7 @@ Method
   its indirect calls count as covered.  Built in (--indirect adds):
     Executor::run, SyncExecutor::poll -> embassy_executor::raw::TaskStorage<, poll_exited
       (the executor polls each task through a function pointer)
-    TaskStorage<, embassy_stm32::, embassy_time, embassy_sync::, USART2, TIM8_BRK_TIM12 ->
+    TaskStorage<, embassy_stm32::, embassy_time, embassy_sync::, USART1/2/6, TIM7, TIM8_BRK_TIM12 ->
       embassy_executor::raw::waker::  (RawWakerVTable clone/wake/drop; the executor's is the
       only waker vtable in .rodata; USART2 and TIM8_BRK_TIM12 inline embassy-stm32 code)
     core::fmt -> >::fmt, core::fmt::Write  (fmt::write and Formatter call fmt impls and
@@ -41,7 +41,7 @@ Method
   DefaultHandler, is a handler (each address once), whose entry costs 104 B (FPU extended
   frame, 26 words) + 4 B alignment.  Priorities are not in the ELF: --priority HANDLER=N
   (0..15, 0 most urgent), defaults TIM7=0, DMA1_STREAM5=2, DMA1_STREAM6=2, DMA2_STREAM0=2,
-  DMA2_STREAM2=2, DMA2_STREAM7=2, USART2=3, USART1=3, TIM8_BRK_TIM12=3; a handler without one is a level of its own.
+  DMA2_STREAM1/2/6/7=2, USART1/2/6=3, TIM8_BRK_TIM12=3; a handler without one is a level of its own.
   Same-level handlers do not nest: worst case = thread depth + per level (deepest handler +
   108) + HardFault (+ NMI unless DefaultHandler), which can come on top of everything.
 - Stack: flip-link (_stack_start at or below the RAM sections): [_stack_end if below
@@ -57,14 +57,14 @@ that moves sp and code run from RAM are not analysed.
 import argparse, bisect, glob, json, os, re, shutil, struct, subprocess, sys
 
 EXC_FRAME, CYCLE_PASSES = 104 + 4, 2
-DEFAULT_PRIO = {"TIM7": 0, "DMA1_STREAM5": 2, "DMA1_STREAM6": 2, "DMA2_STREAM0": 2, "DMA2_STREAM2": 2,
-                "DMA2_STREAM7": 2,
+DEFAULT_PRIO = {"TIM7": 0, "DMA1_STREAM5": 2, "DMA1_STREAM6": 2, "DMA2_STREAM0": 2, "DMA2_STREAM1": 2,
+                "DMA2_STREAM2": 2, "DMA2_STREAM6": 2, "DMA2_STREAM7": 2, "USART6": 3,
                 "USART2": 3, "USART1": 3, "TIM8_BRK_TIM12": 3}
 DEFAULT_RULES = [(c, t) for c in ("Executor::run", "SyncExecutor::poll")
                  for t in ("embassy_executor::raw::TaskStorage<", "embassy_executor::raw::poll_exited")]
 DEFAULT_RULES += [(c, "embassy_executor::raw::waker::") for c in (
     "embassy_executor::raw::TaskStorage<", "embassy_stm32::", "embassy_time", "embassy_sync::",
-    "USART2", "USART1", "TIM8_BRK_TIM12", "TIM7")]
+    "USART2", "USART1", "USART6", "TIM8_BRK_TIM12", "TIM7")]
 DEFAULT_RULES += [("core::fmt", ">::fmt"), ("core::fmt", "core::fmt::Write"),
                   ("_defmt_", "defmt_rtt::channel::Channel::")]
 DEFAULT_ALLOW = ["core::fmt"]

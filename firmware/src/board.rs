@@ -13,7 +13,7 @@
 //! | slave 0 reference (index Z or switch) | PA2 | TIM2 ch 3, input capture | rising edge latches the count (`crate::encoders`); pull-down |
 //! | slave 1 reference (index Z or switch) | PC8 | TIM3 ch 3, input capture | |
 //! | pressure 0…3 | PC1 / PC2 / PB0 / PB1 | ADC1 IN11 / IN12 / IN8 / IN9, DMA2 stream 0 | continuous scan, 144-cycle samples |
-//! | host link TX / RX | PA9 / PA10 | USART1, DMA2 stream 7 / 2 (channel 4) | 921 600 8N1, +0.16 % (see [`LINK_BAUD`]); also the ST system bootloader's USART |
+//! | host link TX / RX | PC6 / PC7 | USART6 (AF8), DMA2 stream 6 / 1 (channel 5) | 921 600 8N1, +0.16 % (see [`LINK_BAUD`]); not USART1 on PA9, which the STM32F4-Discovery loads with its USB VBUS sense capacitor |
 //! | table slots | — | flash sectors 10 / 11 (0x080C_0000 / 0x080E_0000) | `crate::flash` |
 //! | valve-power enable | PE7 | GPIO push-pull out | high = valves powered; external pull-down |
 //! | E-stop chain | PE8 | GPIO in, pull-down | high = chain closed (run permitted) |
@@ -22,7 +22,7 @@
 //! | time driver | — | TIM12 (embassy-time) | |
 //! | watchdog | — | IWDG, 50 ms nominal (34–94 ms) | started first at reset, fed by the tick only (`crate::watchdog`) |
 //!
-//! Interrupt priorities (0 = most urgent): TIM7 tick 0; DMA 2; USART1 and the time
+//! Interrupt priorities (0 = most urgent): TIM7 tick 0; DMA 2; USART6 and the time
 //! driver 3; thread-mode tasks (host link, status, LED) below every interrupt.
 
 use embassy_stm32::adc::{Adc, AdcChannel, SampleTime};
@@ -47,7 +47,7 @@ use crate::valves::{OnChipDac, ValveBank};
 pub const SLAVES: usize = 2;
 /// Pressure channels.
 pub const PRESSURES: usize = 4;
-/// Host-link baud rate (the host tools' `host-sim … --port`: 921 600). USART1 on the
+/// Host-link baud rate (the host tools' `host-sim … --port`: 921 600). USART6 on the
 /// 84 MHz APB2 with 16× oversampling: USARTDIV = 84 MHz / (16 · 921 600) = 5.696 →
 /// 5 + 11/16 = 5.6875, 923 077 Bd, +0.16 %. (On USART2 and the 42 MHz APB1 it would be
 /// 2 + 14/16 = 2.875 → 913 043 Bd, −0.93 %: that is why the link moved, docs/firmware.md.)
@@ -61,7 +61,7 @@ pub const fn link_baud_actual(pclk_hz: u32, baud: u32) -> u32 {
     pclk_hz / div16
 }
 
-/// APB2 clock, Hz (USART1's kernel clock).
+/// APB2 clock, Hz (USART6's kernel clock).
 pub const APB2_HZ: u32 = 84_000_000;
 
 // +0.16 %: within ±0.5 % (the host adapter's own error adds to it; 16× oversampling
@@ -74,9 +74,9 @@ const _: () = {
 bind_interrupts!(
     /// Interrupt bindings of the drivers.
     pub struct Irqs {
-        USART1 => usart::InterruptHandler<peripherals::USART1>;
-        DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
-        DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
+        USART6 => usart::InterruptHandler<peripherals::USART6>;
+        DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
+        DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
     }
 );
@@ -247,13 +247,13 @@ impl Board {
 
         let mut cfg = usart::Config::default();
         cfg.baudrate = LINK_BAUD;
-        let link = Uart::new(p.USART1, p.PA10, p.PA9, p.DMA2_CH7, p.DMA2_CH2, Irqs, cfg)
-            .unwrap_or_else(|_| defmt::panic!("USART1 configuration"));
+        let link = Uart::new(p.USART6, p.PC7, p.PC6, p.DMA2_CH6, p.DMA2_CH1, Irqs, cfg)
+            .unwrap_or_else(|_| defmt::panic!("USART6 configuration"));
 
         let led = Output::new(p.PD12, Level::Low, Speed::Low);
 
         // Everything the drivers enabled at the reset priority (0) goes below the tick.
-        interrupt::USART1.set_priority(Priority::P3);
+        interrupt::USART6.set_priority(Priority::P3);
         interrupt::TIM8_BRK_TIM12.set_priority(Priority::P3);
 
         Self {

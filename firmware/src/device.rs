@@ -152,6 +152,11 @@ fn install(pool: &mut LawPool, fcfg: &FollowerConfig<SLAVES>, table: &Table) -> 
         return Err(refused(REFUSED_LAW));
     }
     law.load_table(table);
+    if !law.is_ready() {
+        // An empty table: never handed to the runtime.
+        pool.give_back(law);
+        return Err(refused(REFUSED_LAW));
+    }
     let nulls = hydra_core::runtime::Controller::null_codes(&*law);
     let running = tick::with_runtime(|_| ()).is_some();
     if !running {
@@ -301,6 +306,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         }
         self.st.fcfg = crate::program::follower_config();
         self.st.limits = crate::program::table_limits();
+        self.st.boot_offsets = [None; SLAVES];
         Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {

@@ -1,4 +1,4 @@
-//! The host link: USART1 with DMA, served by one thread-mode task below every
+//! The host link: USART6 with DMA, served by one thread-mode task below every
 //! interrupt, so it can never delay the tick.
 //!
 //! RX is a DMA ring buffer ([`RingBufferedUartRx`], [`RX_RING_LEN`] = 1024 bytes: 11 ms
@@ -94,10 +94,10 @@ impl LinkIo<'_> {
         REPLY.reset();
         let token = self.queue(c)?;
         let deadline = Instant::now() + Duration::from_millis(u64::from(COMMAND_WAIT_MS));
-        loop {
+        let answer = loop {
             if let Some(r) = REPLY.try_take() {
                 if r.token == token {
-                    return match r.result {
+                    break match r.result {
                         Ok(()) => Some(Ok(())),
                         Err(Some(e)) => Some(Err(e)),
                         Err(None) => None,
@@ -105,11 +105,15 @@ impl LinkIo<'_> {
                 }
             }
             if Instant::now() >= deadline {
-                return None;
+                break None;
             }
             // Woken by any interrupt (the tick's every period, the time driver's).
             cortex_m::asm::wfe();
-        }
+        };
+        // The WFE may have consumed the event of a task woken meanwhile: the executor's
+        // own WFE must not sleep through it.
+        cortex_m::asm::sev();
+        answer
     }
 
     /// Queues bytes only if all of them fit (a frame is never cut); returns whether

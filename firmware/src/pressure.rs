@@ -10,9 +10,9 @@
 //!
 //! **Overrun.** If the DMA ever misses a conversion (ADC_SR.OVR), the F4's ADC stops
 //! issuing DMA requests (RM0090 §13.8.1) and the pressures would freeze silently. Each
-//! read checks the flag and, if set, restarts the chain (DMA stream paused, ADC_CR2.DMA
-//! off, OVR cleared, ring cleared, DMA on, stream and conversions restarted) and counts
-//! it. Independently, no new scan for [`STALE_US`] makes the input unhealthy
+//! read checks the flag and, if set, re-initialises the chain (`Pressures::restart`: the
+//! DMA stream stopped and reprogrammed, the ADC off and on with its overrun flag cleared,
+//! then both restarted) and counts it. Independently, no new scan for [`STALE_US`] makes the input unhealthy
 //! (`PressureInput::healthy`): reported in Status, and a fault when a force axis depends
 //! on the pressures (`RuntimeConfig::pressure_required`).
 
@@ -104,16 +104,41 @@ impl Pressures {
         self.stale_ticks < STALE_TICKS
     }
 
-    /// Restarts conversions and DMA after an overrun (see the module docs).
+    /// Restarts conversions and DMA after an overrun (RM0090 §13.8.1: "re-initialise
+    /// both the DMA and the ADC"). A stream disabled mid-transfer keeps its NDTR and would
+    /// restart from the buffer's start with the old count — the channels rotated for good —
+    /// so the stream is stopped and *reprogrammed* (§10.3.14): pause, wait until EN reads
+    /// 0 (bounded), NDTR = the whole ring, stream 0's flags cleared; the ADC off and on,
+    /// OVR cleared, its DMA requests off and on; then the ring re-synchronised and both
+    /// restarted.
     #[cold]
     fn restart(&mut self) {
         self.ring.stop();
+        let st = pac::DMA2.st(0);
+        // EN reads 0 once the current transfer has finished (a few bus cycles).
+        for _ in 0..10_000u32 {
+            if !st.cr().read().en() {
+                break;
+            }
+        }
+        st.ndtr().write(|w| w.set_ndt(ADC_BUF_LEN as u16));
+        pac::DMA2.ifcr(0).write(|w| {
+            w.set_tcif(0, true);
+            w.set_htif(0, true);
+            w.set_teif(0, true);
+            w.set_dmeif(0, true);
+            w.set_feif(0, true);
+        });
         let adc = pac::ADC1;
-        adc.cr2().modify(|w| w.set_dma(false));
+        adc.cr2().modify(|w| {
+            w.set_dma(false);
+            w.set_adon(false);
+        });
         // OVR is cleared by writing 0.
         adc.sr().modify(|w| w.set_ovr(false));
-        self.ring.clear();
+        adc.cr2().modify(|w| w.set_adon(true));
         adc.cr2().modify(|w| w.set_dma(true));
+        self.ring.clear();
         self.ring.start();
         self.overruns = self.overruns.saturating_add(1);
     }

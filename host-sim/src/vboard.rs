@@ -289,6 +289,10 @@ impl Device<AXES, CAPACITY> for Machine {
             return Err(Nak::new(NakCode::NotIdle));
         }
         (self.fcfg, self.limits) = self.boot;
+        // A refused slot's restored reference offsets go too.
+        for axis in 0..AXES as u8 {
+            let _ = self.rt.restore_reference_offset(axis, PosUm::ZERO);
+        }
         Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {

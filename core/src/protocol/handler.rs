@@ -213,12 +213,17 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         if w.timeout_ms == 0 || !w.host_started || now_ms.wrapping_sub(w.last_ms) < w.timeout_ms {
             return false;
         }
-        w.host_started = false;
         if dev.all_idle() {
+            w.host_started = false;
             return false;
         }
+        // Only a Hold the device took ends the watch; a refused or unanswered one is
+        // tried again at the next call (Status does not claim a hold that did not happen).
         let held = dev.command(Motion::Hold).is_ok();
-        self.link.lost = true;
+        if held {
+            self.link.host_started = false;
+            self.link.lost = true;
+        }
         held
     }
 
@@ -288,6 +293,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             // Refused: back to the boot configuration before the older slot.
             dev.reset_params().ok()?;
             self.overrides.clear();
+            self.link.timeout_ms = 0;
         }
         None
     }

@@ -36,6 +36,8 @@ struct Mock {
     no_reset: bool,
     /// Hold commands received.
     holds: u32,
+    /// Refuse Hold (a device whose tick did not answer).
+    refuse_hold: bool,
     /// The last set-position.
     position: Option<PosUm>,
     /// A restored reference offset (`ParamId::SlaveOffsetUm`).
@@ -91,6 +93,7 @@ impl Device<S, N> for Mock {
                 self.running = false;
                 Ok(())
             }
+            Motion::Hold if self.refuse_hold => Err(Nak::with(NakCode::BadState, 0xFFFF, 0)),
             Motion::Hold => {
                 self.holds += 1;
                 Ok(())
@@ -952,7 +955,18 @@ fn link_watchdog_holds_after_silence_only_when_set() {
     assert!(!r.h.watch_link(&mut r.dev, t0 + 90));
     assert!(!r.h.watch_link(&mut r.dev, t0 + 150));
     assert_eq!(r.dev.holds, 0);
-    assert!(r.h.watch_link(&mut r.dev, t0 + 191), "100 ms of silence");
+    // A Hold the device refuses is not reported as a hold and is tried again.
+    r.dev.refuse_hold = true;
+    assert!(!r.h.watch_link(&mut r.dev, t0 + 191), "refused Hold");
+    let flags0 = match r.req(&Request::GetStatus) {
+        Response::Status(s) => s.flags,
+        x => panic!("{x:?}"),
+    };
+    assert_eq!(flags0 & super::msg::FLAG_LINK_LOST, 0);
+    r.dev.refuse_hold = false;
+    // The GetStatus above was a frame: silence restarts from it (at t0 + 191).
+    assert!(!r.h.watch_link(&mut r.dev, t0 + 191));
+    assert!(r.h.watch_link(&mut r.dev, t0 + 292), "100 ms of silence");
     assert_eq!(r.dev.holds, 1);
     assert!(
         !r.h.watch_link(&mut r.dev, t0 + 500),

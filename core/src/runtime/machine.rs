@@ -338,7 +338,8 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         }
     }
 
-    /// Restores a persisted reference offset of slave `axis` (boot; Idle or Fault only).
+    /// Restores a persisted reference offset of absolute slave `axis` (boot; Idle or
+    /// Fault only; `NoAxis` for an incremental or missing slave).
     pub fn restore_reference_offset(
         &mut self,
         axis: u8,
@@ -346,6 +347,11 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
     ) -> Result<(), CommandError> {
         if !matches!(self.state, State::Idle | State::Fault) {
             return Err(CommandError::Busy);
+        }
+        // Only an absolute axis has a persisted offset: an incremental one counts from
+        // power-up, and a stale offset would make it look referenced.
+        if !self.refs.is_absolute(axis) {
+            return Err(CommandError::NoAxis { axis });
         }
         self.refs
             .restore_offset(axis, offset_um)

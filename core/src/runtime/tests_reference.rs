@@ -160,8 +160,14 @@ fn absolute_offsets_are_restored_and_reported() {
         r.restore_reference_offset(5, PosUm::ZERO),
         Err(CommandError::NoAxis { axis: 5 })
     );
-    let r2 = rt(incremental());
+    let mut r2 = rt(incremental());
     assert_eq!(r2.absolute_offset_um(0), None, "incremental: not persisted");
+    // A persisted offset never makes an incremental axis look referenced.
+    assert_eq!(
+        r2.restore_reference_offset(0, PosUm::from_num(5)),
+        Err(CommandError::NoAxis { axis: 0 })
+    );
+    assert_eq!(r2.status().reference[0], RefState::Unreferenced);
 }
 
 #[test]
