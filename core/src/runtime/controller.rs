@@ -76,48 +76,44 @@ pub trait Controller<const S: usize> {
     }
 }
 
-/// A law held by reference: the runtime can run a law that lives elsewhere (a static
-/// buffer on the board), so installing one swaps a pointer instead of moving the law —
-/// `Follower<2, 256>` by value is ≈ 119 000 instructions of copying inside the tick's
-/// critical section (bench-m4 `runtime_install_law`, docs/firmware.md).
-impl<const S: usize, C: Controller<S> + ?Sized> Controller<S> for &mut C {
-    fn restart(&mut self, inputs: &ControlInputs<S>) {
-        (**self).restart(inputs);
-    }
+/// `Controller` for a pointer type `$p<C>` to a law `C`, forwarding every call.
+macro_rules! forward_controller {
+    ($(#[$m:meta])* $p:ty) => {
+        $(#[$m])*
+        impl<const S: usize, C: Controller<S> + ?Sized> Controller<S> for $p {
+            fn restart(&mut self, inputs: &ControlInputs<S>) {
+                (**self).restart(inputs);
+            }
 
-    fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S> {
-        (**self).tick(inputs)
-    }
+            fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S> {
+                (**self).tick(inputs)
+            }
 
-    fn null_codes(&self) -> [DacCode; S] {
-        (**self).null_codes()
-    }
+            fn null_codes(&self) -> [DacCode; S] {
+                (**self).null_codes()
+            }
 
-    fn master_span(&self) -> Option<(Master, Master)> {
-        (**self).master_span()
-    }
+            fn master_span(&self) -> Option<(Master, Master)> {
+                (**self).master_span()
+            }
+        }
+    };
 }
 
-/// A law on the heap (host builds): the host's laws with large tables are built in place
-/// in a `Box` (never on the stack) and installed by moving the pointer.
-#[cfg(feature = "std")]
-impl<const S: usize, C: Controller<S> + ?Sized> Controller<S> for std::boxed::Box<C> {
-    fn restart(&mut self, inputs: &ControlInputs<S>) {
-        (**self).restart(inputs);
-    }
+forward_controller!(
+    /// A law held by reference: the runtime can run a law that lives elsewhere (a static
+    /// buffer on the board), so installing one swaps a pointer instead of moving the law —
+    /// `Follower<2, 256>` by value is ≈ 119 000 instructions of copying inside the tick's
+    /// critical section (bench-m4 `runtime_install_law`, docs/firmware.md).
+    &mut C
+);
 
-    fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S> {
-        (**self).tick(inputs)
-    }
-
-    fn null_codes(&self) -> [DacCode; S] {
-        (**self).null_codes()
-    }
-
-    fn master_span(&self) -> Option<(Master, Master)> {
-        (**self).master_span()
-    }
-}
+forward_controller!(
+    /// A law on the heap (host builds): the host's laws with large tables are built in
+    /// place in a `Box` (never on the stack) and installed by moving the pointer.
+    #[cfg(feature = "std")]
+    std::boxed::Box<C>
+);
 
 #[cfg(test)]
 pub(crate) mod mock {

@@ -68,13 +68,35 @@ impl Link {
                 active_id: 0,
             },
         };
-        // Resynchronise the board's decoder, then open the session.
+        // Resynchronise: a delimiter ends whatever partial frame a host that died mid-frame
+        // left in the board's decoder; the board answers that garbage with a seq-0xFFFF
+        // Nak, which (with anything else still in flight) is drained here, so it is never
+        // taken for the answer to Hello.
         l.port.write_all(&[0])?;
+        l.port.flush()?;
+        l.drain(Duration::from_millis(40), Duration::from_millis(400))?;
         match l.request(&Request::Hello)? {
             Response::Info(i) => l.info = i,
             r => anyhow::bail!("Hello answered {r:?}"),
         }
         Ok(l)
+    }
+
+    /// Reads and discards frames until `quiet` passes without a byte (at most `limit`).
+    fn drain(&mut self, quiet: Duration, limit: Duration) -> anyhow::Result<()> {
+        let t0 = Instant::now();
+        let mut last = Instant::now();
+        while t0.elapsed() < limit && last.elapsed() < quiet {
+            let mut b = [0u8; 4096];
+            match self.port.read(&mut b) {
+                Ok(0) => {}
+                Ok(_) => last = Instant::now(),
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+        self.dec = FrameDecoder::new();
+        Ok(())
     }
 
     /// Sends one request and returns its answer (a Nak is returned, not an error).
@@ -91,16 +113,36 @@ impl Link {
         self.port.flush()?;
         let timeout = timeout_for(q);
         let deadline = Instant::now() + timeout;
+        // A seq-0xFFFF Nak names no request: it may be this frame, corrupted on the way,
+        // or other bytes (noise, a dead host's half frame). It is not taken as the answer
+        // at once: the real answer may follow. After 100 ms without one the frame is sent
+        // again (a Nak changed nothing on the board, so a resend is safe), twice at most.
+        let mut framing: Option<(Response, Instant)> = None;
+        let mut resends = 0;
         loop {
             for (s, r) in self.read_frames()? {
                 match r {
                     Response::Telemetry(t) => self.telemetry.push(t),
-                    Response::Nak { .. } if s == 0xFFFF || s == seq => return Ok(r),
+                    Response::Nak { .. } if s == 0xFFFF => {
+                        framing.get_or_insert((r, Instant::now()));
+                    }
+                    Response::Nak { .. } if s == seq => return Ok(r),
                     r if s == seq => {
                         self.seq = seq;
                         return Ok(r);
                     }
                     _ => {}
+                }
+            }
+            if let Some((nak, at)) = &framing {
+                if at.elapsed() > Duration::from_millis(100) {
+                    if resends >= 2 {
+                        return Ok(nak.clone());
+                    }
+                    resends += 1;
+                    framing = None;
+                    self.port.write_all(&buf[..n])?;
+                    self.port.flush()?;
                 }
             }
             if Instant::now() > deadline {

@@ -21,6 +21,10 @@ pub struct Args {
     pub scenario: Option<PathBuf>,
 }
 
+/// Output bytes the virtual board keeps for a host that is not reading (≈ 2.8 s of
+/// 921 600 Bd); beyond it new output is dropped.
+pub const PENDING_MAX: usize = 256 * 1024;
+
 /// Runs the virtual board.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     if !args.pty {
@@ -51,6 +55,8 @@ pub fn serve(scn: &Scenario, on_path: impl FnOnce(&str)) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let mut ticks: u64 = 0;
     let mut buf = [0u8; 1024];
+    let mut pending: Vec<u8> = Vec::new();
+    let mut dropped: u64 = 0;
     // Keep the slave end open so the master never sees a hang-up between clients.
     let _slave = slave;
     loop {
@@ -67,8 +73,36 @@ pub fn serve(scn: &Scenario, on_path: impl FnOnce(&str)) -> anyhow::Result<()> {
             board.tick(&mut |f| tx.extend_from_slice(f));
         }
         ticks = ticks.max(due.saturating_sub(100)) + behind;
-        if !tx.is_empty() {
-            master.write_all(&tx)?;
+        // A host that does not read must never stop the board: what the PTY will not take
+        // now waits in `pending` (written as far as the PTY accepts each loop, partial
+        // writes kept); beyond PENDING_MAX new output is dropped whole, as the board drops
+        // frames its TX batch cannot hold (the host times out and retries).
+        if pending.len() + tx.len() <= PENDING_MAX {
+            pending.extend_from_slice(&tx);
+        } else {
+            if dropped == 0 {
+                eprintln!("serve: the host is not reading; dropping output beyond {PENDING_MAX} B");
+            }
+            dropped = dropped.saturating_add(tx.len() as u64);
+        }
+        while !pending.is_empty() {
+            match master.write(&pending) {
+                Ok(0) => break,
+                Ok(k) => {
+                    pending.drain(..k);
+                }
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::Interrupted
+                    ) =>
+                {
+                    break
+                }
+                Err(e) => return Err(e.into()),
+            }
         }
     }
 }
