@@ -314,8 +314,12 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     pub fn poll<D: Device<S, N>>(&mut self, dev: &mut D) -> Result<(), Nak> {
         if self.pending && dev.at_safe_point() {
             self.pending = false;
-            if let Some(id) = self.committed_id.take() {
+            if let Some(id) = self.committed_id {
+                // The limits may have changed since Commit: the table is checked against
+                // the ones in force now, and a table they refuse stays committed, unrun.
+                self.committed.check_limits(&dev.table_limits())?;
                 dev.install_table(&self.committed)?;
+                self.committed_id = None;
                 self.active_id = Some(id);
             }
         }
@@ -444,6 +448,14 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             }
             Request::Activate { id } => match self.committed_id {
                 Some(cid) if cid == id => {
+                    // Checked against the limits in force now, not those at Commit: a
+                    // SetParam since may have made the table too steep or out of range.
+                    if let Err(e) = self.committed.check_limits(&dev.table_limits()) {
+                        return Response::Nak {
+                            req: t,
+                            nak: e.into(),
+                        };
+                    }
                     self.pending = true;
                     match self.poll(dev) {
                         Ok(()) => {
@@ -626,9 +638,13 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             return Err(Nak::new(NakCode::NotIdle));
         }
         let t = dev.active_table().ok_or(Nak::new(NakCode::NothingToSave))?;
+        // Never erase the slot that booted or was saved last (the one that boots now),
+        // even when the other slot is newer: after a fallback boot the newer slot is the
+        // refused one (first-power-up review; settings issue 2b).
+        let keep = self.saved.map(|h| h.slot);
         let h = self
             .store
-            .save(flash, self.active_id(), t, &self.overrides)
+            .save_keeping(flash, keep, self.active_id(), t, &self.overrides)
             .map_err(|_| Nak::new(NakCode::Flash))?;
         self.saved = Some(h);
         Ok(())

@@ -1026,3 +1026,103 @@ fn set_position_offset_and_link_timeout_are_saved() {
     assert!(!r2.h.watch_link(&mut r2.dev, 10));
     assert!(r2.h.watch_link(&mut r2.dev, 261));
 }
+
+/// Settings issue 2a: a committed table that a later SetParam makes invalid is refused at
+/// Activate (typed, naming the row), and nothing changes.
+#[test]
+fn activate_rechecks_the_limits_in_force() {
+    let mut r = loaded_rig();
+    // Table 3 rises to 1000 + 9·3000 µm = 28 mm.
+    r.upload(3, &nodes(10, 3000)).unwrap();
+    r.dev.max_um = 20_000;
+    let before = r.dev.table.clone();
+    match r.req(&Request::Activate { id: 3 }) {
+        Response::Nak { nak, .. } => {
+            assert_eq!(nak.code, NakCode::TableOutOfRange);
+        }
+        x => panic!("{x:?}"),
+    }
+    assert_eq!(r.dev.table, before, "the running table is unchanged");
+    assert_eq!(r.h.active_id(), 2);
+    // Deferred: armed while running, the limits narrowed, then refused at the safe point.
+    r.dev.max_um = 0;
+    r.ack(&Request::Start);
+    assert_eq!(r.ack(&Request::Activate { id: 3 }), ACK_DEFERRED);
+    r.dev.max_um = 20_000;
+    r.dev.ended = true;
+    assert_eq!(
+        r.h.poll(&mut r.dev).map_err(|n| n.code),
+        Err(NakCode::TableOutOfRange)
+    );
+    assert_eq!(r.h.active_id(), 2);
+    assert_eq!(r.dev.table, before);
+}
+
+/// Settings issue 2b: after a fallback boot (the newer slot refused), Save writes over
+/// the refused slot and never erases the one that booted: a power cut at any point of that
+/// Save still boots a table.
+#[test]
+fn save_after_a_fallback_boot_keeps_the_slot_that_booted() {
+    let mut r = loaded_rig();
+    // Slot 0 = table 1 (gen 1), slot 1 = table 2 (gen 2). Narrow the limits so table 2
+    // (up to 2.35 mm) is refused at boot and table 1 (up to 1.9 mm) boots.
+    let limited = || Mock {
+        max_um: 2000,
+        ..Mock::default()
+    };
+    let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
+    let mut h = Handler::<S, N>::new(store);
+    let mut dev = limited();
+    let hd = h.boot(&mut dev, &mut r.flash).unwrap();
+    assert_eq!((hd.id, hd.slot), (1, 0));
+    let image = r.flash.clone();
+    let mut r2 = Rig {
+        h,
+        dev,
+        flash: r.flash.clone(),
+        seq: 0,
+    };
+    assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
+    r2.ack(&Request::Save);
+    // The new save went to slot 1; slot 0 (what booted) is intact.
+    let mut dev3 = limited();
+    let hd3 = Handler::<S, N>::new(store)
+        .boot(&mut dev3, &mut r2.flash)
+        .unwrap();
+    assert_eq!((hd3.id, hd3.slot, hd3.generation), (1, 1, 3));
+    assert_eq!(
+        store.scan::<_, S, N>(&mut r2.flash, 0).map(|h| h.id),
+        Some(1),
+        "the slot that booted was kept"
+    );
+    // Every power cut during that Save leaves a bootable table.
+    let total = image.mem.len();
+    let mut cuts = 0;
+    // A Save here is ≈ 2 300 byte operations (two 1 KiB erase blocks, then the slot).
+    for cut in (0..2_600).step_by(7) {
+        let mut f = image.clone();
+        f.cut_after(cut);
+        let store = Store::new::<_, S, N>(&f, 0, SLOT).unwrap();
+        let mut hh = Handler::<S, N>::new(store);
+        let mut d = limited();
+        let _ = hh.boot(&mut d, &mut f);
+        let mut rr = Rig {
+            h: hh,
+            dev: d,
+            flash: f,
+            seq: 0,
+        };
+        assert!(matches!(rr.req(&Request::Hello), Response::Info(_)));
+        let _ = rr.req(&Request::Save);
+        rr.flash.power_on();
+        let mut d2 = limited();
+        assert!(
+            Handler::<S, N>::new(store)
+                .boot(&mut d2, &mut rr.flash)
+                .is_some(),
+            "no bootable table after a cut at byte operation {cut} (flash of {total} B)"
+        );
+        cuts += 1;
+    }
+    assert!(cuts > 100);
+}

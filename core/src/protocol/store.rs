@@ -260,13 +260,30 @@ impl Store {
         table: &CamTable<S, N>,
         params: &ParamOverrides,
     ) -> Result<SlotHeader, StoreError> {
+        self.save_keeping(flash, None, id, table, params)
+    }
+
+    /// [`Store::save`], but never into slot `keep` (the slot that booted, or the last one
+    /// saved: the one that boots now); `None`: into the slot not holding the newest valid
+    /// table. The generation is one above the newest valid slot's either way, so the new
+    /// slot is the one the next boot tries first.
+    pub fn save_keeping<F: NorFlash, const S: usize, const N: usize>(
+        &self,
+        flash: &mut F,
+        keep: Option<u8>,
+        id: u32,
+        table: &CamTable<S, N>,
+        params: &ParamOverrides,
+    ) -> Result<SlotHeader, StoreError> {
         if self.slot_size == 0 {
             return Err(StoreError::Geometry);
         }
         let newest = self.newest::<F, S, N>(flash);
-        let slot = match newest {
-            Some(h) if h.slot == 0 => 1,
-            _ => 0,
+        let slot = match (keep, newest) {
+            (Some(0), _) => 1,
+            (Some(_), _) => 0,
+            (None, Some(h)) if h.slot == 0 => 1,
+            (None, _) => 0,
         };
         let generation = newest.map_or(1, |h| h.generation.saturating_add(1));
         let rows = u16::try_from(table.len()).map_err(|_| StoreError::Geometry)?;
