@@ -18,8 +18,10 @@
 //! | 32 + 6P | rows · (8 + 4·columns) | rows, as on the wire ([`super::msg::row_len`]) |
 //! | 32 + 6P + L | 4 | CRC-32 of bytes 16 … 32 + 6P + L − 1 |
 //!
-//! **Save** erases the slot that does not hold the newest valid table, writes bytes 16 …
-//! end, then the magic, then reads the slot back and checks it. **Boot**
+//! **Save** ([`Store::save_keeping`]) erases the slot that is not the one to keep (the
+//! handler passes the slot that booted or was saved last; without one, the slot that
+//! does not hold the newest valid table), writes bytes 16 … end, then the magic, then
+//! reads the slot back and checks it. **Boot**
 //! ([`super::Handler::boot`]) takes the valid slot with the highest generation (valid:
 //! magic, CRC, columns = S, rows ≤ N, P ≤ S · [`ParamId::COUNT`]), applies its parameters,
 //! and installs its table if it passes the [`CamTable`] rules with the resulting limits;
