@@ -24,7 +24,9 @@ use hydra_core::protocol::msg::StatusMsg;
 use hydra_core::protocol::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
-use hydra_core::protocol::{apply_param, Device, Motion, Nak, NakCode, ParamId};
+use hydra_core::protocol::{
+    apply_param, apply_param_set, Device, Motion, Nak, NakCode, ParamId, ParamRecord,
+};
 use hydra_core::runtime::State;
 use hydra_core::table::{CamTable, TableLimits};
 use hydra_core::units::PosUm;
@@ -297,6 +299,28 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         }
         self.st.fcfg = f;
         self.st.limits = lim;
+        Ok(())
+    }
+    fn set_params(&mut self, records: &[ParamRecord]) -> Result<(), Nak> {
+        // Boot only (no table yet): the whole set on copies, then kept only if all of it
+        // is valid (`apply_param_set`; the reference offsets checked before any is kept).
+        if self.st.has_active {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        let mut f = self.st.fcfg;
+        let mut lim = self.st.limits;
+        apply_param_set(&mut f, &mut lim, None::<&Table>, records)?;
+        let mut offsets = self.st.boot_offsets;
+        for r in records.iter().filter(|r| r.param == ParamId::SlaveOffsetUm) {
+            let range = Nak::with(NakCode::ParamRange, u16::from(r.axis), r.param as u8);
+            let off = PosUm::checked_from_num(r.value)
+                .filter(|_| r.value.abs() <= 8.0e6)
+                .ok_or(range)?;
+            *offsets.get_mut(usize::from(r.axis)).ok_or(range)? = Some(off);
+        }
+        self.st.fcfg = f;
+        self.st.limits = lim;
+        self.st.boot_offsets = offsets;
         Ok(())
     }
     fn reset_params(&mut self) -> Result<(), Nak> {

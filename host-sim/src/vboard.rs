@@ -24,7 +24,10 @@ use hydra_core::protocol::ramflash::RamFlash;
 use hydra_core::protocol::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
-use hydra_core::protocol::{apply_param, Device, Handler, Motion, Nak, NakCode, ParamId, Store};
+use hydra_core::protocol::{
+    apply_param, apply_param_set, Device, Handler, Motion, Nak, NakCode, ParamId, ParamRecord,
+    Store,
+};
 use hydra_core::runtime::{
     BootCause, Command, CommandError, EncoderSample, Runtime, RuntimeConfig, Sample, State,
 };
@@ -284,6 +287,35 @@ impl Device<AXES, CAPACITY> for Machine {
         self.limits = lim;
         Ok(())
     }
+    fn set_params(&mut self, records: &[ParamRecord]) -> Result<(), Nak> {
+        // Boot only: the whole set on copies, kept only if all of it is valid.
+        if self.rt.law().is_some() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        let (mut f, mut lim) = (self.fcfg, self.limits);
+        apply_param_set(&mut f, &mut lim, None::<&CamTable<AXES, CAPACITY>>, records)?;
+        let mut offsets = [None; AXES];
+        for r in records.iter().filter(|r| r.param == ParamId::SlaveOffsetUm) {
+            let range = Nak::with(NakCode::ParamRange, u16::from(r.axis), r.param as u8);
+            let off = PosUm::checked_from_num(r.value)
+                .filter(|_| r.value.abs() <= 8.0e6)
+                .ok_or(range)?;
+            *offsets.get_mut(usize::from(r.axis)).ok_or(range)? = Some(off);
+        }
+        for (axis, off) in (0u8..).zip(offsets) {
+            if let Some(o) = off {
+                self.rt.restore_reference_offset(axis, o).map_err(|_| {
+                    Nak::with(
+                        NakCode::ParamRange,
+                        u16::from(axis),
+                        ParamId::SlaveOffsetUm as u8,
+                    )
+                })?;
+            }
+        }
+        (self.fcfg, self.limits) = (f, lim);
+        Ok(())
+    }
     fn reset_params(&mut self) -> Result<(), Nak> {
         if self.rt.law().is_some() {
             return Err(Nak::new(NakCode::NotIdle));
@@ -314,8 +346,13 @@ pub struct VBoard {
 impl VBoard {
     /// A board on the reference tangent scenario, booted from an empty flash.
     pub fn new(scn: &Scenario) -> anyhow::Result<Self> {
+        Self::with_flash(scn, RamFlash::new(2 * SLOT_BYTES as usize))
+    }
+
+    /// A board booted from `flash` (e.g. another board's flash after a Save: a power
+    /// cycle). `flash` must be at least two slots ([`SLOT_BYTES`] each).
+    pub fn with_flash(scn: &Scenario, flash: RamFlash) -> anyhow::Result<Self> {
         let mut machine = Machine::new(scn)?;
-        let flash = RamFlash::new(2 * SLOT_BYTES as usize);
         let store = Store::new::<_, AXES, CAPACITY>(&flash, 0, SLOT_BYTES)
             .map_err(|e| anyhow::anyhow!("flash geometry: {e:?}"))?;
         let mut handler = Handler::new(store);

@@ -87,6 +87,17 @@ pub trait Device<const S: usize, const N: usize> {
     fn command(&mut self, m: Motion) -> Result<(), Nak>;
     /// Sets one parameter (validated; typed error).
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak>;
+    /// Applies a saved set of parameters at boot, **as one validated set**: all of them,
+    /// or none ([`super::params::apply_param_set`]: the order they were first set in does
+    /// not matter). Only called while no table is installed. The default sets them one
+    /// by one and stops at the first refusal — the handler then undoes everything with
+    /// [`Device::reset_params`] — which is order-dependent: a device overrides it.
+    fn set_params(&mut self, records: &[super::ParamRecord]) -> Result<(), Nak> {
+        for r in records {
+            self.set_param(r.axis, r.param, r.value)?;
+        }
+        Ok(())
+    }
     /// Restores every parameter [`Device::set_param`] can change to the board's boot
     /// configuration. [`Handler::boot`] calls it when a slot's table is refused, before
     /// it tries the older slot, so no parameter of a refused slot stays applied. Only
@@ -267,15 +278,25 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             {
                 continue;
             }
+            // The slot's settings as one set: all apply, or the slot is refused like a
+            // table that fails its rules (the older slot is tried).
+            let mut set: Vec<super::ParamRecord, { super::overrides::MAX_RECORDS }> = Vec::new();
+            let mut link_ok = true;
             for r in params.iter() {
-                let applied = if r.param == ParamId::LinkTimeoutMs {
-                    self.set_link_timeout(r.value)
-                } else {
-                    dev.set_param(r.axis, r.param, r.value)
-                };
-                if applied.is_ok() {
-                    self.overrides.record(r.axis, r.param, r.value);
+                if r.param == ParamId::LinkTimeoutMs {
+                    link_ok &= self.set_link_timeout(r.value).is_ok();
+                } else if set.push(*r).is_err() {
+                    link_ok = false;
                 }
+            }
+            if !link_ok || dev.set_params(&set).is_err() {
+                dev.reset_params().ok()?;
+                self.overrides.clear();
+                self.link.timeout_ms = 0;
+                continue;
+            }
+            for r in params.iter() {
+                self.overrides.record(r.axis, r.param, r.value);
             }
             // Built in place in the committed table's buffer (nothing is committed at boot).
             self.committed_id = None;

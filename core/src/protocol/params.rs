@@ -10,9 +10,9 @@ use crate::table::{CamTable, TableLimits};
 use crate::units::{MasterRate, PosUm};
 
 /// Sets `param` of slave `axis` to `value` (engineering units, see [`ParamId`]) in `cfg`
-/// and `lim`, validates the axis with its own builder
-/// ([`crate::axis::AxisConfig::build`]) and, for a limit, checks that the `active` table
-/// still passes the table rules with the new limits ([`CamTable::check_limits`]).
+/// and `lim`, then validates the whole configuration ([`validate_params`]): every axis
+/// with its own builder ([`crate::axis::AxisConfig::build`]), every limit set, and the
+/// `active` table against the new limits ([`CamTable::check_limits`]).
 ///
 /// Errors: `UnknownParam` for an axis the device does not have, `ParamRange` (detail: axis
 /// and parameter) for a value out of range or one the active table would violate; `cfg`
@@ -25,15 +25,50 @@ pub fn apply_param<const S: usize, const N: usize>(
     param: ParamId,
     value: f32,
 ) -> Result<(), Nak> {
+    assign_param(cfg, lim, axis, param, value)?;
+    validate_params(cfg, lim, active, Some((axis, param)))
+}
+
+/// Applies a whole set of saved parameters at once: every record is assigned first,
+/// then the result is validated **once**, as a set ([`validate_params`]). So the order the
+/// records were first set in does not matter (min 550 mm stored before max 700 mm is not
+/// checked against the boot max of 500 mm), and a set that is not valid as a whole is
+/// refused whole — never applied in part. `cfg` and `lim` may be partly changed on an
+/// error, so pass copies. Records for [`ParamId::LinkTimeoutMs`] and
+/// [`ParamId::SlaveOffsetUm`] are not follower parameters and are skipped here (the
+/// handler and the device apply them).
+pub fn apply_param_set<const S: usize, const N: usize>(
+    cfg: &mut FollowerConfig<S>,
+    lim: &mut TableLimits<S>,
+    active: Option<&CamTable<S, N>>,
+    records: &[super::ParamRecord],
+) -> Result<(), Nak> {
+    for r in records {
+        if matches!(r.param, ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm) {
+            continue;
+        }
+        assign_param(cfg, lim, r.axis, r.param, r.value)?;
+    }
+    validate_params(cfg, lim, active, None)
+}
+
+/// Writes one parameter's value (checked only for its own representable range).
+fn assign_param<const S: usize>(
+    cfg: &mut FollowerConfig<S>,
+    lim: &mut TableLimits<S>,
+    axis: u8,
+    param: ParamId,
+    value: f32,
+) -> Result<(), Nak> {
     let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+    let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
     let i = usize::from(axis);
-    let period_us = cfg.period_us;
+    if param == ParamId::MasterSpeedPerS {
+        lim.master_speed_per_s = MasterRate::checked_from_num(value).ok_or(range)?;
+        return Ok(());
+    }
     let (Some(a), Some(l)) = (cfg.axes.get_mut(i), lim.axes.get_mut(i)) else {
-        return Err(Nak::with(
-            NakCode::UnknownParam,
-            u16::from(axis),
-            param as u8,
-        ));
+        return Err(unknown);
     };
     match param {
         ParamId::KpLsbPerUm => a.kp_lsb_per_um = value,
@@ -46,36 +81,52 @@ pub fn apply_param<const S: usize, const N: usize>(
         ParamId::KaLsbPerUmS2 => a.ka_lsb_per_um_s2 = value,
         ParamId::FollowingErrorUm => a.following_error_um = value,
         ParamId::ValveNullLsb => a.valve.null_lsb = value,
-        ParamId::MinUm | ParamId::MaxUm | ParamId::MaxSpeedUmPerS => {
-            let v = PosUm::checked_from_num(value).ok_or(range)?;
-            match param {
-                ParamId::MinUm => l.min_um = v,
-                ParamId::MaxUm => l.max_um = v,
-                _ => l.max_speed_um_per_s = v,
-            }
-            if l.min_um >= l.max_um || l.max_speed_um_per_s <= 0 {
-                return Err(range);
-            }
+        ParamId::MinUm => l.min_um = PosUm::checked_from_num(value).ok_or(range)?,
+        ParamId::MaxUm => l.max_um = PosUm::checked_from_num(value).ok_or(range)?,
+        ParamId::MaxSpeedUmPerS => {
+            l.max_speed_um_per_s = PosUm::checked_from_num(value).ok_or(range)?
         }
         // Not follower parameters: the handler (link timeout) and the device (reference
         // offset) take them before this function.
-        ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm => {
-            return Err(Nak::with(
-                NakCode::UnknownParam,
-                u16::from(axis),
-                param as u8,
-            ))
+        ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm | ParamId::MasterSpeedPerS => {
+            return Err(unknown)
         }
-        ParamId::MasterSpeedPerS => {
-            lim.master_speed_per_s = MasterRate::checked_from_num(value)
-                .filter(|v| *v > 0)
-                .ok_or(range)?;
+    }
+    Ok(())
+}
+
+/// Validates a configuration as a whole: the master top speed positive; per axis min <
+/// max and a positive top speed, and the axis' own builder at the follower's period; the
+/// `active` table against the limits. `set`: the parameter just set (named in the error;
+/// `None` for a set of them: the error then names the axis and the first field at fault).
+pub fn validate_params<const S: usize, const N: usize>(
+    cfg: &FollowerConfig<S>,
+    lim: &TableLimits<S>,
+    active: Option<&CamTable<S, N>>,
+    set: Option<(u8, ParamId)>,
+) -> Result<(), Nak> {
+    let nak = |axis: usize, field: ParamId| {
+        let (a, p) = set.unwrap_or((u8::try_from(axis).unwrap_or(u8::MAX), field));
+        Nak::with(NakCode::ParamRange, u16::from(a), p as u8)
+    };
+    if lim.master_speed_per_s <= 0 {
+        return Err(nak(0, ParamId::MasterSpeedPerS));
+    }
+    for (i, (a, l)) in cfg.axes.iter().zip(lim.axes.iter()).enumerate() {
+        if l.min_um >= l.max_um {
+            return Err(nak(i, ParamId::MinUm));
+        }
+        if l.max_speed_um_per_s <= 0 {
+            return Err(nak(i, ParamId::MaxSpeedUmPerS));
+        }
+        if a.build(cfg.period_us).is_err() {
+            return Err(nak(i, ParamId::KpLsbPerUm));
         }
     }
     if let Some(t) = active {
-        t.check_limits(lim).map_err(|_| range)?;
+        t.check_limits(lim).map_err(|_| nak(0, ParamId::MinUm))?;
     }
-    a.build(period_us).map(|_| ()).map_err(|_| range)
+    Ok(())
 }
 
 #[cfg(test)]
@@ -179,5 +230,40 @@ mod tests {
         // Without an active table the same value is accepted.
         let (mut c1, mut l1) = (c0, l0);
         apply_param(&mut c1, &mut l1, NONE, 0, ParamId::MaxUm, 90_000.0).unwrap();
+    }
+
+    /// Settings issue 2c: min 100 mm, max 700 mm, then min 550 mm (replacing the first
+    /// record in place): one by one against the boot max of 500 mm the min fails; as a
+    /// set the limits are [550, 700] mm. A set invalid as a whole changes nothing.
+    #[test]
+    fn a_set_is_validated_as_a_whole_not_in_record_order() {
+        use crate::protocol::ParamRecord;
+        let (c0, l0) = setup();
+        let rec = |param, value| ParamRecord {
+            axis: 0,
+            param,
+            value,
+        };
+        let set = [
+            rec(ParamId::MinUm, 550_000.0),
+            rec(ParamId::MaxUm, 700_000.0),
+            rec(ParamId::LinkTimeoutMs, 100.0),
+        ];
+        let (mut c, mut l) = (c0, l0);
+        // One by one, the first record is refused against the boot max.
+        assert!(apply_param(&mut c, &mut l, NONE, 0, ParamId::MinUm, 550_000.0).is_err());
+        let (mut c, mut l) = (c0, l0);
+        apply_param_set(&mut c, &mut l, NONE, &set).unwrap();
+        assert_eq!(l.axes[0].min_um, PosUm::from_num(550_000));
+        assert_eq!(l.axes[0].max_um, PosUm::from_num(700_000));
+        let bad = [
+            rec(ParamId::MinUm, 800_000.0),
+            rec(ParamId::MaxUm, 700_000.0),
+        ];
+        let (mut c, mut l) = (c0, l0);
+        assert_eq!(
+            apply_param_set(&mut c, &mut l, NONE, &bad),
+            Err(Nak::with(NakCode::ParamRange, 0, ParamId::MinUm as u8))
+        );
     }
 }
