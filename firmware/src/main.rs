@@ -65,8 +65,8 @@ async fn main(spawner: Spawner) {
     flash_acr::enable_accelerator();
     let mut board = Board::new(p);
 
-    // The law and its valve nulls first: the DAC leaves mid-scale for the calibrated
-    // null before the runtime exists.
+    // The framed protocol and the boot law from the newest valid flash slot (built in
+    // place in a law buffer).
     #[cfg(not(feature = "console"))]
     let (proto, law) = {
         let flash = flash::SlotFlash::new(board.flash);
