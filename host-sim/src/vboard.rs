@@ -365,6 +365,40 @@ impl VBoard {
         })
     }
 
+    /// A board booted from the flash image in `path` (created erased if the file does
+    /// not exist): with [`VBoard::persist`] after every request, restarting the process
+    /// is a power cycle of the board.
+    pub fn with_flash_file(scn: &Scenario, path: &std::path::Path) -> anyhow::Result<Self> {
+        let size = 2 * SLOT_BYTES as usize;
+        let mut flash = RamFlash::new(size);
+        match std::fs::read(path) {
+            Ok(img) if img.len() == size => flash.mem = img,
+            Ok(img) => anyhow::bail!(
+                "{}: a flash image of {} bytes, expected {size} (two slots of {SLOT_BYTES})",
+                path.display(),
+                img.len()
+            ),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => anyhow::bail!("{}: {e}", path.display()),
+        }
+        Self::with_flash(scn, flash)
+    }
+
+    /// Writes the flash image to `path` if it changed since `*seen_ops` (the flash's
+    /// operation count): to a temporary file, then renamed over the old one, so a crash
+    /// of the host never leaves half an image (the board's own power-cut safety is the
+    /// store's, inside the image).
+    pub fn persist(&self, path: &std::path::Path, seen_ops: &mut usize) -> anyhow::Result<()> {
+        if self.flash.ops == *seen_ops {
+            return Ok(());
+        }
+        let tmp = path.with_extension("tmp");
+        std::fs::write(&tmp, &self.flash.mem)?;
+        std::fs::rename(&tmp, path)?;
+        *seen_ops = self.flash.ops;
+        Ok(())
+    }
+
     /// Received bytes → responses through `tx`.
     pub fn on_bytes(&mut self, bytes: &[u8], tx: &mut impl FnMut(&[u8])) {
         self.handler

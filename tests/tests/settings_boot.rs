@@ -121,3 +121,40 @@ fn limits_set_in_any_order_come_back_exactly_after_a_power_cycle() {
     }
     assert!(matches!(h2.commit(&mut b2, 3, 600.0), Response::Ack { .. }));
 }
+
+/// `serve --flash FILE`: the flash image survives the board's process — a restart on the
+/// same file boots the saved table with its settings; a file of the wrong size is refused
+/// with a message naming it.
+#[test]
+fn a_flash_file_makes_a_restart_a_power_cycle() {
+    let scn = Scenario::default();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("board.flash");
+    let mut b = VBoard::with_flash_file(&scn, &path).unwrap();
+    let mut seen = b.flash.ops;
+    let mut h = Host { seq: 3 };
+    assert!(matches!(h.req(&mut b, &Request::Hello), Response::Info(_)));
+    h.param(&mut b, ParamId::MaxUm, 450_000.0);
+    assert!(matches!(h.commit(&mut b, 7, 300.0), Response::Ack { .. }));
+    h.ack(&mut b, &Request::Activate { id: 7 });
+    h.ack(&mut b, &Request::Save);
+    b.persist(&path, &mut seen).unwrap();
+    drop(b);
+    let mut b2 = VBoard::with_flash_file(&scn, &path).unwrap();
+    let mut h2 = Host { seq: 40 };
+    match h2.req(&mut b2, &Request::Hello) {
+        Response::Info(i) => assert_eq!(i.active_id, 7),
+        r => panic!("{r:?}"),
+    }
+    // The saved max (450 mm) is back: a table at 460 mm is refused.
+    match h2.commit(&mut b2, 8, 460.0) {
+        Response::Nak { nak, .. } => assert_eq!(nak.code, NakCode::TableOutOfRange),
+        r => panic!("{r:?}"),
+    }
+    std::fs::write(&path, [0u8; 10]).unwrap();
+    let e = VBoard::with_flash_file(&scn, &path)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("board.flash") && e.contains("10 bytes"), "{e}");
+}

@@ -19,6 +19,11 @@ pub struct Args {
     /// Scenario file (default: the reference tangent machine).
     #[arg(long)]
     pub scenario: Option<PathBuf>,
+    /// Keep the board's flash (its two table slots) in this file: created erased if
+    /// missing, written after every request that changed it, so restarting `serve` with
+    /// the same file is a power cycle (without it the flash lives in memory only).
+    #[arg(long)]
+    pub flash: Option<PathBuf>,
 }
 
 /// Output bytes the virtual board keeps for a host that is not reading (≈ 2.8 s of
@@ -34,7 +39,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(p) => Scenario::load(p)?,
         None => Scenario::default(),
     };
-    serve(&scn, |path| {
+    serve_with(&scn, args.flash.as_deref(), |path| {
         let mut out = std::io::stdout().lock();
         let _ = writeln!(out, "{path}");
         let _ = out.flush();
@@ -44,7 +49,20 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 /// Runs the virtual board of `scn` on a new PTY until an I/O error; `on_path` gets the
 /// PTY's path once it exists.
 pub fn serve(scn: &Scenario, on_path: impl FnOnce(&str)) -> anyhow::Result<()> {
-    let mut board = VBoard::new(scn)?;
+    serve_with(scn, None, on_path)
+}
+
+/// [`serve`] with the board's flash in `flash_file` (see [`Args::flash`]).
+pub fn serve_with(
+    scn: &Scenario,
+    flash_file: Option<&std::path::Path>,
+    on_path: impl FnOnce(&str),
+) -> anyhow::Result<()> {
+    let mut board = match flash_file {
+        Some(f) => VBoard::with_flash_file(scn, f)?,
+        None => VBoard::new(scn)?,
+    };
+    let mut seen_ops = board.flash.ops;
     let (mut master, slave) = serialport::TTYPort::pair()
         .map_err(|e| anyhow::anyhow!("cannot create a pseudo-terminal: {e}"))?;
     let path = serialport::SerialPort::name(&slave)
@@ -62,7 +80,12 @@ pub fn serve(scn: &Scenario, on_path: impl FnOnce(&str)) -> anyhow::Result<()> {
     loop {
         let mut tx: Vec<u8> = Vec::new();
         match master.read(&mut buf) {
-            Ok(n) => board.on_bytes(&buf[..n], &mut |f| tx.extend_from_slice(f)),
+            Ok(n) => {
+                board.on_bytes(&buf[..n], &mut |f| tx.extend_from_slice(f));
+                if let Some(f) = flash_file {
+                    board.persist(f, &mut seen_ops)?;
+                }
+            }
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
             Err(e) => return Err(e.into()),
