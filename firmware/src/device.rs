@@ -74,9 +74,8 @@ pub struct DeviceState {
     pub fcfg: FollowerConfig<SLAVES>,
     /// The limits tables are validated against; SetParam edits them.
     pub limits: TableLimits<SLAVES>,
-    /// Copy of the table inside the running law (valid while `has_active`).
+    /// Copy of the table inside the running law ([`Table::empty`] while none runs).
     active: &'static mut Table,
-    has_active: bool,
     /// The law buffers the runtime does not hold.
     pool: LawPool,
     /// Reference offsets of absolute slaves restored from flash at boot, before the
@@ -112,7 +111,6 @@ impl DeviceState {
             fcfg: crate::program::follower_config(),
             limits: crate::program::table_limits(),
             active: ACTIVE.try_take()?,
-            has_active: false,
             boot_offsets: [None; SLAVES],
             pool: LawPool {
                 free: [Some(a), Some(b)],
@@ -213,7 +211,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         self.st.limits
     }
     fn active_table(&self) -> Option<&Table> {
-        self.st.has_active.then_some(&*self.st.active)
+        (!self.st.active.is_empty()).then_some(&*self.st.active)
     }
     fn at_safe_point(&self) -> bool {
         // Before the tick starts (boot) nothing runs: always safe.
@@ -227,7 +225,6 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         match install(&mut self.st.pool, &fcfg, table) {
             Ok(()) => {
                 self.st.active.copy_from(table);
-                self.st.has_active = true;
                 defmt::info!("table installed ({} rows)", table.len());
                 Ok(())
             }
@@ -285,10 +282,10 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         }
         let mut f = self.st.fcfg;
         let mut lim = self.st.limits;
-        let active = self.st.has_active.then_some(&*self.st.active);
+        let active = (!self.st.active.is_empty()).then_some(&*self.st.active);
         apply_param(&mut f, &mut lim, active, axis, param, value)?;
         // Rebuild the law if one runs (in the free buffer, from the copy of its table).
-        if self.st.has_active {
+        if !self.st.active.is_empty() {
             match install(&mut self.st.pool, &f, self.st.active) {
                 Ok(()) => {}
                 Err(n) if n.code == NakCode::Refused && n.detail == REFUSED_NOT_SAFE => {
@@ -304,7 +301,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
     fn set_params(&mut self, records: &[ParamRecord]) -> Result<(), Nak> {
         // Boot only (no table yet): the whole set on copies, then kept only if all of it
         // is valid (`apply_param_set`; the reference offsets checked before any is kept).
-        if self.st.has_active {
+        if !self.st.active.is_empty() {
             return Err(Nak::new(NakCode::NotIdle));
         }
         let mut f = self.st.fcfg;
@@ -325,7 +322,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
     }
     fn reset_params(&mut self) -> Result<(), Nak> {
         // Only at boot, before a table is installed (no law to rebuild).
-        if self.st.has_active {
+        if !self.st.active.is_empty() {
             return Err(Nak::new(NakCode::NotIdle));
         }
         self.st.fcfg = crate::program::follower_config();

@@ -25,7 +25,6 @@
 //! threshold at 1 kHz. After every program and erase the flash data cache is reset
 //! (`crate::flash_acr`), so a read-back never sees a stale cached line.
 
-use core::sync::atomic::{AtomicU32, Ordering};
 use embassy_stm32::flash::{Blocking, Error, Flash};
 use embassy_stm32::pac;
 use embassy_stm32::pac::flash::vals::Psize;
@@ -137,7 +136,6 @@ impl NorFlash for SlotFlash {
             crate::flash_acr::reset_data_cache();
             let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0);
             let ms = cycles / (crate::board::SYSCLK_HZ / 1000);
-            LAST_ERASE_MS.store(ms, Ordering::Relaxed);
             defmt::info!("sector {=u8} erased in {=u32} ms", snb, ms);
             r.map_err(SlotFlashError::Driver)?;
             at = at.saturating_add(SLOT_BYTES);
@@ -145,10 +143,6 @@ impl NorFlash for SlotFlash {
         Ok(())
     }
 }
-
-/// Duration of the last sector erase, ms (DWT cycles; logged, and for the docs' figure
-/// once measured on a board).
-pub static LAST_ERASE_MS: AtomicU32 = AtomicU32::new(0);
 
 /// The sector number of a 128 KiB sector at `offset` from the start of flash (sectors 5
 /// … 11 of the F407's single bank start at 0x2_0000 · (n − 4)).

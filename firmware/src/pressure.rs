@@ -12,7 +12,7 @@
 //! issuing DMA requests (RM0090 §13.8.1) and the pressures would freeze silently. Each
 //! read checks the flag and, if set, re-initialises the chain (`Pressures::restart`: the
 //! DMA stream stopped and reprogrammed, the ADC off and on with its overrun flag cleared,
-//! then both restarted) and counts it. Independently, no new scan for [`STALE_US`] makes the input unhealthy
+//! then both restarted). Independently, no new scan for [`STALE_US`] makes the input unhealthy
 //! (`PressureInput::healthy`): reported in Status, and a fault when a force axis depends
 //! on the pressures (`RuntimeConfig::pressure_required`).
 
@@ -48,8 +48,6 @@ pub struct Pressures {
     scratch: [u16; PRESSURES * AVG_SCANS],
     /// Ticks since the last new scan.
     stale_ticks: u32,
-    /// Overruns recovered since boot.
-    pub overruns: u32,
 }
 
 impl Pressures {
@@ -66,7 +64,6 @@ impl Pressures {
             last: [PressureBar::ZERO; PRESSURES],
             scratch: [0; PRESSURES * AVG_SCANS],
             stale_ticks: 0,
-            overruns: 0,
         }
     }
 
@@ -140,6 +137,5 @@ impl Pressures {
         adc.cr2().modify(|w| w.set_dma(true));
         self.ring.clear();
         self.ring.start();
-        self.overruns = self.overruns.saturating_add(1);
     }
 }
