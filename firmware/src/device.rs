@@ -25,7 +25,8 @@ use hydra_core::protocol::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
 use hydra_core::protocol::{
-    apply_param, apply_param_set, Device, Motion, Nak, NakCode, ParamId, ParamRecord,
+    apply_param, apply_saved_set, reference_offset_um, Device, Motion, Nak, NakCode, ParamId,
+    ParamRecord,
 };
 use hydra_core::runtime::State;
 use hydra_core::table::{CamTable, TableLimits};
@@ -259,9 +260,7 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
         let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
         if param == ParamId::SlaveOffsetUm {
-            let off = PosUm::checked_from_num(value)
-                .filter(|_| value.abs() <= 8.0e6)
-                .ok_or(range)?;
+            let off = reference_offset_um(axis, value)?;
             // Before the tick starts (boot) the runtime does not exist yet: kept for
             // `main` to restore once it does.
             return match tick::with_runtime(|rt| rt.restore_reference_offset(axis, off)) {
@@ -306,15 +305,8 @@ impl Device<SLAVES, TABLE_NODES> for BoardDevice<'_, '_> {
         }
         let mut f = self.st.fcfg;
         let mut lim = self.st.limits;
-        apply_param_set(&mut f, &mut lim, None::<&Table>, records)?;
         let mut offsets = self.st.boot_offsets;
-        for r in records.iter().filter(|r| r.param == ParamId::SlaveOffsetUm) {
-            let range = Nak::with(NakCode::ParamRange, u16::from(r.axis), r.param as u8);
-            let off = PosUm::checked_from_num(r.value)
-                .filter(|_| r.value.abs() <= 8.0e6)
-                .ok_or(range)?;
-            *offsets.get_mut(usize::from(r.axis)).ok_or(range)? = Some(off);
-        }
+        apply_saved_set::<SLAVES, TABLE_NODES>(&mut f, &mut lim, &mut offsets, records)?;
         self.st.fcfg = f;
         self.st.limits = lim;
         self.st.boot_offsets = offsets;

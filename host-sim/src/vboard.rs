@@ -25,8 +25,8 @@ use hydra_core::protocol::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
 use hydra_core::protocol::{
-    apply_param, apply_param_set, Device, Handler, Motion, Nak, NakCode, ParamId, ParamRecord,
-    Store,
+    apply_param, apply_saved_set, reference_offset_um, Device, Handler, Motion, Nak, NakCode,
+    ParamId, ParamRecord, Store,
 };
 use hydra_core::runtime::{
     BootCause, Command, CommandError, EncoderSample, Runtime, RuntimeConfig, Sample, State,
@@ -261,9 +261,7 @@ impl Device<AXES, CAPACITY> for Machine {
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
         let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
         if param == ParamId::SlaveOffsetUm {
-            let off = PosUm::checked_from_num(value)
-                .filter(|_| value.abs() <= 8.0e6)
-                .ok_or(range)?;
+            let off = reference_offset_um(axis, value)?;
             return self
                 .rt
                 .restore_reference_offset(axis, off)
@@ -293,24 +291,18 @@ impl Device<AXES, CAPACITY> for Machine {
             return Err(Nak::new(NakCode::NotIdle));
         }
         let (mut f, mut lim) = (self.fcfg, self.limits);
-        apply_param_set(&mut f, &mut lim, None::<&CamTable<AXES, CAPACITY>>, records)?;
         let mut offsets = [None; AXES];
-        for r in records.iter().filter(|r| r.param == ParamId::SlaveOffsetUm) {
-            let range = Nak::with(NakCode::ParamRange, u16::from(r.axis), r.param as u8);
-            let off = PosUm::checked_from_num(r.value)
-                .filter(|_| r.value.abs() <= 8.0e6)
-                .ok_or(range)?;
-            *offsets.get_mut(usize::from(r.axis)).ok_or(range)? = Some(off);
-        }
+        apply_saved_set::<AXES, CAPACITY>(&mut f, &mut lim, &mut offsets, records)?;
         for (axis, off) in (0u8..).zip(offsets) {
             if let Some(o) = off {
-                self.rt.restore_reference_offset(axis, o).map_err(|_| {
-                    Nak::with(
-                        NakCode::ParamRange,
-                        u16::from(axis),
-                        ParamId::SlaveOffsetUm as u8,
-                    )
-                })?;
+                let range = Nak::with(
+                    NakCode::ParamRange,
+                    u16::from(axis),
+                    ParamId::SlaveOffsetUm as u8,
+                );
+                self.rt
+                    .restore_reference_offset(axis, o)
+                    .map_err(|_| range)?;
             }
         }
         (self.fcfg, self.limits) = (f, lim);

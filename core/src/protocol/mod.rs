@@ -39,7 +39,9 @@ pub mod wire;
 pub use handler::{Device, Handler, Motion};
 pub use msg::{Nak, NakCode, ParamId, Request, Response};
 pub use overrides::{ParamOverrides, ParamRecord};
-pub use params::{apply_param, apply_param_set, validate_params};
+pub use params::{
+    apply_param, apply_param_set, apply_saved_set, reference_offset_um, validate_params,
+};
 pub use store::{SlotHeader, Store, StoreError};
 
 #[cfg(test)]

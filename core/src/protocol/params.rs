@@ -52,6 +52,41 @@ pub fn apply_param_set<const S: usize, const N: usize>(
     validate_params(cfg, lim, active, None)
 }
 
+/// A reference offset ([`ParamId::SlaveOffsetUm`]) of slave `axis` from its wire value,
+/// µm: finite and within ±8 000 000 µm, else `ParamRange` naming the axis.
+pub fn reference_offset_um(axis: u8, value: f32) -> Result<PosUm, Nak> {
+    PosUm::checked_from_num(value)
+        .filter(|_| value.abs() <= 8.0e6)
+        .ok_or(Nak::with(
+            NakCode::ParamRange,
+            u16::from(axis),
+            ParamId::SlaveOffsetUm as u8,
+        ))
+}
+
+/// A saved set as a board applies it at boot: the follower parameters with
+/// [`apply_param_set`] and, per slave, the last [`ParamId::SlaveOffsetUm`] into `offsets`
+/// ([`reference_offset_um`]). All or nothing for the caller, who passes copies and keeps
+/// them only on `Ok`.
+pub fn apply_saved_set<const S: usize, const N: usize>(
+    cfg: &mut FollowerConfig<S>,
+    lim: &mut TableLimits<S>,
+    offsets: &mut [Option<PosUm>; S],
+    records: &[super::ParamRecord],
+) -> Result<(), Nak> {
+    apply_param_set::<S, N>(cfg, lim, None, records)?;
+    for r in records.iter().filter(|r| r.param == ParamId::SlaveOffsetUm) {
+        let off = reference_offset_um(r.axis, r.value)?;
+        let slot = offsets.get_mut(usize::from(r.axis)).ok_or(Nak::with(
+            NakCode::ParamRange,
+            u16::from(r.axis),
+            r.param as u8,
+        ))?;
+        *slot = Some(off);
+    }
+    Ok(())
+}
+
 /// Writes one parameter's value (checked only for its own representable range).
 fn assign_param<const S: usize>(
     cfg: &mut FollowerConfig<S>,
