@@ -207,6 +207,9 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     stall: StallMonitor,
     status: Status<S, P>,
     refs: References<S>,
+    /// Per slave, the configured offset plus the reference offset, µm: worked out when
+    /// either changes ([`Runtime::refresh_offsets`]), so a tick adds one offset.
+    pos_offset_um: [PosUm; S],
     /// The board's pressure inputs were live at the last `tick_io`.
     pressure_ok: bool,
 }
@@ -250,6 +253,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 pressure_ok: true,
             },
             refs: References::new(cfg.slave_reference, cfg.home_position_um),
+            pos_offset_um: cfg.slave_offset_um,
             pressure_ok: true,
         };
         rt.status.reference = *rt.refs.states();
@@ -356,8 +360,22 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         self.refs
             .restore_offset(axis, offset_um)
             .ok_or(CommandError::NoAxis { axis })?;
+        self.refresh_offsets();
         self.status.reference = *self.refs.states();
         Ok(())
+    }
+
+    /// Recomputes [`Runtime::pos_offset_um`] after the configuration or a reference
+    /// changed.
+    fn refresh_offsets(&mut self) {
+        let sums = self
+            .pos_offset_um
+            .iter_mut()
+            .zip(self.cfg.slave_offset_um.iter())
+            .zip(self.refs.offsets().iter());
+        for ((o, &c), &r) in sums {
+            *o = c.saturating_add(r);
+        }
     }
 
     /// Replaces the configuration (allowed in Idle and Fault only).
@@ -367,6 +385,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         }
         self.cfg = cfg;
         self.prev_enc = None;
+        self.refresh_offsets();
         Ok(())
     }
 
@@ -477,8 +496,9 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                     .ok_or(CommandError::NoAxis { axis })?;
                 self.refs
                     .set_position(axis, measured, at)
-                    .map(|_| ())
-                    .ok_or(CommandError::NoAxis { axis })
+                    .ok_or(CommandError::NoAxis { axis })?;
+                self.refresh_offsets();
+                Ok(())
             }
             (Command::Home { axis }, State::Idle | State::Fault) => self
                 .refs
@@ -562,9 +582,9 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             .slaves
             .iter()
             .zip(self.cfg.slave_scale_q32.iter())
-            .zip(self.cfg.slave_offset_um.iter());
-        for ((p, ((&c, &k), &off)), &r) in pos_um.iter_mut().zip(axes).zip(self.refs.offsets()) {
-            *p = pos_from_counts(c, k, off).saturating_add(r);
+            .zip(self.pos_offset_um.iter());
+        for (p, ((&c, &k), &off)) in pos_um.iter_mut().zip(axes) {
+            *p = pos_from_counts(c, k, off);
         }
         let live_master = self.master_from(s.enc.master);
 
@@ -685,6 +705,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
     ) -> Option<Result<(), CommandError>> {
         let enc = board.latch();
         let edges = board.reference_edges();
+        let mut homed = false;
         for (i, ((e, &k), &off)) in edges
             .iter()
             .zip(self.cfg.slave_scale_q32.iter())
@@ -692,8 +713,13 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             .enumerate()
         {
             if let Some(c) = e {
-                self.refs.on_edge(i, pos_from_counts(*c, k, off));
+                if self.refs.on_edge(i, pos_from_counts(*c, k, off)) {
+                    homed = true;
+                }
             }
+        }
+        if homed {
+            self.refresh_offsets();
         }
         let estop = board.estop_active();
         let pressure_bar = super::io::PressureInput::read(board);
