@@ -10,12 +10,12 @@
 use hydra_core::protocol::crc::crc32;
 use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
 use hydra_core::protocol::handler::encode_request;
-use hydra_core::protocol::msg::{row_len, write_row, StatusMsg};
+use hydra_core::protocol::msg::StatusMsg;
 use hydra_core::protocol::ramflash::RamFlash;
-use hydra_core::protocol::wire::Writer;
 use hydra_core::protocol::{Device, Handler, Motion, Nak, ParamId, Request, Response, Store};
 use hydra_core::table::{AxisLimits, CamTable, Node, TableLimits};
 use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
+use hydra_tests::rows_bytes;
 
 const S: usize = 1;
 const N: usize = 512;
@@ -83,15 +83,6 @@ impl Device<S, N> for Dev {
         Ok(())
     }
     fn status(&self, _: &mut StatusMsg) {}
-}
-
-fn rows_bytes(ns: &[Node<S>]) -> Vec<u8> {
-    let mut b = vec![0u8; ns.len() * row_len(S)];
-    let mut w = Writer::new(&mut b);
-    for n in ns {
-        write_row(&mut w, n).unwrap();
-    }
-    b
 }
 
 struct Rig {
@@ -211,63 +202,14 @@ fn a_valid_full_table_commits_on_the_virtual_board() {
         })
         .collect();
     let mut b = VBoard::new(&Scenario::default()).unwrap();
-    let mut seq = 0u16;
-    let mut send = |b: &mut VBoard, q: &Request<'_>| -> Response {
-        let s = if matches!(q, Request::Hello) {
-            seq
-        } else {
-            seq.wrapping_add(1)
-        };
-        let mut f = [0u8; MAX_WIRE + 1];
-        let n = encode_request(s, q, &mut f).unwrap();
-        let mut out = Vec::new();
-        b.on_bytes(&f[..n], &mut |x| out.extend_from_slice(x));
-        let mut d = FrameDecoder::new();
-        let mut rs = Vec::new();
-        for &x in &out {
-            if let Some(fr) = d.push(x) {
-                let fr = fr.unwrap();
-                rs.push(Response::decode(fr.ty, fr.payload).unwrap());
-            }
-        }
-        assert_eq!(rs.len(), 1, "one answer per request");
-        if !matches!(rs[0], Response::Nak { .. }) {
-            seq = s;
-        }
-        rs.remove(0)
-    };
-    assert!(matches!(send(&mut b, &Request::Hello), Response::Info(_)));
-    let a = send(
-        &mut b,
-        &Request::TableBegin {
-            id: 9,
-            columns: 1,
-            rows: CAPACITY as u16,
-        },
-    );
-    assert!(matches!(a, Response::Ack { .. }), "TableBegin: {a:?}");
-    let per = Handler::<1, CAPACITY>::MAX_CHUNK_ROWS;
-    for (k, c) in nodes.chunks(per).enumerate() {
-        let bytes = rows_bytes(c);
-        let q = Request::TableChunk {
-            offset: (k * per) as u16,
-            count: c.len() as u8,
-            data: &bytes,
-        };
-        let a = send(&mut b, &q);
-        assert!(matches!(a, Response::Ack { .. }), "TableChunk {k}: {a:?}");
-    }
-    let commit = send(
-        &mut b,
-        &Request::TableCommit {
-            crc: crc32(&rows_bytes(&nodes)),
-        },
-    );
+    let mut h = hydra_tests::VbHost::new(0);
+    assert!(matches!(h.req(&mut b, &Request::Hello), Response::Info(_)));
+    let commit = h.upload(&mut b, 9, &nodes);
     assert!(
         matches!(commit, Response::Ack { .. }),
         "TableCommit of a valid {CAPACITY}-row table on the virtual board: {commit:?}"
     );
-    let a = send(&mut b, &Request::Activate { id: 9 });
+    let a = h.req(&mut b, &Request::Activate { id: 9 });
     assert!(matches!(a, Response::Ack { .. }), "Activate: {a:?}");
     assert_eq!(b.handler.active_id(), 9);
 }

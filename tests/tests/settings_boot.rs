@@ -3,53 +3,25 @@
 
 use host_sim::scenario::Scenario;
 use host_sim::vboard::VBoard;
-use hydra_core::protocol::crc::crc32;
-use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
-use hydra_core::protocol::handler::encode_request;
-use hydra_core::protocol::msg::{row_len, write_row};
-use hydra_core::protocol::wire::Writer;
 use hydra_core::protocol::{NakCode, ParamId, Request, Response};
 use hydra_core::table::Node;
 use hydra_core::units::{Master, PosUm};
+use hydra_tests::VbHost;
 
-struct Host {
-    seq: u16,
-}
+/// A host of the virtual board with the two things these tests do.
+struct Host(VbHost);
 
 impl Host {
     fn req(&mut self, b: &mut VBoard, q: &Request<'_>) -> Response {
-        let s = if matches!(q, Request::Hello) {
-            self.seq
-        } else {
-            self.seq.wrapping_add(1)
-        };
-        let mut f = [0u8; MAX_WIRE + 1];
-        let n = encode_request(s, q, &mut f).unwrap();
-        let mut out = Vec::new();
-        b.on_bytes(&f[..n], &mut |x| out.extend_from_slice(x));
-        let mut d = FrameDecoder::new();
-        let mut rs = Vec::new();
-        for &x in &out {
-            if let Some(fr) = d.push(x) {
-                let fr = fr.unwrap();
-                rs.push(Response::decode(fr.ty, fr.payload).unwrap());
-            }
-        }
-        assert_eq!(rs.len(), 1, "{q:?}");
-        let r = rs.remove(0);
-        if !matches!(r, Response::Nak { .. }) {
-            self.seq = s;
-        }
-        r
+        self.0.req(b, q)
     }
 
     fn ack(&mut self, b: &mut VBoard, q: &Request<'_>) {
-        let r = self.req(b, q);
-        assert!(matches!(r, Response::Ack { .. }), "{q:?}: {r:?}");
+        self.0.ack(b, q)
     }
 
     fn param(&mut self, b: &mut VBoard, param: ParamId, value: f32) {
-        self.ack(
+        self.0.ack(
             b,
             &Request::SetParam {
                 axis: 0,
@@ -67,28 +39,7 @@ impl Host {
                 slave_um: [PosUm::from_num(x_mm * 1000.0)],
             })
             .collect();
-        let mut bytes = vec![0u8; nodes.len() * row_len(1)];
-        let mut w = Writer::new(&mut bytes);
-        for n in &nodes {
-            write_row(&mut w, n).unwrap();
-        }
-        self.ack(
-            b,
-            &Request::TableBegin {
-                id,
-                columns: 1,
-                rows: 3,
-            },
-        );
-        self.ack(
-            b,
-            &Request::TableChunk {
-                offset: 0,
-                count: 3,
-                data: &bytes,
-            },
-        );
-        self.req(b, &Request::TableCommit { crc: crc32(&bytes) })
+        self.0.upload(b, id, &nodes)
     }
 }
 
@@ -96,7 +47,7 @@ impl Host {
 fn limits_set_in_any_order_come_back_exactly_after_a_power_cycle() {
     let scn = Scenario::default();
     let mut b = VBoard::new(&scn).unwrap();
-    let mut h = Host { seq: 1 };
+    let mut h = Host(VbHost::new(1));
     assert!(matches!(h.req(&mut b, &Request::Hello), Response::Info(_)));
     // min 100 mm, max 700 mm, then min 550 mm (the first record replaced in place).
     h.param(&mut b, ParamId::MinUm, 100_000.0);
@@ -107,7 +58,7 @@ fn limits_set_in_any_order_come_back_exactly_after_a_power_cycle() {
     h.ack(&mut b, &Request::Save);
     // Power cycle: a new board on the same flash.
     let mut b2 = VBoard::with_flash(&scn, b.flash.clone()).unwrap();
-    let mut h2 = Host { seq: 9 };
+    let mut h2 = Host(VbHost::new(9));
     match h2.req(&mut b2, &Request::Hello) {
         Response::Info(i) => assert_eq!(i.active_id, 1, "the saved table boots"),
         r => panic!("{r:?}"),
@@ -132,7 +83,7 @@ fn a_flash_file_makes_a_restart_a_power_cycle() {
     let path = dir.path().join("board.flash");
     let mut b = VBoard::with_flash_file(&scn, &path).unwrap();
     let mut seen = b.flash.ops;
-    let mut h = Host { seq: 3 };
+    let mut h = Host(VbHost::new(3));
     assert!(matches!(h.req(&mut b, &Request::Hello), Response::Info(_)));
     h.param(&mut b, ParamId::MaxUm, 450_000.0);
     assert!(matches!(h.commit(&mut b, 7, 300.0), Response::Ack { .. }));
@@ -141,7 +92,7 @@ fn a_flash_file_makes_a_restart_a_power_cycle() {
     b.persist(&path, &mut seen).unwrap();
     drop(b);
     let mut b2 = VBoard::with_flash_file(&scn, &path).unwrap();
-    let mut h2 = Host { seq: 40 };
+    let mut h2 = Host(VbHost::new(40));
     match h2.req(&mut b2, &Request::Hello) {
         Response::Info(i) => assert_eq!(i.active_id, 7),
         r => panic!("{r:?}"),
