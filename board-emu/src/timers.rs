@@ -1,0 +1,228 @@
+//! General-purpose and basic timers (RM0090 §18–20): up-counting with prescaler and
+//! auto-reload, update and compare flags and their interrupts (TIM7, TIM12), and
+//! encoder mode (TIM2/3/5), whose counter is the plant's position in counts.
+//!
+//! The kernel clock is 84 MHz (APB1 at 42 MHz with its ×2 timer multiplier): one timer
+//! clock per [`CORE_PER_TIMCLK`] core cycles. State is computed lazily from the core cycle
+//! at which counting (re)started, so a timer costs nothing between accesses; its next
+//! interrupt is reported to the scheduler ([`Tim::next_event`]).
+
+/// Core cycles (168 MHz) per timer kernel clock (84 MHz).
+pub const CORE_PER_TIMCLK: u64 = 2;
+
+const CR1: usize = 0x00 / 4;
+const SMCR: usize = 0x08 / 4;
+const DIER: usize = 0x0C / 4;
+const SR: usize = 0x10 / 4;
+const EGR: usize = 0x14 / 4;
+const CNT: usize = 0x24 / 4;
+const PSC: usize = 0x28 / 4;
+const ARR: usize = 0x2C / 4;
+const CCR1: usize = 0x34 / 4;
+
+/// One timer.
+#[derive(Debug, Clone)]
+pub struct Tim {
+    /// Interrupt line (an index into the NVIC's external interrupts).
+    pub irq: usize,
+    /// A 32-bit counter (TIM2, TIM5) or a 16-bit one.
+    pub wide: bool,
+    regs: [u32; 21],
+    /// Prescaler in effect (PSC is loaded at an update event).
+    psc_active: u32,
+    /// Core cycle at which `cnt_base` was the counter's value.
+    base_cycle: u64,
+    cnt_base: u32,
+    last_sync: u64,
+    /// Encoder mode: the counter is `position + offset` (mod ARR + 1).
+    enc_offset: i64,
+    /// The external position in counts (encoder mode).
+    pub position: i64,
+}
+
+impl Tim {
+    /// A timer at its reset state.
+    pub fn new(irq: usize, wide: bool) -> Self {
+        let mut regs = [0; 21];
+        regs[ARR] = if wide { u32::MAX } else { 0xFFFF };
+        Self {
+            irq,
+            wide,
+            regs,
+            psc_active: 0,
+            base_cycle: 0,
+            cnt_base: 0,
+            last_sync: 0,
+            enc_offset: 0,
+            position: 0,
+        }
+    }
+
+    fn enabled(&self) -> bool {
+        self.regs[CR1] & 1 != 0
+    }
+
+    fn encoder(&self) -> bool {
+        matches!(self.regs[SMCR] & 7, 1..=3)
+    }
+
+    fn period(&self) -> u64 {
+        u64::from(self.regs[ARR]) + 1
+    }
+
+    fn core_per_tick(&self) -> u64 {
+        CORE_PER_TIMCLK * (u64::from(self.psc_active) + 1)
+    }
+
+    /// Timer ticks since `base_cycle` at core cycle `now`.
+    fn ticks(&self, now: u64) -> u64 {
+        if !self.enabled() || self.encoder() {
+            return 0;
+        }
+        now.saturating_sub(self.base_cycle) / self.core_per_tick()
+    }
+
+    /// The counter at `now`.
+    pub fn counter(&self, now: u64) -> u32 {
+        let mask = if self.wide { u32::MAX as u64 } else { 0xFFFF };
+        if self.encoder() {
+            let p = self.period() as i64;
+            return ((self.position + self.enc_offset).rem_euclid(p) as u64 & mask) as u32;
+        }
+        ((u64::from(self.cnt_base) + self.ticks(now)) % self.period()) as u32
+    }
+
+    /// Brings the flags up to `now`.
+    pub fn sync(&mut self, now: u64) {
+        if now <= self.last_sync || !self.enabled() || self.encoder() {
+            self.last_sync = self.last_sync.max(now);
+            return;
+        }
+        let t0 = self.ticks(self.last_sync);
+        let n = self.ticks(now) - t0;
+        self.last_sync = now;
+        if n == 0 {
+            return;
+        }
+        let period = self.period();
+        let c0 = (u64::from(self.cnt_base) + t0) % period;
+        if n >= period - c0 && self.regs[CR1] & 2 == 0 {
+            self.regs[SR] |= 1; // UIF
+        }
+        for ch in 0..4 {
+            let ccr = u64::from(self.regs[CCR1 + ch]);
+            if ccr < period && (ccr + period - c0 - 1) % period < n {
+                self.regs[SR] |= 2 << ch; // CCxIF
+            }
+        }
+    }
+
+    /// The core cycle of the next event whose interrupt is enabled.
+    pub fn next_event(&self, now: u64) -> Option<u64> {
+        if !self.enabled() || self.encoder() {
+            return None;
+        }
+        let dier = self.regs[DIER];
+        let period = self.period();
+        let t = self.ticks(now);
+        let c = (u64::from(self.cnt_base) + t) % period;
+        let mut k: Option<u64> = None;
+        let mut take = |d: u64| k = Some(k.map_or(d, |x: u64| x.min(d)));
+        if dier & 1 != 0 {
+            take(period - c);
+        }
+        for ch in 0..4 {
+            let ccr = u64::from(self.regs[CCR1 + ch]);
+            if dier & (2 << ch) != 0 && ccr < period {
+                take((ccr + period - c - 1) % period + 1);
+            }
+        }
+        k.map(|k| self.base_cycle + (t + k) * self.core_per_tick())
+    }
+
+    /// Whether the interrupt line is high (a flag set whose interrupt is enabled).
+    pub fn irq_level(&self) -> bool {
+        self.regs[SR] & self.regs[DIER] & 0x1F != 0
+    }
+
+    /// Re-bases the counter at `now` with value `cnt`.
+    fn rebase(&mut self, now: u64, cnt: u32) {
+        self.cnt_base = cnt;
+        self.base_cycle = now;
+        self.last_sync = now;
+    }
+
+    /// A 32-bit read of the register at byte offset `off`.
+    pub fn read(&mut self, off: u32, now: u64) -> Option<u32> {
+        self.sync(now);
+        let i = (off / 4) as usize;
+        if off > 0x50 {
+            return None;
+        }
+        Some(match i {
+            CNT => self.counter(now),
+            _ => *self.regs.get(i)?,
+        })
+    }
+
+    /// A 32-bit write.
+    pub fn write(&mut self, off: u32, v: u32, now: u64) -> Option<()> {
+        self.sync(now);
+        if off > 0x50 {
+            return None;
+        }
+        let i = (off / 4) as usize;
+        match i {
+            CR1 => {
+                let cnt = self.counter(now);
+                let was = self.enabled();
+                self.regs[CR1] = v & 0x3FF;
+                if was != self.enabled() {
+                    self.rebase(now, cnt);
+                }
+            }
+            SR => self.regs[SR] &= v, // rc_w0
+            EGR => {
+                if v & 1 != 0 {
+                    // UG: counter and prescaler reloaded; UIF unless URS.
+                    self.psc_active = self.regs[PSC];
+                    self.rebase(now, 0);
+                    if self.regs[CR1] & 4 == 0 {
+                        self.regs[SR] |= 1;
+                    }
+                }
+                self.regs[SR] |= v & 0x1E; // CCxG
+            }
+            CNT => {
+                if self.encoder() {
+                    self.enc_offset = i64::from(v) - self.position;
+                } else {
+                    self.rebase(now, v);
+                }
+            }
+            PSC => {
+                self.regs[PSC] = v & 0xFFFF;
+                if !self.enabled() {
+                    self.psc_active = self.regs[PSC];
+                }
+            }
+            ARR => {
+                let cnt = self.counter(now);
+                self.regs[ARR] = if self.wide { v } else { v & 0xFFFF };
+                self.rebase(
+                    now,
+                    (u64::from(cnt) % (u64::from(self.regs[ARR]) + 1)) as u32,
+                );
+            }
+            SMCR => {
+                let cnt = self.counter(now);
+                self.regs[SMCR] = v;
+                if self.encoder() {
+                    self.enc_offset = i64::from(cnt) - self.position;
+                }
+            }
+            _ => *self.regs.get_mut(i)? = v,
+        }
+        Some(())
+    }
+}
