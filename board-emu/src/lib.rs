@@ -13,6 +13,7 @@ pub mod dma;
 pub mod elf;
 pub mod flash;
 pub mod gpio;
+pub mod host;
 pub mod iwdg;
 pub mod machine;
 pub mod rtt;

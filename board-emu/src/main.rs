@@ -17,6 +17,9 @@ fn main() -> Result<()> {
     let mut m = Machine::new(image, Flash::new(), Box::new(Still(Default::default())))?;
     let t0 = std::time::Instant::now();
     let r = m.run_for(secs);
+    let mut h = board_emu::host::Host::new();
+    println!("hello: {:?}", h.request(&mut m, &hydra_core::protocol::Request::Hello));
+    println!("status: {:?}", h.request(&mut m, &hydra_core::protocol::Request::GetStatus));
     println!(
         "emulated {:.4} s in {:.3} s wall; {:?}",
         m.seconds(),
