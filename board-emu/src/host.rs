@@ -55,14 +55,22 @@ impl Host {
 
     /// Sends `q` and runs the board until its answer (a Nak is an answer).
     pub fn request(&mut self, m: &mut Machine, q: &Request<'_>) -> Result<Response> {
-        let seq = if matches!(q, Request::Hello) { self.seq } else { self.seq.wrapping_add(1) };
+        let seq = if matches!(q, Request::Hello) {
+            self.seq
+        } else {
+            self.seq.wrapping_add(1)
+        };
         let mut buf = [0u8; MAX_WIRE + 1];
         let Some(n) = encode_request(seq, q, &mut buf) else {
             bail!("request too large for one frame");
         };
         let now = m.cycles();
         m.state_mut().bus.usart6.host_send(&buf[..n], now);
-        let timeout = if matches!(q, Request::Save) { 6.0 } else { self.timeout_s };
+        let timeout = if matches!(q, Request::Save) {
+            6.0
+        } else {
+            self.timeout_s
+        };
         let deadline = m.seconds() + timeout;
         while m.seconds() < deadline {
             m.run_for(0.000_5)?;
@@ -91,9 +99,22 @@ impl Host {
     }
 
     /// Uploads `nodes` as table `id` in chunks of `per` rows and commits it.
-    pub fn upload<const N: usize>(&mut self, m: &mut Machine, id: u32, nodes: &[Node<N>], per: usize) -> Result<Response> {
+    pub fn upload<const N: usize>(
+        &mut self,
+        m: &mut Machine,
+        id: u32,
+        nodes: &[Node<N>],
+        per: usize,
+    ) -> Result<Response> {
         let rows = u16::try_from(nodes.len())?;
-        self.ack(m, &Request::TableBegin { id, columns: N as u8, rows })?;
+        self.ack(
+            m,
+            &Request::TableBegin {
+                id,
+                columns: N as u8,
+                rows,
+            },
+        )?;
         let mut all = Vec::new();
         for (k, c) in nodes.chunks(per.max(1)).enumerate() {
             let mut b = vec![0u8; c.len() * row_len(N)];

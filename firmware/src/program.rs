@@ -89,19 +89,23 @@ pub fn table_limits() -> TableLimits<SLAVES> {
     }
 }
 
-/// The follower's configuration: the reference valve/cylinder gains on every slave.
+/// The follower's configuration on every slave: the reference machine's feed-forward
+/// gain set at 1 ms (`host-sim/scenarios/tangent.toml`, `[[tuning]]` controller
+/// `feedforward`, `period_us = 1000`: the set `host-sim run` uses), so the board runs
+/// what the simulator measured. (The earlier hand-set gains — kp 0.4, ki 5, i_limit 100
+/// LSB — lagged 0.5 mm on the retraction; found by running this firmware in board-emu.)
 pub fn follower_config() -> FollowerConfig<SLAVES> {
     let axis = AxisConfig {
         mode: ControlMode::Feedforward,
-        kp_lsb_per_um: 0.4,
-        ki_lsb_per_um_s: 5.0,
-        kd_lsb_s_per_um: 0.0005,
-        i_zone_um: 200.0,
-        i_limit_lsb: 100.0,
-        kv_pos_lsb_per_um_s: 0.017,
-        kv_neg_lsb_per_um_s: 0.025,
-        ka_lsb_per_um_s2: 0.0001,
-        valve_lag_us: 4200.0,
+        kp_lsb_per_um: 1.1,
+        ki_lsb_per_um_s: 18.0,
+        kd_lsb_s_per_um: 0.0,
+        i_zone_um: 10_000.0,
+        i_limit_lsb: 200.0,
+        kv_pos_lsb_per_um_s: 0.01389,
+        kv_neg_lsb_per_um_s: 0.01683,
+        ka_lsb_per_um_s2: 0.0,
+        valve_lag_us: 4244.0,
         following_error_um: 5000.0,
         valve: ValveCal {
             // The law's own output clamp is the board's usable DAC range, so it never

@@ -1,0 +1,222 @@
+//! The machine around the emulated board: host-sim's hydraulic plant (the scenario's
+//! axes, its RK4 step), its master profile and sensors, wired as the board is
+//! (`firmware/src/board.rs`): TIM5 ← master encoder, TIM2/TIM3 ← slave encoders,
+//! DAC1 ch1/ch2 → the slaves' valves (u = (code − 2048)/2047, zero while PE7 is low: an
+//! unpowered valve centres), IN11/IN12 ← slave 0's chamber pressures A/B, IN8/IN9 ←
+//! slave 1's, PE8 ← the E-stop chain.
+//!
+//! The plant advances on its own step grid to whatever time the board looks at
+//! (lazily, at every peripheral access and every scheduler stop). The following error is
+//! measured as `host-sim run` measures it: the table at the true master angle minus the
+//! true position, every millisecond of master time after `sim.error_skip_s`.
+
+use crate::bus::{Environment, Inputs, Outputs, SYSCLK_HZ};
+use host_sim::camfile::{interpolate, CamCsv};
+use host_sim::plant::sensors::{Encoder, PressureAdc};
+use host_sim::plant::{HydraulicAxis, MasterProfile};
+use host_sim::scenario::{Role, Scenario};
+use std::cell::RefCell;
+use std::rc::Rc;
+
+/// One slave's plant.
+pub struct Slave {
+    /// Name (the scenario's).
+    pub name: String,
+    plant: HydraulicAxis,
+    enc: Encoder,
+    adc: PressureAdc,
+    /// Its table column (mm), if it follows the table.
+    column: Option<Vec<f64>>,
+}
+
+/// Error statistics of one axis.
+#[derive(Debug, Clone, Default)]
+pub struct ErrStats {
+    /// Samples.
+    pub n: u64,
+    /// Sum of squares, µm².
+    pub sum_sq: f64,
+    /// Largest |e|, µm.
+    pub max: f64,
+}
+
+impl ErrStats {
+    /// RMS, µm.
+    pub fn rms(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            (self.sum_sq / self.n as f64).sqrt()
+        }
+    }
+}
+
+/// What the test or the CLI reads and drives while the board runs.
+#[derive(Debug, Clone)]
+pub struct Shared {
+    /// The E-stop chain closed.
+    pub estop_closed: bool,
+    /// Core cycle at which the master starts moving (set when the host sends Start).
+    pub master_start: Option<u64>,
+    /// Per-slave error statistics (followers only).
+    pub errors: Vec<ErrStats>,
+    /// Trace rows every millisecond: t_s, master_deg, then per slave target_mm, x_mm,
+    /// u, enable.
+    pub trace: Vec<Vec<f64>>,
+    /// Record the trace.
+    pub record: bool,
+    /// The latest outputs.
+    pub outputs: Outputs,
+    /// The slaves' true positions, µm.
+    pub positions_um: Vec<f64>,
+}
+
+/// The plant environment.
+pub struct PlantEnv {
+    slaves: Vec<Slave>,
+    master: MasterProfile,
+    master_enc: Encoder,
+    table_master: Vec<f64>,
+    step_s: f64,
+    step_cycles: u64,
+    error_skip_s: f64,
+    /// Cycles at the plant's time.
+    t: u64,
+    steps: u64,
+    metric_every: u64,
+    hints: Vec<usize>,
+    /// Shared state.
+    pub shared: Rc<RefCell<Shared>>,
+}
+
+impl PlantEnv {
+    /// The scenario's axes (at most two: the board's slaves) following `table`.
+    pub fn new(scn: &Scenario, table: &CamCsv) -> anyhow::Result<Self> {
+        let step_s = scn.step_s();
+        let mut slaves = Vec::new();
+        let mut fj = 0;
+        for a in scn.axes.iter().take(2) {
+            let column = if a.role == Role::Follower {
+                let c = table.columns.get(fj).cloned();
+                fj += 1;
+                c
+            } else {
+                None
+            };
+            let x0_mm = a
+                .x0_mm
+                .or_else(|| column.as_ref().and_then(|c| c.first().copied()))
+                .unwrap_or(250.0);
+            slaves.push(Slave {
+                name: a.name.clone(),
+                plant: a.plant(scn.supply(), x0_mm * 1e-3),
+                enc: a.encoder(),
+                adc: a.pressure_adc(),
+                column,
+            });
+        }
+        let n = slaves.len();
+        let step_cycles = (step_s * SYSCLK_HZ as f64).round() as u64;
+        Ok(Self {
+            slaves,
+            master: scn.master_profile()?,
+            master_enc: scn.master_encoder(),
+            table_master: table.master.clone(),
+            step_s,
+            step_cycles: step_cycles.max(1),
+            error_skip_s: scn.sim.error_skip_s,
+            t: 0,
+            steps: 0,
+            metric_every: ((1e-3 / step_s).round() as u64).max(1),
+            hints: vec![0; n],
+            shared: Rc::new(RefCell::new(Shared {
+                estop_closed: true,
+                master_start: None,
+                errors: vec![ErrStats::default(); n],
+                trace: Vec::new(),
+                record: false,
+                outputs: Outputs::default(),
+                positions_um: vec![0.0; n],
+            })),
+        })
+    }
+
+    /// The slaves.
+    pub fn slaves(&self) -> &[Slave] {
+        &self.slaves
+    }
+
+    /// Slave `k`'s true position, µm.
+    pub fn position_um(&self, k: usize) -> Option<f64> {
+        self.slaves.get(k).map(|s| s.plant.x_m() * 1e6)
+    }
+
+    fn master_s(&self, at: u64) -> f64 {
+        let start = self.shared.borrow().master_start;
+        start.map_or(0.0, |s| at.saturating_sub(s) as f64 / SYSCLK_HZ as f64)
+    }
+}
+
+impl Environment for PlantEnv {
+    fn advance(&mut self, now: u64, out: &Outputs) -> Inputs {
+        let u: Vec<f64> = (0..self.slaves.len())
+            .map(|k| match out.dac.get(k).copied().flatten() {
+                Some(code) if out.enable => ((f64::from(code) - 2048.0) / 2047.0).clamp(-1.0, 1.0),
+                _ => 0.0,
+            })
+            .collect();
+        while self.t + self.step_cycles <= now {
+            for (s, &uk) in self.slaves.iter_mut().zip(&u) {
+                s.plant.step(uk, self.step_s);
+            }
+            self.t += self.step_cycles;
+            self.steps += 1;
+            if self.steps.is_multiple_of(self.metric_every) {
+                let tm = self.master_s(self.t);
+                let started = self.shared.borrow().master_start.is_some();
+                let theta = self.master.angle_deg(tm);
+                let mut sh = self.shared.borrow_mut();
+                let mut row = vec![self.t as f64 / SYSCLK_HZ as f64, theta];
+                for (k, s) in self.slaves.iter().enumerate() {
+                    let x_mm = s.plant.x_m() * 1e3;
+                    let target = s
+                        .column
+                        .as_ref()
+                        .map(|c| interpolate(&self.table_master, c, theta, &mut self.hints[k]));
+                    if let (Some(tg), true) = (target, started && tm >= self.error_skip_s) {
+                        let e = (tg - x_mm) * 1e3;
+                        let st = &mut sh.errors[k];
+                        st.n += 1;
+                        st.sum_sq += e * e;
+                        st.max = st.max.max(e.abs());
+                    }
+                    row.extend_from_slice(&[
+                        target.unwrap_or(f64::NAN),
+                        x_mm,
+                        u[k],
+                        f64::from(u8::from(out.enable)),
+                    ]);
+                }
+                if sh.record {
+                    sh.trace.push(row);
+                }
+            }
+        }
+        let theta = self.master.angle_deg(self.master_s(now));
+        let mut sh = self.shared.borrow_mut();
+        sh.outputs = *out;
+        let mut inp = Inputs {
+            master: self.master_enc.count(theta),
+            estop_closed: sh.estop_closed,
+            ..Inputs::default()
+        };
+        for (k, s) in self.slaves.iter().enumerate() {
+            sh.positions_um[k] = s.plant.x_m() * 1e6;
+            inp.slaves[k] = s.enc.count(s.plant.x_m());
+            let (pa, pb) = s.plant.pressures_pa();
+            inp.pressures[2 * k] = s.adc.code(pa) as u16;
+            inp.pressures[2 * k + 1] = s.adc.code(pb) as u16;
+        }
+        inp
+    }
+}

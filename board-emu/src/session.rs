@@ -1,0 +1,186 @@
+//! A host session against the emulated board, as a machine builder runs one: boot,
+//! upload the table (committed, then activated), reference the slaves (set-position at
+//! their measured positions), Start, follow; and the run's report.
+
+use crate::bus::SYSCLK_HZ;
+use crate::elf::Image;
+use crate::flash::Flash;
+use crate::host::Host;
+use crate::machine::Machine;
+use crate::plant::{PlantEnv, Shared};
+use anyhow::{bail, Result};
+use host_sim::camfile::CamCsv;
+use host_sim::scenario::Scenario;
+use hydra_core::protocol::msg::StatusMsg;
+use hydra_core::protocol::{Request, Response};
+use hydra_core::table::Node;
+use hydra_core::units::{Master, PosUm};
+use std::cell::RefCell;
+use std::rc::Rc;
+
+/// Slave columns of the board's tables (`firmware/src/board.rs` SLAVES).
+pub const SLAVES: usize = 2;
+/// Rows per TableChunk (what the firmware's Info reports as `max_chunk_rows`).
+pub const CHUNK_ROWS: usize = 31;
+
+/// The emulated board, its plant and a host.
+pub struct Session {
+    /// The board.
+    pub m: Machine,
+    /// The host on its USART6.
+    pub host: Host,
+    /// The plant's shared state.
+    pub plant: Rc<RefCell<Shared>>,
+    /// The table the plant measures the error against.
+    pub table: CamCsv,
+    /// Slave names.
+    pub names: Vec<String>,
+    wall: std::time::Instant,
+}
+
+/// A fault's name from its code (the table of `hydra_core::runtime::Fault`).
+pub fn fault_name(code: u16) -> &'static str {
+    match code >> 8 {
+        0x01 => "estop",
+        0x02 => "watchdog",
+        0x03 => "overrun",
+        0x04 => "master_stalled",
+        0x05 => "encoder_jump",
+        0x06 => "following_error",
+        0x07 => "controller",
+        0x08 => "pressure_input",
+        _ => "unknown",
+    }
+}
+
+impl Session {
+    /// Powers on `image` with `flash` in the plant of `scn` following `table`.
+    pub fn new(image: Rc<Image>, flash: Flash, scn: &Scenario, table: CamCsv) -> Result<Self> {
+        let env = PlantEnv::new(scn, &table)?;
+        let plant = env.shared.clone();
+        let names = env.slaves().iter().map(|s| s.name.clone()).collect();
+        let m = Machine::new(image, flash, Box::new(env))?;
+        Ok(Self {
+            m,
+            host: Host::new(),
+            plant,
+            table,
+            names,
+            wall: std::time::Instant::now(),
+        })
+    }
+
+    /// The table as the board's nodes: the CSV's columns for the followers, and a slave
+    /// without a column holds where it stands.
+    pub fn nodes(&self) -> Vec<Node<SLAVES>> {
+        let pos = self.plant.borrow().positions_um.clone();
+        (0..self.table.master.len())
+            .map(|i| {
+                let mut slave_um = [PosUm::ZERO; SLAVES];
+                for (k, s) in slave_um.iter_mut().enumerate() {
+                    let mm = self.table.columns.get(k).map(|c| c[i]);
+                    let um = mm.map_or(pos.get(k).copied().unwrap_or(0.0), |v| v * 1000.0);
+                    *s = PosUm::saturating_from_num(um);
+                }
+                Node {
+                    master: Master::saturating_from_num(self.table.master[i] * 1000.0),
+                    slave_um,
+                }
+            })
+            .collect()
+    }
+
+    /// Hello, then the table uploaded as `id`, committed and activated.
+    pub fn upload_activate(&mut self, id: u32) -> Result<()> {
+        match self.host.request(&mut self.m, &Request::Hello)? {
+            Response::Info(_) => {}
+            r => bail!("Hello answered {r:?}"),
+        }
+        let nodes = self.nodes();
+        match self.host.upload(&mut self.m, id, &nodes, CHUNK_ROWS)? {
+            Response::Ack { .. } => {}
+            r => bail!("TableCommit answered {r:?}"),
+        }
+        self.host.ack(&mut self.m, &Request::Activate { id })
+    }
+
+    /// Set-position of every slave at its measured position, then Start (the master
+    /// starts moving when Start is sent).
+    pub fn reference_and_start(&mut self) -> Result<()> {
+        let pos = self.plant.borrow().positions_um.clone();
+        for (k, p) in pos.iter().enumerate().take(SLAVES) {
+            let raw = (p * 256.0).round() as i32;
+            self.host.ack(
+                &mut self.m,
+                &Request::SetPosition {
+                    axis: k as u8,
+                    pos_um: raw,
+                },
+            )?;
+        }
+        // A slave the plant does not have (one-axis scenarios) is referenced at 0.
+        for k in pos.len()..SLAVES {
+            self.host.ack(
+                &mut self.m,
+                &Request::SetPosition {
+                    axis: k as u8,
+                    pos_um: 0,
+                },
+            )?;
+        }
+        let now = self.m.cycles();
+        self.plant.borrow_mut().master_start = Some(now);
+        self.host.ack(&mut self.m, &Request::Start)
+    }
+
+    /// The board's status.
+    pub fn status(&mut self) -> Result<StatusMsg> {
+        match self.host.request(&mut self.m, &Request::GetStatus)? {
+            Response::Status(s) => Ok(s),
+            r => bail!("GetStatus answered {r:?}"),
+        }
+    }
+
+    /// The report of `board-emu --json`.
+    pub fn report(&mut self) -> Result<serde_json::Value> {
+        let st = self.status()?;
+        let stats = self.m.state().stats.clone();
+        let (n, sum, max) = stats.tick_cycles;
+        let mut faults = Vec::new();
+        if st.fault_code != 0 {
+            faults.push(serde_json::json!({
+                "code": st.fault_code,
+                "name": fault_name(st.fault_code),
+                "axis": st.fault_axis,
+            }));
+        }
+        let mut axes = serde_json::Map::new();
+        let sh = self.plant.borrow();
+        for (k, name) in self.names.iter().enumerate() {
+            if let Some(e) = sh.errors.get(k).filter(|e| e.n > 0) {
+                axes.insert(
+                    name.clone(),
+                    serde_json::json!({"max_error_um": e.max, "rms_error_um": e.rms()}),
+                );
+            }
+        }
+        drop(sh);
+        let log: Vec<String> = crate::rtt::decode(&self.m.image().bytes, &self.m.state().rtt)?
+            .into_iter()
+            .map(|l| format!("{} {}", l.level, l.message))
+            .collect();
+        Ok(serde_json::json!({
+            "emulated_s": self.m.cycles() as f64 / SYSCLK_HZ as f64,
+            "wall_s": self.wall.elapsed().as_secs_f64(),
+            "ticks": n,
+            "overruns": st.overruns,
+            "watchdog_resets": stats.watchdog_resets,
+            "tick_cycles": {"max": max, "mean": if n > 0 { sum as f64 / n as f64 } else { 0.0 }},
+            "instructions": stats.instructions,
+            "stack_min_free_bytes": self.m.stack_min_free(),
+            "faults": faults,
+            "axes": axes,
+            "log": log,
+        }))
+    }
+}
