@@ -148,7 +148,7 @@ impl Adc {
             }
             0x304 => self.common[1] = v,
             0x300 | 0x308 | 0x4C => {}
-            0x00..=0x48 => self.regs[(off / 4) as usize] = v,
+            _ if off <= 0x48 => self.regs[(off / 4) as usize] = v,
             _ => return None,
         }
         Some(())

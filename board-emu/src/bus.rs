@@ -53,6 +53,21 @@ impl Default for Inputs {
     }
 }
 
+/// What one tick (one TIM7 handler) read from the encoders and wrote to the valves: the
+/// first CNT read of TIM5, TIM2, TIM3 and the last DAC1 ch1/ch2 holding-register and
+/// PE7 writes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TickIo {
+    /// Core cycle of the handler's entry.
+    pub at: u64,
+    /// TIM5, TIM2, TIM3 counts as read.
+    pub enc: [Option<u32>; 3],
+    /// DAC codes written (12-bit unipolar).
+    pub dac: [Option<u16>; 2],
+    /// The valve-power enable as written.
+    pub enable: Option<bool>,
+}
+
 /// The machine around the board.
 pub trait Environment {
     /// Advances the machine to core cycle `now` with `out` applied since the previous
@@ -113,6 +128,9 @@ pub struct Bus {
     pub inputs: Inputs,
     /// Interrupt lines.
     pub levels: [bool; IRQS],
+    /// Per-tick I/O, recorded while `Some` (the emulator pushes one entry per TIM7
+    /// entry).
+    pub tick_io: Option<Vec<TickIo>>,
 }
 
 /// DMA2 request channel of ADC1 (stream 0) and USART6 (streams 1 and 6).
@@ -148,7 +166,12 @@ impl Bus {
             outputs: Outputs::default(),
             inputs: Inputs::default(),
             levels: [false; IRQS],
+            tick_io: None,
         }
+    }
+
+    fn in_tick(&self) -> bool {
+        self.scs.active.last() == Some(&(16 + irq::TIM7 as u16))
     }
 
     fn current_outputs(&self) -> Outputs {
@@ -272,6 +295,17 @@ impl Bus {
         let word = addr & !3;
         let shift = 8 * (addr & 3);
         let v = self.read_word(word, now)?;
+        if self.in_tick() {
+            let ch = match word {
+                0x4000_0C24 => Some(0),
+                0x4000_0024 => Some(1),
+                0x4000_0424 => Some(2),
+                _ => None,
+            };
+            if let (Some(ch), Some(rec)) = (ch, self.tick_io.as_mut().and_then(|t| t.last_mut())) {
+                rec.enc[ch].get_or_insert(v);
+            }
+        }
         let v = v >> shift;
         let r = match size {
             1 => v & 0xFF,
@@ -349,6 +383,17 @@ impl Bus {
                 (self.read_word(word, now)? & !mask) | (val & mask)
             };
             self.write_word(word, full, now)?;
+            if self.in_tick() {
+                if let Some(rec) = self.tick_io.as_mut().and_then(|t| t.last_mut()) {
+                    match word {
+                        0x4000_7408 => rec.dac[0] = Some(full as u16 & 0xFFF),
+                        0x4000_7414 => rec.dac[1] = Some(full as u16 & 0xFFF),
+                        0x4002_1018 if full & (1 << 7) != 0 => rec.enable = Some(true),
+                        0x4002_1018 if full & (1 << 23) != 0 => rec.enable = Some(false),
+                        _ => {}
+                    }
+                }
+            }
         }
         self.outputs = self.current_outputs();
         self.update_levels();

@@ -56,6 +56,8 @@ pub struct Flash {
     pub erases: u32,
     /// Program accesses done.
     pub programs: u64,
+    /// When the last erase ended (core cycle).
+    pub erase_done_at: Option<u64>,
 }
 
 const SYSCLK: u64 = 168_000_000;
@@ -73,6 +75,7 @@ impl Flash {
             op: None,
             erases: 0,
             programs: 0,
+            erase_done_at: None,
         }
     }
 
@@ -93,6 +96,7 @@ impl Flash {
                     self.mem[o..o + n].fill(0xFF);
                 }
                 self.erases += 1;
+                self.erase_done_at = Some(end);
                 self.finish();
             }
             Some(Op::Program {

@@ -3,7 +3,6 @@
 //!
 //! Licensed GPL-2.0-only: it links unicorn-engine (GPL-2.0). Nothing else in the
 //! workspace depends on this crate (ci.sh checks it).
-#![allow(missing_docs)]
 
 pub mod adc;
 pub mod bus;

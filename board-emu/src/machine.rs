@@ -75,7 +75,12 @@ pub struct State {
     pub stats: Stats,
     /// Raw defmt bytes read from the RTT up-buffer.
     pub rtt: Vec<u8>,
+    /// Fault injection: the next TIM7 handler hangs (cleared by a reset).
+    pub stall_tick: bool,
 }
+
+/// A `b .` (branch to itself) in system memory, the target of [`State::stall_tick`].
+const STALL_LOOP: u32 = 0x1FFF_0000;
 
 /// The board.
 pub struct Machine {
@@ -198,6 +203,7 @@ impl Machine {
             tick_entry: None,
             stats: Stats::default(),
             rtt: Vec::new(),
+            stall_tick: false,
         };
         let mut uc = Unicorn::new_with_data(Arch::ARM, Mode::THUMB | Mode::MCLASS, state)
             .map_err(|e| anyhow!("unicorn: {e:?}"))?;
@@ -218,6 +224,8 @@ impl Machine {
         // System memory: the unique ID and the flash size (1024 KiB) registers.
         map(&mut uc, 0x1FFF_0000, 0x8000)?;
         uc.mem_write(0x1FFF_7A22, &1024u16.to_le_bytes())
+            .map_err(|e| anyhow!("{e:?}"))?;
+        uc.mem_write(u64::from(STALL_LOOP), &[0xFE, 0xE7])
             .map_err(|e| anyhow!("{e:?}"))?;
         let paint: Vec<u8> = std::iter::repeat_n(PAINT.to_le_bytes(), (RAM.1 / 4) as usize)
             .flatten()
@@ -461,7 +469,10 @@ impl Machine {
             Box::new(crate::bus::Still(Default::default())),
         );
         let keep = st.bus.clocks.reset_flags();
+        let tick_io = st.bus.tick_io.take();
         st.bus = Bus::new(flash, keep | flags | crate::clocks::csr::PINRSTF, env);
+        st.bus.tick_io = tick_io;
+        st.stall_tick = false;
         st.bus.sync(now);
         self.reset_cpu()
     }
@@ -682,6 +693,18 @@ fn exception_entry(uc: &mut Unicorn<'_, State>, exc: u16, ret_pc: u32) -> Result
     *st.stats.taken.entry(exc).or_default() += 1;
     if exc == TIM7_EXC {
         st.tick_entry = Some(st.cycles);
+        let at = st.cycles;
+        if let Some(t) = st.bus.tick_io.as_mut() {
+            t.push(crate::bus::TickIo {
+                at,
+                ..Default::default()
+            });
+        }
+        if st.stall_tick {
+            // Fault injection: the tick hangs (a branch-to-self in system memory, inside
+            // the handler at priority 0): nothing feeds the watchdog any more.
+            set(uc, RegisterARM::PC, STALL_LOOP | 1);
+        }
     }
     Ok(())
 }

@@ -223,8 +223,8 @@ impl Scs {
     /// Raises external interrupt lines that are high (level-sensitive; a line high while
     /// its handler runs pends it again at the handler's return, see [`Self::leave`]).
     pub fn raise(&mut self, levels: &[bool; IRQS]) {
-        for n in 0..IRQS {
-            if levels[n] && !self.active.contains(&(16 + n as u16)) {
+        for (n, &high) in levels.iter().enumerate() {
+            if high && !self.active.contains(&(16 + n as u16)) {
                 if !self.pending[n] && self.scr & 0x10 != 0 {
                     self.event = true; // SEVONPEND
                 }

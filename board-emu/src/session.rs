@@ -36,6 +36,8 @@ pub struct Session {
     /// Slave names.
     pub names: Vec<String>,
     wall: std::time::Instant,
+    image: Rc<Image>,
+    scn: Scenario,
 }
 
 /// A fault's name from its code (the table of `hydra_core::runtime::Fault`).
@@ -59,7 +61,7 @@ impl Session {
         let env = PlantEnv::new(scn, &table)?;
         let plant = env.shared.clone();
         let names = env.slaves().iter().map(|s| s.name.clone()).collect();
-        let m = Machine::new(image, flash, Box::new(env))?;
+        let m = Machine::new(image.clone(), flash, Box::new(env))?;
         Ok(Self {
             m,
             host: Host::new(),
@@ -67,7 +69,17 @@ impl Session {
             table,
             names,
             wall: std::time::Instant::now(),
+            image,
+            scn: scn.clone(),
         })
+    }
+
+    /// Cuts the board's power now and powers it on again (cold: RAM repainted, the
+    /// flash as the cut left it; the plant back at rest, a new host).
+    pub fn power_cycle(self) -> Result<Self> {
+        let (image, scn, table) = (self.image.clone(), self.scn.clone(), self.table.clone());
+        let flash = self.m.power_cut();
+        Self::new(image, flash, &scn, table)
     }
 
     /// The table as the board's nodes: the CSV's columns for the followers, and a slave

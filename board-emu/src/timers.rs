@@ -10,7 +10,7 @@
 /// Core cycles (168 MHz) per timer kernel clock (84 MHz).
 pub const CORE_PER_TIMCLK: u64 = 2;
 
-const CR1: usize = 0x00 / 4;
+const CR1: usize = 0;
 const SMCR: usize = 0x08 / 4;
 const DIER: usize = 0x0C / 4;
 const SR: usize = 0x10 / 4;

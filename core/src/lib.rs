@@ -31,6 +31,7 @@ pub mod dac;
 pub mod follower;
 pub mod master;
 pub mod npid;
+pub mod profile;
 pub mod protocol;
 pub mod q;
 pub mod runtime;

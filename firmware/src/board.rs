@@ -44,7 +44,7 @@ use crate::safety::EStop;
 use crate::valves::{OnChipDac, ValveBank};
 
 /// Slave axes driven by this board (the on-chip DAC's two channels).
-pub const SLAVES: usize = 2;
+pub const SLAVES: usize = hydra_core::profile::SLAVES;
 /// Pressure channels.
 pub const PRESSURES: usize = 4;
 /// Host-link baud rate (the host tools' `host-sim … --port`: 921 600). USART6 on the
@@ -115,11 +115,11 @@ pub const ENABLE_PORT: pac::gpio::Gpio = pac::GPIOE;
 /// See [`ENABLE_PORT`].
 pub const ENABLE_PIN: usize = 7;
 
-/// The board's analog supply (VDDA = VREF+), mV: 3.0 V, as on the STM32F4-Discovery.
-/// The valve amplifiers' null must be set to VDDA/2 = 1.500 V.
-pub const VDDA_MV: u32 = 3000;
+/// The board's analog supply (VDDA = VREF+), mV: 3.0 V, as on the STM32F4-Discovery
+/// (`hydra_core::profile`). The valve amplifiers' null must be set to VDDA/2 = 1.500 V.
+pub const VDDA_MV: u32 = hydra_core::profile::VDDA_MV;
 /// How close to each rail the DAC's buffered output gets, mV (DS8626: ≈ 0.2 V).
-pub const DAC_SWING_MARGIN_MV: u32 = 200;
+pub const DAC_SWING_MARGIN_MV: u32 = hydra_core::profile::DAC_SWING_MARGIN_MV;
 /// The usable valve-DAC code range on this board: ±1774 LSB around mid-scale (273 codes
 /// lost at each end). Every code written is clamped to it (`crate::valves`), and the
 /// valve calibration's clamp is set to it (`crate::program`).

@@ -1,5 +1,6 @@
 //! The configuration the board boots with: runtime limits, the follower's gains and the
-//! limits every table is validated against.
+//! limits every table is validated against — `hydra_core::profile` (shared with the
+//! host's bit-exact comparison in board-emu), with this board's DAC range.
 //!
 //! With the framed protocol (the default build) the cam table comes from flash (the
 //! newest valid slot) or over the host link; an empty flash boots without a law (Start
@@ -12,25 +13,23 @@
 
 #[cfg(feature = "console")]
 use heapless::Vec;
-use hydra_core::axis::{AxisConfig, ControlMode};
 use hydra_core::follower::{Follower, FollowerConfig};
-use hydra_core::runtime::{ReferenceMode, RuntimeCoeffs, RuntimeConfig};
+use hydra_core::profile;
+use hydra_core::runtime::RuntimeCoeffs;
 #[cfg(feature = "console")]
 use hydra_core::table::Node;
-use hydra_core::table::{AxisLimits, TableLimits};
+use hydra_core::table::TableLimits;
 #[cfg(feature = "console")]
-use hydra_core::units::Master;
-use hydra_core::units::{MasterRate, PosUm, VelUmPerS};
+use hydra_core::units::{Master, PosUm};
 
 use crate::board::{DAC_RANGE, SLAVES};
-use hydra_core::valve::ValveCal;
 
 /// Table capacity (nodes).
-pub const TABLE_NODES: usize = 256;
+pub const TABLE_NODES: usize = profile::TABLE_NODES;
 /// The control law of this board.
 pub type Law = Follower<SLAVES, TABLE_NODES>;
-/// Control period, µs (1 kHz; 100 µs = 10 kHz is the fastest the runtime accepts).
-pub const PERIOD_US: u32 = 1000;
+/// Control period, µs (`hydra_core::profile::PERIOD_US`).
+pub const PERIOD_US: u32 = profile::PERIOD_US;
 
 /// Why the boot program could not be built.
 #[derive(Clone, Copy, Debug, defmt::Format)]
@@ -48,21 +47,11 @@ pub enum ProgramError {
     Taken,
 }
 
-/// The runtime limits (reference machine defaults at [`PERIOD_US`]).
+/// The runtime limits (`hydra_core::profile::runtime_config`), built.
 pub fn runtime_coeffs() -> Result<RuntimeCoeffs<SLAVES>, ProgramError> {
-    RuntimeConfig::<SLAVES> {
-        period_us: PERIOD_US,
-        // Incremental linear encoders: each slave is referenced (set-position or
-        // homing to its index / reference input) before Start.
-        slave_reference: [ReferenceMode::Incremental; SLAVES],
-        // The reference marks of the reference machine's cylinders sit at 20 mm.
-        home_position_um: [20_000.0; SLAVES],
-        // No force axis on this board's law: stale pressures are reported, not a fault.
-        pressure_required: false,
-        ..RuntimeConfig::default()
-    }
-    .build()
-    .map_err(ProgramError::Runtime)
+    profile::runtime_config()
+        .build()
+        .map_err(ProgramError::Runtime)
 }
 
 /// x_raw(θ) of PLANT.md, mm.
@@ -74,52 +63,15 @@ fn x_raw_mm(theta_deg: f64) -> f64 {
     e * c + (a * a - b * b) * s * c / libm::sqrt(a * a * s * s + b * b * c * c)
 }
 
-/// The limits every table is validated against (at upload, at boot from flash): slaves
-/// 0 … 500 mm at up to 200 mm/s, master up to 10 °/s (three times the nominal table
-/// speed; 1 master count = 0.001°).
+/// The limits every table is validated against (`hydra_core::profile::table_limits`).
 pub fn table_limits() -> TableLimits<SLAVES> {
-    let axis = AxisLimits {
-        min_um: PosUm::from_num(0),
-        max_um: PosUm::from_num(500_000),
-        max_speed_um_per_s: VelUmPerS::from_num(200_000),
-    };
-    TableLimits {
-        master_speed_per_s: MasterRate::from_num(10_000),
-        axes: [axis; SLAVES],
-    }
+    profile::table_limits()
 }
 
-/// The follower's configuration on every slave: the reference machine's feed-forward
-/// gain set at 1 ms (`host-sim/scenarios/tangent.toml`, `[[tuning]]` controller
-/// `feedforward`, `period_us = 1000`: the set `host-sim run` uses), so the board runs
-/// what the simulator measured. (The earlier hand-set gains — kp 0.4, ki 5, i_limit 100
-/// LSB — lagged 0.5 mm on the retraction; found by running this firmware in board-emu.)
+/// The follower's configuration (`hydra_core::profile::follower_config`) with this
+/// board's DAC range as the law's output clamp (its integrator then sees the real limit).
 pub fn follower_config() -> FollowerConfig<SLAVES> {
-    let axis = AxisConfig {
-        mode: ControlMode::Feedforward,
-        kp_lsb_per_um: 1.1,
-        ki_lsb_per_um_s: 18.0,
-        kd_lsb_s_per_um: 0.0,
-        i_zone_um: 10_000.0,
-        i_limit_lsb: 200.0,
-        kv_pos_lsb_per_um_s: 0.01389,
-        kv_neg_lsb_per_um_s: 0.01683,
-        ka_lsb_per_um_s2: 0.0,
-        valve_lag_us: 4244.0,
-        following_error_um: 5000.0,
-        valve: ValveCal {
-            // The law's own output clamp is the board's usable DAC range, so it never
-            // commands a code the pin cannot follow (its integrator then sees the real
-            // limit).
-            clamp_lsb: DAC_RANGE.max_code().unsigned_abs(),
-            ..ValveCal::default()
-        },
-    };
-    FollowerConfig::<SLAVES> {
-        period_us: PERIOD_US,
-        axes: [axis; SLAVES],
-        ..FollowerConfig::default()
-    }
+    profile::follower_config(DAC_RANGE.max_code().unsigned_abs())
 }
 
 /// The reference cam table's nodes (see the module docs): 181 nodes of 16 bytes, two

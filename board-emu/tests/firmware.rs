@@ -1,0 +1,314 @@
+//! The firmware's release ELF on the emulated board (board-emu), closed through the
+//! plant: boot, the host link, follow/save/reboot, E-stop, watchdog, power cuts.
+
+mod common;
+
+use board_emu::machine::TIM7_EXC;
+use board_emu::session::Session;
+use common::*;
+use hydra_core::protocol::{Request, Response};
+
+fn ticks(s: &Session) -> u64 {
+    s.m.state().stats.taken.get(&TIM7_EXC).copied().unwrap_or(0)
+}
+
+#[test]
+fn boots_ticks_feeds_the_watchdog_and_keeps_the_valves_safe() {
+    let mut s = session(table(&scenario()));
+    s.plant.borrow_mut().record = true;
+    s.m.run_for(0.02).expect("boot");
+    let (t0, f0) = (ticks(&s), s.m.state().bus.iwdg.feeds);
+    assert!(t0 > 0, "the tick runs 20 ms after power-on");
+    s.m.run_for(0.1).expect("run");
+    let (t1, f1) = (ticks(&s), s.m.state().bus.iwdg.feeds);
+    assert!(
+        (100..=101).contains(&(t1 - t0)),
+        "{} ticks in 100 ms",
+        t1 - t0
+    );
+    assert_eq!(f1 - f0, t1 - t0, "one watchdog feed per tick");
+    // Valves at null (no table: mid-scale) and unpowered throughout.
+    let sh = s.plant.borrow();
+    assert!(sh.trace.len() > 100);
+    for row in &sh.trace {
+        assert_eq!(
+            (row[4], row[5]),
+            (0.0, 0.0),
+            "u and enable at t = {} s",
+            row[0]
+        );
+    }
+    assert_eq!(sh.outputs.dac, [Some(2048), Some(2048)]);
+    assert!(!sh.outputs.enable);
+    drop(sh);
+    let log = log(&s);
+    assert!(
+        log.iter()
+            .any(|l| l.contains("hydra firmware: boot Normal")),
+        "{log:?}"
+    );
+    assert!(
+        log.iter()
+            .any(|l| l.starts_with("WARN no valid table in flash")),
+        "{log:?}"
+    );
+    assert_stack(&s);
+}
+
+#[test]
+fn hello_info_and_status_over_the_emulated_uart() {
+    let mut s = session(table(&scenario()));
+    s.m.run_for(0.02).expect("boot");
+    match s.host.request(&mut s.m, &Request::Hello).expect("Hello") {
+        Response::Info(i) => {
+            assert_eq!((i.axes, i.capacity_rows, i.period_us), (2, 256, 1000));
+            assert_eq!(i.active_id, u32::MAX);
+        }
+        r => panic!("Hello answered {r:?}"),
+    }
+    let st = s.status().expect("status");
+    assert_eq!((st.state, st.fault_code), (0, 0));
+    assert!(st.ticks > 10);
+    assert_stack(&s);
+}
+
+/// Upload → Commit → Activate → Save → power cycle → boots the slot → reference → Start
+/// → follows the reference machine's run with the plant in the loop; the figures within
+/// 1.5× of `host-sim run`'s for the same scenario, table and period.
+fn follow_after_reboot(table: host_sim::camfile::CamCsv, id: u32) -> (f64, f64, f64, f64) {
+    let scn = scenario();
+    let rows = table.master.len();
+    let mut s = session(table.clone());
+    s.m.run_for(0.02).expect("boot");
+    s.upload_activate(id).expect("upload and activate");
+    s.host.ack(&mut s.m, &Request::Save).expect("Save");
+    let mut s = s.power_cycle().expect("power cycle");
+    // Booting a saved table rebuilds it from its nodes before the tick starts: ≈ 45 ms
+    // (181 rows) to ≈ 68 ms (256 rows) of emulated time.
+    s.m.run_for(0.2).expect("reboot");
+    let log = log(&s);
+    assert!(
+        log.iter()
+            .any(|l| l.contains(&format!("table {id} ({rows} rows) from slot"))),
+        "{log:?}"
+    );
+    match s.host.request(&mut s.m, &Request::Hello).expect("Hello") {
+        Response::Info(i) => assert_eq!(i.active_id, id),
+        r => panic!("{r:?}"),
+    }
+    s.reference_and_start().expect("start");
+    s.m.run_for(scn.duration_s().expect("duration"))
+        .expect("follow");
+    let st = s.status().expect("status");
+    assert_eq!(st.fault_code, 0, "no fault while following");
+    assert_stack(&s);
+    let e = s.plant.borrow().errors[0].clone();
+    let sim = host_sim::sim::run(
+        &scn,
+        &table,
+        &host_sim::sim::RunSpec {
+            controller: host_sim::scenario::Controller::Feedforward,
+            period_us: 1000,
+            trace_every_s: None,
+        },
+        &mut |_| {},
+    )
+    .expect("host-sim run");
+    let (smax, srms) = match sim.axes[0].result {
+        host_sim::sim::AxisResult::Follower {
+            max_error_um,
+            rms_error_um,
+        } => (max_error_um, rms_error_um),
+        _ => panic!("tangent is a follower"),
+    };
+    eprintln!(
+        "{rows} rows: board {:.2} / {:.2} µm, host-sim run {smax:.2} / {srms:.2} µm",
+        e.max,
+        e.rms()
+    );
+    assert!(e.n > 20_000, "{} error samples", e.n);
+    assert!(
+        e.max <= 1.5 * smax,
+        "max {:.2} µm vs host-sim {smax:.2}",
+        e.max
+    );
+    assert!(
+        e.rms() <= 1.5 * srms,
+        "rms {:.2} µm vs host-sim {srms:.2}",
+        e.rms()
+    );
+    (e.max, e.rms(), smax, srms)
+}
+
+#[test]
+fn tangent_table_saved_rebooted_and_followed() {
+    let scn = scenario();
+    follow_after_reboot(table(&scn), 7);
+}
+
+#[test]
+fn a_table_of_the_full_row_capacity_saved_rebooted_and_followed() {
+    let scn = scenario();
+    follow_after_reboot(resampled(&table(&scn), 256), 8);
+}
+
+#[test]
+fn estop_nulls_the_valves_and_drops_the_enable_within_one_tick() {
+    let mut s = session(table(&scenario()));
+    s.m.state_mut().bus.tick_io = Some(Vec::new());
+    s.m.run_for(0.02).expect("boot");
+    s.upload_activate(3).expect("upload");
+    s.reference_and_start().expect("start");
+    s.m.run_for(2.0).expect("follow");
+    let out = s.plant.borrow().outputs;
+    assert!(out.enable, "following: valves powered");
+    let cut = s.m.cycles();
+    s.plant.borrow_mut().estop_closed = false;
+    s.m.run_for(0.003).expect("run");
+    let io = s.m.state().bus.tick_io.clone().expect("recorded");
+    let first = io
+        .iter()
+        .find(|t| t.at > cut)
+        .expect("a tick after the E-stop");
+    assert_eq!(
+        first.enable,
+        Some(false),
+        "enable dropped by the first tick: {first:?}"
+    );
+    assert_eq!(
+        first.dac,
+        [Some(2048), Some(2048)],
+        "valves at null: {first:?}"
+    );
+    assert!(first.at - cut <= 168_000, "within one period");
+    let st = s.status().expect("status");
+    assert_eq!(st.fault_code, 0x0100, "E-stop fault latched");
+    assert_stack(&s);
+}
+
+#[test]
+fn a_stalled_tick_is_reset_by_the_watchdog_and_boots_into_its_fault() {
+    let mut s = session(table(&scenario()));
+    s.m.run_for(0.03).expect("boot");
+    s.m.state_mut().stall_tick = true;
+    s.m.run_for(0.2).expect("stall and reset");
+    assert_eq!(s.m.state().stats.watchdog_resets, 1, "one watchdog reset");
+    let log = log(&s);
+    assert!(log.iter().any(|l| l.contains("boot Watchdog")), "{log:?}");
+    // A new session after the reset.
+    assert!(matches!(
+        s.host.request(&mut s.m, &Request::Hello),
+        Ok(Response::Info(_))
+    ));
+    let st = s.status().expect("status");
+    assert_eq!(st.state, 3, "boots into Fault");
+    assert_eq!(st.fault_code, 0x0200, "the watchdog fault");
+    assert_stack(&s);
+}
+
+#[test]
+fn a_power_cut_at_twenty_points_of_a_save_always_boots_a_valid_table() {
+    let scn = scenario();
+    let t = table(&scn);
+    // Flash with table 1 saved.
+    let mut s = session(t.clone());
+    s.m.run_for(0.02).expect("boot");
+    s.upload_activate(1).expect("upload 1");
+    s.host.ack(&mut s.m, &Request::Save).expect("Save 1");
+    let saved = s.m.state().bus.flash.clone();
+    // A Save of table 2, cut `cut_after` cycles after it was sent (None: not cut):
+    // returns when it was sent, when its erase ended, its length and the flash.
+    let save_of_2 = |cut_after: Option<u64>| -> (u64, u64, u64, board_emu::flash::Flash) {
+        let mut s = Session::new(image(), saved.clone(), &scn, t.clone()).expect("session");
+        s.m.run_for(0.2).expect("boot");
+        s.upload_activate(2).expect("upload 2");
+        let t0 = s.m.cycles();
+        match cut_after {
+            None => {
+                s.host.ack(&mut s.m, &Request::Save).expect("Save 2");
+                let erased =
+                    s.m.state()
+                        .bus
+                        .flash
+                        .erase_done_at
+                        .expect("the Save erased");
+                (t0, erased - t0, s.m.cycles() - t0, s.m.power_cut())
+            }
+            Some(dt) => {
+                let mut buf = [0u8; 64];
+                let n =
+                    hydra_core::protocol::handler::encode_request(0x4000, &Request::Save, &mut buf)
+                        .expect("frame");
+                let now = s.m.cycles();
+                s.m.state_mut().bus.usart6.host_send(&buf[..n], now);
+                s.m.run_until(t0 + dt).expect("until the cut");
+                (t0, 0, dt, s.m.power_cut())
+            }
+        }
+    };
+    let (_, erase, len, _) = save_of_2(None);
+    assert!(
+        erase > 168_000_000 / 2,
+        "a Save erases a 128 KiB sector: {erase} cycles"
+    );
+    assert!(len > erase, "then programs the slot");
+    // Ten cuts spread over the erase, ten over the programming that follows it.
+    let cuts: Vec<u64> = (0..10u64)
+        .map(|k| erase * (2 * k + 1) / 20)
+        .chain((0..10u64).map(|k| erase + (len - erase) * (2 * k + 1) / 20))
+        .collect();
+    let mut booted = [0u32; 2];
+    for (k, &dt) in cuts.iter().enumerate() {
+        let (_, _, _, flash) = save_of_2(Some(dt));
+        let mut s = Session::new(image(), flash, &scn, t.clone()).expect("session");
+        s.m.run_for(0.2).expect("boot after the cut");
+        let id = match s.host.request(&mut s.m, &Request::Hello).expect("Hello") {
+            Response::Info(i) => i.active_id,
+            r => panic!("{r:?}"),
+        };
+        assert!(
+            id == 1 || id == 2,
+            "cut {k} at {dt} cycles: booted table {id:#x}; {:?}",
+            log(&s)
+        );
+        booted[(id - 1) as usize] += 1;
+        assert_stack(&s);
+    }
+    eprintln!("cuts booting table 1 / 2: {booted:?} (Save: erase {erase}, total {len} cycles)");
+    assert!(
+        booted[0] >= 10,
+        "a cut during the erase keeps table 1: {booted:?}"
+    );
+}
+
+#[test]
+fn the_same_elf_and_inputs_give_the_same_run_bit_for_bit() {
+    let run = || {
+        let mut s = session(table(&scenario()));
+        s.plant.borrow_mut().record = true;
+        s.m.state_mut().bus.tick_io = Some(Vec::new());
+        s.m.run_for(0.02).expect("boot");
+        s.upload_activate(5).expect("upload");
+        s.reference_and_start().expect("start");
+        s.m.run_for(2.5).expect("follow");
+        let trace: Vec<u64> = s
+            .plant
+            .borrow()
+            .trace
+            .iter()
+            .flatten()
+            .map(|v| v.to_bits())
+            .collect();
+        (
+            s.m.cycles(),
+            s.m.state().stats.instructions,
+            trace,
+            s.m.state().bus.tick_io.clone(),
+        )
+    };
+    let (a, b) = (run(), run());
+    assert_eq!(a.0, b.0);
+    assert_eq!(a.1, b.1);
+    assert!(a.2 == b.2, "traces differ");
+    assert!(a.3 == b.3, "tick I/O differs");
+}

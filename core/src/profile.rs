@@ -1,0 +1,92 @@
+//! The reference board's profile and program: what the STM32F407 valve-controller board
+//! (`firmware/`) runs, in one place, so the host (board-emu's bit-exact comparison, the
+//! virtual board, host-side checks) builds exactly the same runtime.
+//!
+//! | item | value |
+//! |---|---|
+//! | slaves | [`SLAVES`] = 2 (DAC1 ch 1/2) |
+//! | table rows | [`TABLE_NODES`] = 256 |
+//! | period | [`PERIOD_US`] = 1000 µs (1 kHz) |
+//! | analog supply | [`VDDA_MV`] = 3000 mV, DAC swing margin [`DAC_SWING_MARGIN_MV`] = 200 mV |
+//! | gains | the reference machine's feed-forward set at 1 ms ([`follower_config`]) |
+//! | limits | slaves 0 … 500 mm at ≤ 200 mm/s, master ≤ 10 °/s ([`table_limits`]) |
+
+use crate::axis::{AxisConfig, ControlMode};
+use crate::follower::FollowerConfig;
+use crate::runtime::{ReferenceMode, RuntimeConfig};
+use crate::table::{AxisLimits, TableLimits};
+use crate::units::{MasterRate, PosUm, VelUmPerS};
+use crate::valve::ValveCal;
+
+/// Slave axes of the board (the on-chip DAC's two channels).
+pub const SLAVES: usize = 2;
+/// Table capacity, nodes.
+pub const TABLE_NODES: usize = 256;
+/// Control period, µs (1 kHz; 100 µs = 10 kHz is the fastest the runtime accepts).
+pub const PERIOD_US: u32 = 1000;
+/// The board's analog supply (VDDA = VREF+), mV: 3.0 V, as on the STM32F4-Discovery.
+pub const VDDA_MV: u32 = 3000;
+/// How close to each rail the DAC's buffered output gets, mV (DS8626: ≈ 0.2 V).
+pub const DAC_SWING_MARGIN_MV: u32 = 200;
+
+/// The runtime limits (reference machine defaults at [`PERIOD_US`]).
+pub fn runtime_config() -> RuntimeConfig<SLAVES> {
+    RuntimeConfig::<SLAVES> {
+        period_us: PERIOD_US,
+        // Incremental linear encoders: each slave is referenced (set-position or
+        // homing to its index / reference input) before Start.
+        slave_reference: [ReferenceMode::Incremental; SLAVES],
+        // The reference marks of the reference machine's cylinders sit at 20 mm.
+        home_position_um: [20_000.0; SLAVES],
+        // No force axis on this board's law: stale pressures are reported, not a fault.
+        pressure_required: false,
+        ..RuntimeConfig::default()
+    }
+}
+
+/// The limits every table is validated against (at upload, at boot from flash): slaves
+/// 0 … 500 mm at up to 200 mm/s, master up to 10 °/s (three times the nominal table
+/// speed; 1 master count = 0.001°).
+pub fn table_limits() -> TableLimits<SLAVES> {
+    let axis = AxisLimits {
+        min_um: PosUm::from_num(0),
+        max_um: PosUm::from_num(500_000),
+        max_speed_um_per_s: VelUmPerS::from_num(200_000),
+    };
+    TableLimits {
+        master_speed_per_s: MasterRate::from_num(10_000),
+        axes: [axis; SLAVES],
+    }
+}
+
+/// The follower's configuration on every slave: the reference machine's feed-forward
+/// gain set at 1 ms (`host-sim/scenarios/tangent.toml`, `[[tuning]]` controller
+/// `feedforward`, `period_us = 1000`: the set `host-sim run` uses), so the board runs
+/// what the simulator measured. (Earlier hand-set gains — kp 0.4, ki 5, i_limit 100 LSB
+/// — lagged 0.5 mm on the retraction; found by running the firmware in board-emu.)
+/// `clamp_lsb`: the law's output clamp, the board's usable DAC range
+/// (`DacRange::max_code`), so it never commands a code the pin cannot follow.
+pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {
+    let axis = AxisConfig {
+        mode: ControlMode::Feedforward,
+        kp_lsb_per_um: 1.1,
+        ki_lsb_per_um_s: 18.0,
+        kd_lsb_s_per_um: 0.0,
+        i_zone_um: 10_000.0,
+        i_limit_lsb: 200.0,
+        kv_pos_lsb_per_um_s: 0.01389,
+        kv_neg_lsb_per_um_s: 0.01683,
+        ka_lsb_per_um_s2: 0.0,
+        valve_lag_us: 4244.0,
+        following_error_um: 5000.0,
+        valve: ValveCal {
+            clamp_lsb,
+            ..ValveCal::default()
+        },
+    };
+    FollowerConfig::<SLAVES> {
+        period_us: PERIOD_US,
+        axes: [axis; SLAVES],
+        ..FollowerConfig::default()
+    }
+}
