@@ -53,6 +53,8 @@ pub struct Stats {
     pub software_resets: u32,
     /// Instructions executed.
     pub instructions: u64,
+    /// Exception entries that stacked the FPU's extended frame (CONTROL.FPCA set).
+    pub extended_frames: u64,
 }
 
 /// The emulator's state, shared with unicorn's callbacks.
@@ -691,6 +693,9 @@ fn exception_entry(uc: &mut Unicorn<'_, State>, exc: u16, ret_pc: u32) -> Result
     st.bus.scs.enter(exc);
     st.event = true;
     *st.stats.taken.entry(exc).or_default() += 1;
+    if fpca {
+        st.stats.extended_frames += 1;
+    }
     if exc == TIM7_EXC {
         st.tick_entry = Some(st.cycles);
         let at = st.cycles;

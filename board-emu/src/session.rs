@@ -189,6 +189,7 @@ impl Session {
             "watchdog_resets": stats.watchdog_resets,
             "tick_cycles": {"max": max, "mean": if n > 0 { sum as f64 / n as f64 } else { 0.0 }},
             "instructions": stats.instructions,
+            "extended_frames": stats.extended_frames,
             "stack_min_free_bytes": self.m.stack_min_free(),
             "faults": faults,
             "axes": axes,
