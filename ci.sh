@@ -22,6 +22,14 @@ cargo fmt --all -- --check
 step "clippy (host)"
 cargo clippy --all-targets -- -D warnings
 
+step "clippy (board-emu)"
+# board-emu builds unicorn (C, with cmake) and its bindings (bindgen needs libclang).
+if ! command -v cmake >/dev/null 2>&1 || ! ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1; then
+  SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
+  $SUDO apt-get update -qq && $SUDO apt-get install -y -qq cmake libclang-dev >/dev/null
+fi
+cargo clippy -p board-emu --all-targets --profile bench -- -D warnings
+
 step "clippy (thumbv7em: core + firmware + bench-m4)"
 RUSTFLAGS="-D warnings" cargo clippy -p hydra-core -p firmware -p bench-m4 --release --target "$TARGET" -- -D warnings
 
@@ -50,6 +58,13 @@ cargo tree -p firmware --target "$TARGET" -e features -i defmt-rtt | grep -q 'de
 # (the per-function call paths: the same command without --brief)
 python3 scripts/stack-check.py "${CARGO_TARGET_DIR:-target}/$TARGET/release/firmware" --brief \
   --allow-cycle rust_begin_unwind --forbid-symbol defmt_rtt::channel::Channel::blocking_write
+
+step "board-emu: the firmware's release ELF on the emulated STM32F407, plant in the loop"
+./scripts/gpl-confined.sh
+cargo test -p board-emu --profile bench --no-fail-fast 2>&1 | tee target/board-emu-tests.log | grep -E '^(test |test result|running|error|---- )|rows: board|bit-exact|cuts booting' || true
+if grep -qE '^test result: FAILED|^error' target/board-emu-tests.log || ! grep -q '^test result: ok' target/board-emu-tests.log; then
+  echo "board-emu tests FAILED"; tail -80 target/board-emu-tests.log; exit 1
+fi
 
 step "Cortex-M4 cost (QEMU mps2-an386, budgets in bench-budget.toml)"
 ./bench-m4.sh

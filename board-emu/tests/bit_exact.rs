@@ -32,7 +32,8 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
 
     // The host runtime with the board's profile and the same table.
     let range = DacRange::new(profile::VDDA_MV, profile::DAC_SWING_MARGIN_MV).expect("range");
-    let mut law: Box<Follower<{ profile::SLAVES }, { profile::TABLE_NODES }>> = Box::new(Follower::unconfigured());
+    let mut law: Box<Follower<{ profile::SLAVES }, { profile::TABLE_NODES }>> =
+        Box::new(Follower::unconfigured());
     law.configure(&profile::follower_config(range.max_code().unsigned_abs()))
         .expect("follower config");
     law.rebuild_table_from_nodes(&nodes, &profile::table_limits())
@@ -75,10 +76,17 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
             assert_eq!(r, Ok(()), "tick {k}: {cmd:?}");
         }
         let want = out.dac.map(|c| range.clamp(c).to_unipolar());
-        assert_eq!(t.dac, [Some(want[0]), Some(want[1])], "tick {k} (Start at {k_start})");
+        assert_eq!(
+            t.dac,
+            [Some(want[0]), Some(want[1])],
+            "tick {k} (Start at {k_start})"
+        );
         assert_eq!(t.enable, Some(out.enable), "tick {k} enable");
         compared += 1;
     }
-    eprintln!("{compared} ticks bit-exact ({} following)", compared - k_start);
+    eprintln!(
+        "{compared} ticks bit-exact ({} following)",
+        compared - k_start
+    );
     assert!(compared - k_start > 7000);
 }

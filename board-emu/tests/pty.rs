@@ -1,0 +1,81 @@
+//! `board-emu --pty`: host-sim's own board commands (its serial `Link`, `upload`) against
+//! the real firmware binary on a pseudo-terminal, exactly as against a board.
+
+mod common;
+
+use common::*;
+use hydra_core::protocol::{Request, Response};
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+
+struct Kill(Child);
+impl Drop for Kill {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
+    let elf = {
+        let target = std::env::var_os("CARGO_TARGET_DIR")
+            .map_or_else(|| root().join("target"), std::path::PathBuf::from);
+        target.join("thumbv7em-none-eabihf/release/firmware")
+    };
+    let _ = image(); // fails clearly if the ELF is missing
+    let mut child = Kill(
+        Command::new(env!("CARGO_BIN_EXE_board-emu"))
+            .args(["--pty", "--elf"])
+            .arg(&elf)
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("board-emu starts"),
+    );
+    let mut line = String::new();
+    BufReader::new(child.0.stdout.take().expect("stdout"))
+        .read_line(&mut line)
+        .expect("the PTY path");
+    let port = line.trim().to_string();
+    assert!(port.starts_with("/dev/"), "{port:?}");
+    std::thread::sleep(std::time::Duration::from_millis(300)); // boot
+
+    // A two-column table (the board's two slaves): the tangent column and slave 1 at 20 mm.
+    let t = table(&scenario());
+    let dir = tempfile::tempdir().expect("tempdir");
+    let csv = dir.path().join("two.csv");
+    let mut text = String::from("master,tangent,side\n");
+    for (m, x) in t.master.iter().zip(&t.columns[0]) {
+        text.push_str(&format!("{m},{x},20\n"));
+    }
+    std::fs::write(&csv, text).expect("write csv");
+    host_sim::cmd::upload::run(&host_sim::cmd::upload::Args {
+        port: port.clone(),
+        table: csv,
+        activate: true,
+        save: true,
+        id: Some(77),
+        master_counts_per_unit: 1000.0,
+    })
+    .expect("host-sim upload --activate --save");
+
+    let mut link = host_sim::cmd::serial::Link::open(&port).expect("Hello");
+    assert_eq!(
+        (link.info.axes, link.info.capacity_rows, link.info.active_id),
+        (2, 256, 77)
+    );
+    match link.request(&Request::GetStatus).expect("GetStatus") {
+        Response::Status(s) => {
+            assert_eq!(
+                (s.state, s.fault_code, s.active_id, s.saved_id),
+                (0, 0, 77, 77)
+            );
+            assert!(
+                s.ticks > 100,
+                "{} ticks (the tick pauses during the 1 s erase)",
+                s.ticks
+            );
+        }
+        r => panic!("GetStatus answered {r:?}"),
+    }
+}
