@@ -206,6 +206,7 @@ impl Bus {
             t.sync(now);
         }
         self.flash.sync(now);
+        self.scs.systick_sync(now);
         let (dma, actions) = (&mut self.dma[1], &mut self.actions);
         self.adc.sync(now, &mut |c| {
             dma.active(0, ADC_CH) && dma.to_memory(0, u32::from(c.code), actions)
@@ -263,6 +264,9 @@ impl Bus {
             ev.push(t);
         }
         if let Some(t) = self.iwdg.deadline {
+            ev.push(t);
+        }
+        if let Some(t) = self.scs.systick_next(now) {
             ev.push(t);
         }
         // The ADC's DMA stream raises its half/full-transfer interrupt: conversions until

@@ -47,6 +47,10 @@ pub struct Stats {
     pub taken: HashMap<u16, u64>,
     /// TIM7 handler durations, core cycles: count, sum, max.
     pub tick_cycles: (u64, u64, u64),
+    /// TIM7 handler instructions: sum, max.
+    pub tick_instructions: (u64, u64),
+    /// Core cycle of the first TIM7 entry since the last reset (the boot time).
+    pub first_tick: Option<u64>,
     /// Resets by the watchdog.
     pub watchdog_resets: u32,
     /// Resets by SYSRESETREQ.
@@ -72,7 +76,7 @@ pub struct State {
     block_cost: HashMap<(u32, u32), (u32, u32)>,
     image: Rc<Image>,
     last_block: u32,
-    tick_entry: Option<u64>,
+    tick_entry: Option<(u64, u64)>,
     /// Counters.
     pub stats: Stats,
     /// Raw defmt bytes read from the RTT up-buffer.
@@ -475,6 +479,7 @@ impl Machine {
         st.bus = Bus::new(flash, keep | flags | crate::clocks::csr::PINRSTF, env);
         st.bus.tick_io = tick_io;
         st.stall_tick = false;
+        st.stats.first_tick = None;
         st.bus.sync(now);
         self.reset_cpu()
     }
@@ -697,7 +702,8 @@ fn exception_entry(uc: &mut Unicorn<'_, State>, exc: u16, ret_pc: u32) -> Result
         st.stats.extended_frames += 1;
     }
     if exc == TIM7_EXC {
-        st.tick_entry = Some(st.cycles);
+        st.tick_entry = Some((st.cycles, st.stats.instructions));
+        st.stats.first_tick.get_or_insert(st.cycles);
         let at = st.cycles;
         if let Some(t) = st.bus.tick_io.as_mut() {
             t.push(crate::bus::TickIo {
@@ -760,12 +766,16 @@ fn exception_return(uc: &mut Unicorn<'_, State>) -> Result<()> {
     st.irq_watch = st.bus.scs.any_pending();
     st.event = true;
     if exc == TIM7_EXC {
-        if let Some(t0) = st.tick_entry.take() {
+        if let Some((t0, i0)) = st.tick_entry.take() {
             let d = st.cycles - t0;
             let tc = &mut st.stats.tick_cycles;
             tc.0 += 1;
             tc.1 += d;
             tc.2 = tc.2.max(d);
+            let di = st.stats.instructions - i0;
+            let ti = &mut st.stats.tick_instructions;
+            ti.0 += di;
+            ti.1 = ti.1.max(di);
         }
     }
     Ok(())

@@ -67,6 +67,8 @@ pub struct Scs {
     pub syst_rvr: u32,
     /// Cycle at which SysTick's counter was last loaded.
     pub syst_base: u64,
+    /// The cycle SysTick was last brought up to.
+    pub syst_last: u64,
     /// DWT_CTRL.
     pub dwt_ctrl: u32,
     /// CYCCNT at `cyccnt_base_cycle` (it counts only while enabled).
@@ -105,6 +107,7 @@ impl Default for Scs {
             syst_csr: 0,
             syst_rvr: 0,
             syst_base: 0,
+            syst_last: 0,
             dwt_ctrl: 0x4000_0000, // NUMCOMP = 4
             cyccnt_base: 0,
             cyccnt_base_cycle: 0,
@@ -265,6 +268,38 @@ impl Scs {
         }
     }
 
+    /// SysTick's clock: the core clock (CLKSOURCE = 1) or the core clock / 8.
+    fn syst_div(&self) -> u64 {
+        if self.syst_csr & 4 != 0 {
+            1
+        } else {
+            8
+        }
+    }
+
+    /// The core cycle at which SysTick next reaches zero (`None`: off or no reload).
+    pub fn systick_next(&self, now: u64) -> Option<u64> {
+        if self.syst_csr & 1 == 0 || self.syst_rvr == 0 {
+            return None;
+        }
+        let period = (u64::from(self.syst_rvr) + 1) * self.syst_div();
+        let el = now.saturating_sub(self.syst_base);
+        Some(self.syst_base + (el / period + 1) * period)
+    }
+
+    /// SysTick up to `now`: COUNTFLAG, and the exception pended when TICKINT.
+    pub fn systick_sync(&mut self, now: u64) {
+        if let Some(t) = self.systick_next(self.syst_last.max(self.syst_base)) {
+            if t <= now {
+                self.syst_csr |= 1 << 16;
+                if self.syst_csr & 2 != 0 {
+                    self.systick_pending = true;
+                }
+            }
+        }
+        self.syst_last = now;
+    }
+
     /// A 32-bit read at `addr` (0xE000_0000-based), at core cycle `now`.
     pub fn read(&mut self, addr: u32, now: u64) -> Result<u32, Unmodelled> {
         Ok(match addr {
@@ -279,7 +314,7 @@ impl Scs {
             0xE000_E014 => self.syst_rvr,
             0xE000_E018 => {
                 let reload = u64::from(self.syst_rvr) + 1;
-                let el = now.saturating_sub(self.syst_base) % reload;
+                let el = (now.saturating_sub(self.syst_base) / self.syst_div()) % reload;
                 (reload - 1 - el) as u32
             }
             0xE000_E01C => 0x4000_0000 | 20_999, // CALIB: no reference, 21 MHz·1 ms
@@ -367,9 +402,20 @@ impl Scs {
                 self.cyccnt_base = merge(self.cyccnt(now));
                 self.cyccnt_base_cycle = now;
             }
-            0xE000_E010 => self.syst_csr = merge(self.syst_csr) & 0x7,
+            0xE000_E010 => {
+                let was_on = self.syst_csr & 1 != 0;
+                self.syst_csr = (self.syst_csr & (1 << 16)) | (merge(self.syst_csr) & 0x7);
+                if !was_on && self.syst_csr & 1 != 0 {
+                    self.syst_base = now;
+                    self.syst_last = now;
+                }
+            }
             0xE000_E014 => self.syst_rvr = merge(self.syst_rvr) & 0x00FF_FFFF,
-            0xE000_E018 => self.syst_base = now,
+            0xE000_E018 => {
+                self.syst_base = now;
+                self.syst_last = now;
+                self.syst_csr &= !(1 << 16);
+            }
             0xE000_E100..=0xE000_E108 => Self::set_bits(
                 &mut self.enabled,
                 ((addr - 0xE000_E100) / 4) as usize,

@@ -188,6 +188,11 @@ impl Session {
             "overruns": st.overruns,
             "watchdog_resets": stats.watchdog_resets,
             "tick_cycles": {"max": max, "mean": if n > 0 { sum as f64 / n as f64 } else { 0.0 }},
+            "tick_instructions": {
+                "max": stats.tick_instructions.1,
+                "mean": if n > 0 { stats.tick_instructions.0 as f64 / n as f64 } else { 0.0 },
+            },
+            "boot_s": stats.first_tick.map(|c| c as f64 / SYSCLK_HZ as f64),
             "instructions": stats.instructions,
             "extended_frames": stats.extended_frames,
             "stack_min_free_bytes": self.m.stack_min_free(),
