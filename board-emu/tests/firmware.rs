@@ -87,7 +87,10 @@ fn follow_after_reboot(table: host_sim::camfile::CamCsv, id: u32) -> (f64, f64, 
     // (181 rows) to ≈ 68 ms (256 rows) of emulated time.
     s.m.run_for(0.2).expect("reboot");
     let boot = s.m.state().stats.first_tick.expect("the tick runs") as f64 / 168e6;
-    eprintln!("{rows} rows: the tick starts {:.1} ms after power-on (slot validated and rebuilt)", boot * 1e3);
+    eprintln!(
+        "{rows} rows: the tick starts {:.1} ms after power-on (slot validated and rebuilt)",
+        boot * 1e3
+    );
     assert!(boot < 0.15, "boot took {boot} s");
     let log = log(&s);
     assert!(
