@@ -448,3 +448,78 @@ impl Bus {
         r.ok_or(Unmodelled)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unmodelled_peripheral_is_an_error_not_a_zero() {
+        let mut b = Bus::new(Flash::new(), 0, Box::new(Still(Inputs::default())));
+        assert_eq!(
+            b.read(0x4000_4400, 4, 0),
+            Err(Unmodelled),
+            "USART2 is not on this board"
+        );
+        assert_eq!(b.write(0x4000_0800, 4, 0, 0), Err(Unmodelled), "TIM4");
+        assert_eq!(
+            b.read(0x4002_3874, 4, 0).map(|v| v & 0x0E00_0000),
+            Ok(0),
+            "RCC_CSR reads"
+        );
+    }
+
+    #[test]
+    fn adc_scans_into_the_dma_ring() {
+        let mut b = Bus::new(
+            Flash::new(),
+            0,
+            Box::new(Still(Inputs {
+                pressures: [100, 200, 300, 400],
+                ..Inputs::default()
+            })),
+        );
+        // DMA2 stream 0: channel 0, p2m, circular, MINC, 16-bit, 8 items at 0x2000_0000.
+        b.write(0x4002_6400 + 0x10 + 4, 4, 8, 0).unwrap();
+        b.write(0x4002_6400 + 0x10 + 0xC, 4, 0x2000_0000, 0)
+            .unwrap();
+        b.write(
+            0x4002_6400 + 0x10,
+            4,
+            (1 << 13) | (1 << 11) | (1 << 10) | (1 << 8) | 1,
+            0,
+        )
+        .unwrap();
+        // ADC1: IN11, IN12, IN8, IN9; 144-cycle sampling; continuous, DMA + DDS, start.
+        b.write(0x4001_2000 + 0x2C, 4, 3 << 20, 0).unwrap();
+        b.write(
+            0x4001_2000 + 0x34,
+            4,
+            11 | (12 << 5) | (8 << 10) | (9 << 15),
+            0,
+        )
+        .unwrap();
+        b.write(0x4001_2000 + 0x0C, 4, 0o660, 0).unwrap();
+        b.write(0x4001_2000 + 0x304, 4, 1 << 16, 0).unwrap(); // ADCPRE /4: 21 MHz
+        b.write(0x4001_2000 + 0x10, 4, 0o6600000000, 0).unwrap();
+        b.write(
+            0x4001_2000 + 0x08,
+            4,
+            1 | 2 | (1 << 8) | (1 << 9) | (1 << 30),
+            0,
+        )
+        .unwrap();
+        // (144 + 12) ADC clocks at 21 MHz = 1248 core cycles per conversion.
+        b.sync(4 * 1248);
+        let writes: Vec<u16> = b
+            .actions
+            .iter()
+            .filter_map(|a| match a {
+                MemAction::Write(_, v) => Some(u16::from_le_bytes([v[0], v[1]])),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(writes, [100, 200, 300, 400]);
+        assert_eq!(b.dma[1].ndtr(0), 4, "half the ring left");
+    }
+}

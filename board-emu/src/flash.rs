@@ -282,3 +282,54 @@ impl Default for Flash {
         Self::new()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unlocked() -> Flash {
+        let mut f = Flash::new();
+        f.write(0x04, 0x4567_0123, 0).unwrap();
+        f.write(0x04, 0xCDEF_89AB, 0).unwrap();
+        f
+    }
+
+    #[test]
+    fn program_only_clears_bits_and_needs_pg_and_the_right_size() {
+        let mut f = unlocked();
+        let off = 0xC_0000;
+        f.write_mem(off, 4, 0x1234_5678, 0);
+        assert_ne!(f.read(0x0C, 0).unwrap() & (1 << 7), 0, "PG clear: PGSERR");
+        f.write(0x10, (2 << 8) | 1, 0).unwrap(); // PSIZE x32, PG
+        f.write_mem(off, 2, 0, 0);
+        assert_ne!(
+            f.read(0x0C, 0).unwrap() & (1 << 6),
+            0,
+            "x16 access at x32: PGPERR"
+        );
+        f.write_mem(off, 4, 0x1234_5678, 0);
+        assert_ne!(f.read(0x0C, 0).unwrap() & (1 << 16), 0, "busy");
+        f.sync(16 * 168);
+        assert_eq!(f.read_mem(off, 4), 0x1234_5678);
+        f.write_mem(off, 4, 0xFFFF_0000, 16 * 168);
+        f.sync(32 * 168);
+        assert_eq!(f.read_mem(off, 4), 0x1234_0000, "bits only go from 1 to 0");
+    }
+
+    #[test]
+    fn a_cut_erase_leaves_the_rest_of_the_sector_and_a_scrambled_boundary() {
+        let mut f = unlocked();
+        let (o, n) = sector(10).unwrap();
+        f.mem[o..o + n].fill(0);
+        f.write(0x10, (2 << 8) | (10 << 3) | 2 | (1 << 16), 0)
+            .unwrap(); // x32, SER, SNB 10, STRT
+        let end = f.busy_until().unwrap();
+        assert_eq!(end, 168_000_000, "1 s at x32");
+        f.power_cut(end / 4);
+        let erased = f.mem[o..o + n].iter().take_while(|&&b| b == 0xFF).count();
+        assert_eq!(erased, n / 4);
+        assert_ne!(&f.mem[o + n / 4..o + n / 4 + 4], &[0, 0, 0, 0]);
+        assert!(f.mem[o + n / 4 + 4..o + n].iter().all(|&b| b == 0));
+        assert_eq!(f.busy_until(), None);
+    }
+}

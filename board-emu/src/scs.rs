@@ -512,3 +512,57 @@ impl Scs {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn priorities_masks_and_pending_while_masked() {
+        let mut s = Scs::default();
+        s.write(0xE000_E100 + 4, 1 << (irq::TIM7 - 32), u32::MAX, 0)
+            .unwrap(); // ISER1
+                       // TIM7 at priority 0, USART6 at 0x30 (IPR byte 71, written as a byte lane).
+        s.write(0xE000_E400 + 68, 0x30 << 24, 0xFF << 24, 0)
+            .unwrap();
+        assert_eq!(s.ipr[irq::USART6], 0x30);
+        s.enabled[irq::USART6] = true;
+        let mut lv = [false; IRQS];
+        lv[irq::USART6] = true;
+        lv[irq::TIM7] = true;
+        s.raise(&lv);
+        assert_eq!(
+            s.takeable(s.execution_priority(true, 0)),
+            None,
+            "PRIMASK masks both"
+        );
+        assert!(s.any_pending(), "still pending while masked");
+        assert_eq!(
+            s.takeable(s.execution_priority(false, 0x20)),
+            Some(16 + irq::TIM7 as u16),
+            "BASEPRI 0x20 lets 0 through"
+        );
+        s.enter(16 + irq::TIM7 as u16);
+        assert_eq!(
+            s.takeable(s.execution_priority(false, 0)),
+            None,
+            "0x30 does not preempt 0"
+        );
+        s.leave(16 + irq::TIM7 as u16, &[false; IRQS]);
+        assert_eq!(
+            s.takeable(s.execution_priority(false, 0)),
+            Some(16 + irq::USART6 as u16),
+            "tail-chained next"
+        );
+        s.enter(16 + irq::USART6 as u16);
+        s.leave(16 + irq::USART6 as u16, &lv);
+        assert!(s.pending[irq::USART6], "a line still high pends again");
+    }
+
+    #[test]
+    fn unmodelled_system_registers_are_refused() {
+        let mut s = Scs::default();
+        assert_eq!(s.read(0xE000_ED40, 0), Err(Unmodelled));
+        assert_eq!(s.write(0xE000_0000, 0, u32::MAX, 0), Err(Unmodelled));
+    }
+}

@@ -226,3 +226,46 @@ impl Tim {
         Some(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tim3_in_encoder_mode_wraps_at_16_bits() {
+        let mut t = Tim::new(29, false);
+        t.position = 1000;
+        t.write(0x08, 3, 0).unwrap(); // SMS = encoder mode 3: counts from here
+        t.write(0x00, 1, 0).unwrap();
+        t.position = 1000 + 70_000;
+        assert_eq!(t.read(0x24, 0), Some(70_000 - 65_536));
+        t.position = 1000 - 5;
+        assert_eq!(t.read(0x24, 0), Some(65_531));
+    }
+
+    #[test]
+    fn update_and_compare_flags_and_the_next_event() {
+        // TIM12-like: PSC 83 (1 MHz), ARR 999 (1 kHz), CCR1 500, UIE + CC1IE.
+        let mut t = Tim::new(43, false);
+        t.write(0x28, 83, 0).unwrap();
+        t.write(0x2C, 999, 0).unwrap();
+        t.write(0x00, 4, 0).unwrap(); // URS: UG sets no flag
+        t.write(0x14, 1, 0).unwrap(); // UG: PSC loaded
+        t.write(0x34, 500, 0).unwrap();
+        t.write(0x0C, 3, 0).unwrap();
+        t.write(0x00, 5, 0).unwrap(); // CEN
+        assert_eq!(t.read(0x10, 0), Some(0));
+        // 168 core cycles per µs: CC1 at 500 µs, update at 1000 µs.
+        assert_eq!(t.next_event(0), Some(500 * 168));
+        t.sync(500 * 168);
+        assert_eq!(t.read(0x10, 500 * 168), Some(2));
+        assert!(t.irq_level());
+        t.write(0x10, !2, 500 * 168).unwrap(); // rc_w0
+        assert!(!t.irq_level());
+        assert_eq!(t.next_event(500 * 168), Some(1000 * 168));
+        t.sync(1000 * 168);
+        assert_eq!(t.read(0x10, 1000 * 168).map(|v| v & 1), Some(1));
+        assert_eq!(t.read(0x24, 1000 * 168 + 168 * 7), Some(7));
+        assert_eq!(t.read(0x60, 0), None, "beyond the register block");
+    }
+}

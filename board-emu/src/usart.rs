@@ -212,3 +212,80 @@ impl Usart {
         Some(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn on(u: &mut Usart) {
+        u.write(0x08, 0x5B, 0).unwrap(); // BRR 5.6875 → 91 APB2 clocks per bit
+        u.write(0x0C, (1 << 13) | (1 << 3) | (1 << 2) | (1 << 4), 0)
+            .unwrap(); // UE TE RE IDLEIE
+    }
+
+    #[test]
+    fn bytes_arrive_paced_and_idle_follows_one_frame_later() {
+        let mut u = Usart::new();
+        on(&mut u);
+        let bt = u.byte_cycles().unwrap();
+        assert_eq!(bt, 20 * 0x5B);
+        u.write(0x14, 1 << 6, 0).unwrap(); // DMAR
+        u.host_send(&[1, 2], 0);
+        let mut got = Vec::new();
+        u.sync(
+            bt - 1,
+            &mut |b| {
+                got.push(b);
+                true
+            },
+            &mut || None,
+        );
+        assert!(got.is_empty(), "not before one byte time");
+        u.sync(
+            2 * bt,
+            &mut |b| {
+                got.push(b);
+                true
+            },
+            &mut || None,
+        );
+        assert_eq!(got, [1, 2]);
+        assert_eq!(u.read(0x00).unwrap() & IDLE, 0);
+        u.sync(3 * bt, &mut |_| true, &mut || None);
+        assert_ne!(
+            u.read(0x00).unwrap() & IDLE,
+            0,
+            "IDLE one frame after the last byte"
+        );
+        assert!(u.irq_level());
+        let _ = u.read(0x04); // SR then DR clears it
+        assert_eq!(u.read(0x00).unwrap() & IDLE, 0);
+    }
+
+    #[test]
+    fn a_byte_not_read_in_time_is_an_overrun() {
+        let mut u = Usart::new();
+        on(&mut u);
+        let bt = u.byte_cycles().unwrap();
+        u.host_send(&[7, 8], 0);
+        u.sync(2 * bt, &mut |_| false, &mut || None);
+        assert_eq!(u.overruns, 1);
+        assert_ne!(u.read(0x00).unwrap() & ORE, 0);
+        assert_eq!(u.read(0x04), Some(7));
+    }
+
+    #[test]
+    fn dma_transmission_takes_ten_bit_times_per_byte() {
+        let mut u = Usart::new();
+        on(&mut u);
+        u.write(0x14, 1 << 7, 0).unwrap(); // DMAT
+        let bt = u.byte_cycles().unwrap();
+        let mut data = vec![b'a', b'b', b'c'].into_iter();
+        u.sync(0, &mut |_| false, &mut || data.next());
+        u.sync(3 * bt - 1, &mut |_| false, &mut || data.next());
+        assert_eq!(u.to_host, b"ab");
+        u.sync(3 * bt, &mut |_| false, &mut || data.next());
+        assert_eq!(u.to_host, b"abc");
+        assert_ne!(u.read(0x00).unwrap() & TC, 0);
+    }
+}
