@@ -40,19 +40,9 @@ pub struct Session {
     scn: Scenario,
 }
 
-/// A fault's name from its code (the table of `hydra_core::runtime::Fault`).
+/// A fault's name from its code (`hydra_core::runtime::Fault::name`).
 pub fn fault_name(code: u16) -> &'static str {
-    match code >> 8 {
-        0x01 => "estop",
-        0x02 => "watchdog",
-        0x03 => "overrun",
-        0x04 => "master_stalled",
-        0x05 => "encoder_jump",
-        0x06 => "following_error",
-        0x07 => "controller",
-        0x08 => "pressure_input",
-        _ => "unknown",
-    }
+    hydra_core::runtime::Fault::from_code(code).map_or("unknown", |f| f.name())
 }
 
 impl Session {

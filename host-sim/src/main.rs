@@ -34,7 +34,23 @@ enum Command {
     Motion(cmd::motion::Args),
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    match dispatch() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => match e.downcast_ref::<cmd::run::FaultLatched>() {
+            Some(f) => {
+                eprintln!("{f}");
+                std::process::ExitCode::from(cmd::run::FAULT_EXIT_CODE)
+            }
+            None => {
+                eprintln!("Error: {e:?}");
+                std::process::ExitCode::FAILURE
+            }
+        },
+    }
+}
+
+fn dispatch() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         None => cmd::run::run_default(),

@@ -101,6 +101,30 @@ impl Fault {
         ((self.kind() as u16) << 8) | self.index() as u16
     }
 
+    /// A short name for people and JSON (`following_error`, `encoder_jump`, …).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Fault::EStop => "estop",
+            Fault::Watchdog => "watchdog",
+            Fault::Overrun => "overrun",
+            Fault::MasterStalled => "master_stalled",
+            Fault::EncoderJump { .. } => "encoder_jump",
+            Fault::FollowingError { .. } => "following_error",
+            Fault::Controller { .. } => "controller",
+            Fault::PressureInput => "pressure_input",
+        }
+    }
+
+    /// The slave axis the fault names, if it names one (an encoder jump on channel
+    /// 1 + i names slave i; channel 0 is the master).
+    pub const fn slave(self) -> Option<u8> {
+        match self {
+            Fault::FollowingError { axis } | Fault::Controller { axis } => Some(axis),
+            Fault::EncoderJump { channel } => channel.checked_sub(1),
+            _ => None,
+        }
+    }
+
     /// The fault with this code, if it is one.
     pub const fn from_code(code: u16) -> Option<Fault> {
         let index = (code & 0xff) as u8;

@@ -33,7 +33,9 @@ mod tests;
 #[cfg(test)]
 mod tests_reference;
 
-pub use config::{MasterSource, RuntimeCoeffs, RuntimeConfig, RuntimeConfigError};
+pub use config::{
+    MasterSource, RuntimeCoeffs, RuntimeConfig, RuntimeConfigError, MAX_STEP_LIMIT_COUNTS,
+};
 pub use controller::{ControlInputs, ControlOutputs, Controller, LawFault};
 pub use fault::{Fault, FaultKind, FaultRecord, FaultSet};
 pub use io::{Board, EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};

@@ -34,6 +34,9 @@ pub struct Args {
     /// Print exactly one JSON object with the results on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Exit 0 even when the runtime latched a fault (by default the exit code is 3).
+    #[arg(long)]
+    pub allow_fault: bool,
     /// Instead of running: apply the tuning procedure (docs/sim.md) to `--controller`
     /// (default: all three) at `--period-us` and print the `[[tuning]]` sets as TOML.
     #[arg(long, conflicts_with_all = ["json", "csv", "plot"])]
@@ -102,6 +105,31 @@ pub fn to_json(r: &RunReport) -> serde_json::Value {
             }
         }
     }
+    let faults: Vec<serde_json::Value> = r
+        .faults
+        .iter()
+        .map(|f| {
+            serde_json::json!({
+                "code": f.code,
+                "name": f.name,
+                "axis": f.axis,
+                "tick": f.tick,
+                "t_s": f.t_s,
+                "value": f.value,
+            })
+        })
+        .collect();
+    let mut osc = serde_json::Map::new();
+    for o in &r.oscillation {
+        osc.insert(
+            o.axis.clone(),
+            serde_json::json!({
+                "reversals": o.reversals,
+                "table_reversals": o.table_reversals,
+                "excess": o.excess(),
+            }),
+        );
+    }
     let mut o = serde_json::json!({
         "scenario": r.scenario,
         "controller": r.controller.name(),
@@ -109,6 +137,8 @@ pub fn to_json(r: &RunReport) -> serde_json::Value {
         "sim_seconds": r.sim_seconds,
         "wall_seconds": r.wall_seconds,
         "axes": axes,
+        "faults": faults,
+        "oscillation": osc,
     });
     if !force.is_empty() {
         o["force_axes"] = serde_json::Value::Object(force);
@@ -238,8 +268,45 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     } else {
         println!("{}", summary_header(&r));
         println!("{}", summary_line(&r));
+        for f in &r.faults {
+            println!("{}", fault_line(f));
+        }
+    }
+    if let (Some(first), false) = (r.faults.first(), args.allow_fault) {
+        return Err(FaultLatched {
+            first: fault_line(first),
+            count: r.faults.len(),
+        }
+        .into());
     }
     Ok(())
+}
+
+/// The exit code of a run in which the runtime latched a fault (`--allow-fault`: 0).
+pub const FAULT_EXIT_CODE: u8 = 3;
+
+/// The run's results were printed, but the runtime latched a fault: `host-sim` exits
+/// with [`FAULT_EXIT_CODE`].
+#[derive(Debug, thiserror::Error)]
+#[error("the runtime latched {count} fault(s), the first: {first} (exit code 3; --allow-fault: 0)")]
+pub struct FaultLatched {
+    /// The first fault, as [`fault_line`] prints it.
+    pub first: String,
+    /// Faults latched.
+    pub count: usize,
+}
+
+/// One fault for people: `FAULT following_error (0x0600) on tangent at 2.913 s (tick 2914): 20012.4 µm`.
+pub fn fault_line(f: &crate::sim::FaultEvent) -> String {
+    let mut s = format!("FAULT {} (0x{:04x})", f.name, f.code);
+    if let Some(a) = &f.axis {
+        s.push_str(&format!(" on {a}"));
+    }
+    s.push_str(&format!(" at {:.3} s (tick {})", f.t_s, f.tick));
+    if let Some(v) = f.value {
+        s.push_str(&format!(": {v:.1} µm"));
+    }
+    s
 }
 
 /// The scenario of the reference comparison: `host-sim/scenarios/tangent.toml` from the

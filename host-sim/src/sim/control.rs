@@ -1,5 +1,7 @@
 //! The controllers of a run, built from the scenario: the core's [`Follower`] for the
-//! table-following axes and the core's press law for the force axes.
+//! table-following axes — run inside the core's [`Runtime`], as on the board, so its
+//! fault rules (following error, encoder plausibility, master stall) are live and a
+//! latched fault puts the valves at null — and the core's press law for the force axes.
 //!
 //! The follower is generic over the number of slave axes `S`; the simulator supports 1 to
 //! [`MAX_FOLLOWERS`] follower axes through one monomorphisation each, behind the
@@ -9,48 +11,109 @@ use crate::camfile::CamCsv;
 use crate::scenario::{AxisCfg, Controller, Role, Scenario, ScenarioError, Tuning};
 use crate::tuning::{follower_config, press_config};
 use hydra_core::axis::{PressCoeffs, PressOutput, PressState};
-use hydra_core::follower::{Follower, FollowerError, FollowerInputs};
+use hydra_core::follower::{Follower, FollowerError};
+use hydra_core::runtime::{
+    BootCause, Command, CommandError, EncoderSample, FaultRecord, Runtime, RuntimeConfig, Sample,
+    State, MAX_STEP_LIMIT_COUNTS,
+};
 use hydra_core::table::{AxisLimits, CamTable, Node, TableError, TableLimits};
-use hydra_core::units::{CmdLsb, DacCode, Master, MasterRate, PosUm, PressureBar, VelUmPerS};
+use hydra_core::units::{Counts, DacCode, Master, MasterRate, PosUm, PressureBar, VelUmPerS};
 
 /// Largest number of nodes of a simulated table.
 pub const TABLE_CAPACITY: usize = 4096;
 /// Largest number of follower axes of a scenario.
 pub const MAX_FOLLOWERS: usize = 4;
 
-/// One follower tick, whatever the number of axes.
-pub trait FollowerDyn: Send {
-    /// Runs one control period: master sample (counts) and slave positions in; valve codes,
-    /// the commands before the output stage and the targets X(θ_f(k)) (µm) out. Returns the
-    /// follower's filtered master estimate (counts).
-    fn tick(
-        &mut self,
-        master: Master,
-        pos: &[PosUm],
-        dac: &mut [DacCode],
-        cmd: &mut [CmdLsb],
-        target: &mut [PosUm],
-    ) -> Master;
+/// What one runtime tick of the followers gives the simulator.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FollowerTick {
+    /// The follower's filtered master estimate, master counts.
+    pub master_estimate: Master,
+    /// Valves powered (Following / Holding): otherwise the spools are centred.
+    pub enable: bool,
+    /// The runtime's state after the tick.
+    pub state: State,
+    /// The latched fault, if any.
+    pub fault: Option<FaultRecord>,
+    /// Start was refused at the first tick (the run then never controls).
+    pub start_refused: Option<CommandError>,
 }
 
-struct Fw<const S: usize>(Box<Follower<S, TABLE_CAPACITY>>);
-
-impl<const S: usize> FollowerDyn for Fw<S> {
+/// The followers of a run inside the runtime, whatever the number of axes.
+pub trait FollowerDyn: Send {
+    /// One control period: the master and slave encoder counts in; valve codes (the
+    /// nulls unless controlling) and the targets X(θ_f(k)) (µm) out. The first tick
+    /// starts the runtime (Start).
     fn tick(
         &mut self,
-        master: Master,
-        pos: &[PosUm],
+        master: i64,
+        slaves: &[i64],
         dac: &mut [DacCode],
-        cmd: &mut [CmdLsb],
         target: &mut [PosUm],
-    ) -> Master {
-        let mut pos_um = [PosUm::ZERO; S];
-        pos_um.copy_from_slice(pos);
-        let o = self.0.tick(&FollowerInputs { master, pos_um });
-        dac.copy_from_slice(&o.dac);
-        cmd.copy_from_slice(&o.cmd_lsb);
-        target.copy_from_slice(&o.target_um);
-        self.0.master_estimate().pos
+    ) -> FollowerTick;
+
+    /// |target − position| of follower `j` at the last tick, µm (the value a
+    /// following-error fault trips on).
+    fn error_um(&self, j: usize) -> f64;
+}
+
+struct Rt<const S: usize> {
+    rt: Runtime<Box<Follower<S, TABLE_CAPACITY>>, S, 0>,
+    started: bool,
+}
+
+fn counts(c: i64) -> Counts {
+    Counts(c.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32)
+}
+
+impl<const S: usize> FollowerDyn for Rt<S> {
+    fn tick(
+        &mut self,
+        master: i64,
+        slaves: &[i64],
+        dac: &mut [DacCode],
+        target: &mut [PosUm],
+    ) -> FollowerTick {
+        let mut enc = EncoderSample {
+            master: counts(master),
+            slaves: [Counts(0); S],
+        };
+        for (o, &c) in enc.slaves.iter_mut().zip(slaves) {
+            *o = counts(c);
+        }
+        let sample = Sample {
+            enc,
+            pressure_bar: [PressureBar::ZERO; 0],
+            estop: false,
+            overrun: false,
+        };
+        let cmd = (!self.started).then_some(Command::Start);
+        self.started = true;
+        let out = self.rt.step(&sample, cmd);
+        dac.copy_from_slice(&out.dac);
+        let st = self.rt.status();
+        target.copy_from_slice(&st.target_um);
+        FollowerTick {
+            master_estimate: self
+                .rt
+                .law()
+                .map_or(Master::ZERO, |l| l.master_estimate().pos),
+            enable: out.enable,
+            state: st.state,
+            fault: st.fault,
+            start_refused: match out.reply {
+                Some(Err(e)) => Some(e),
+                _ => None,
+            },
+        }
+    }
+
+    fn error_um(&self, j: usize) -> f64 {
+        self.rt
+            .status()
+            .error_um
+            .get(j)
+            .map_or(0.0, |e| e.to_num::<f64>().abs())
     }
 }
 
@@ -202,7 +265,51 @@ fn build<const S: usize>(
         ),
     })?;
     f.load_table(&table);
-    Ok(Box::new(Fw::<S>(f)))
+    let rc = runtime_config::<S>(s, &cfg.axes.map(|a| a.following_error_um), period_us);
+    let coeffs = rc.build().map_err(|e| {
+        invalid(
+            "runtime".into(),
+            format!("{e:?}"),
+            format!("the runtime's configuration at {period_us} µs"),
+        )
+    })?;
+    Ok(Box::new(Rt::<S> {
+        rt: Runtime::new(coeffs, Some(f), BootCause::Normal),
+        started: false,
+    }))
+}
+
+/// The runtime's configuration for the follower axes of `s`: each slave's encoder scale,
+/// its following-error limit (the gain set's `following_error_um`), an encoder step
+/// plausible up to 4× the axis' full-opening no-load speed, the master's up to 4× its
+/// fastest speed (nominal + ripple); every other rule at the runtime's defaults (a
+/// master stall after 10 s standing still while following, never at the table's ends).
+pub fn runtime_config<const S: usize>(
+    s: &Scenario,
+    following_error_um: &[f32; S],
+    period_us: u32,
+) -> RuntimeConfig<S> {
+    let mut rc = RuntimeConfig::<S> {
+        period_us,
+        following_error_limit_um: *following_error_um,
+        ..RuntimeConfig::default()
+    };
+    // The runtime's 16-bit count extension bounds a plausible step (counts per tick): at
+    // long periods the 4× margin is capped there.
+    let cap_per_s = f64::from(MAX_STEP_LIMIT_COUNTS) * 0.999e6 / f64::from(period_us.max(1));
+    let m = &s.master;
+    let peak = m.speed_deg_per_s.abs() * (1.0 + m.ripple.abs()) / m.resolution_deg;
+    rc.master_max_speed_counts_per_s = (4.0 * peak).max(1000.0).min(cap_per_s) as f32;
+    for (j, a) in followers(s).iter().enumerate().take(S) {
+        rc.slave_um_per_count[j] = a.sensors.encoder_um as f32;
+        let p = a.plant(s.supply(), a.cylinder.stroke_mm * 0.5e-3);
+        let v = p
+            .no_load_speed_m_per_s(true)
+            .max(p.no_load_speed_m_per_s(false));
+        let cap_um_per_s = cap_per_s * a.sensors.encoder_um;
+        rc.slave_max_speed_um_per_s[j] = (4.0 * v * 1e6).max(1000.0).min(cap_um_per_s) as f32;
+    }
+    rc
 }
 
 /// The follower of a run (`None` if the scenario has no follower axis).

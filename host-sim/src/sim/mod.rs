@@ -36,7 +36,7 @@ use crate::plant::{dac_to_unit, HydraulicAxis, MasterProfile};
 use crate::scenario::{Controller, Role, Scenario, ScenarioError};
 use control::{build_follower, Press};
 use hydra_core::axis::PressPhase;
-use hydra_core::units::{CmdLsb, DacCode, Master, PosUm, PressureBar};
+use hydra_core::units::{DacCode, PosUm, PressureBar};
 use std::fmt::Write as _;
 use std::time::Instant;
 
@@ -137,6 +137,10 @@ pub struct RunReport {
     pub period_us: u32,
     /// The gain set's period, µs (≠ `period_us` when no set was tuned at this period).
     pub tuned_period_us: u32,
+    /// Faults the runtime latched, in order (a run without faults: empty).
+    pub faults: Vec<FaultEvent>,
+    /// Per follower axis: velocity reversals against the table's own.
+    pub oscillation: Vec<Oscillation>,
     /// Simulated time, s.
     pub sim_seconds: f64,
     /// Wall-clock time of the simulation, s.
@@ -295,10 +299,12 @@ pub fn run(
 
     let mut u_now = vec![0.0f64; n_axes]; // applied this period
     let mut u_next = vec![0.0f64; n_axes]; // computed at this period's sample
-    let mut pos = vec![PosUm::ZERO; nf];
+    let mut enc = vec![0i64; nf];
     let mut dac = vec![DacCode::NULL; nf];
-    let mut cmd = vec![CmdLsb::ZERO; nf];
     let mut ctrl_target = vec![PosUm::ZERO; nf];
+    let mut faults: Vec<FaultEvent> = Vec::new();
+    let mut start_refused = None;
+    let mut osc: Vec<Reversals> = vec![Reversals::default(); nf];
     let mut master_est_deg = 0.0;
     let mut err_stats = vec![Stat::default(); nf];
     let mut peak = vec![0.0f64; n_axes];
@@ -310,15 +316,39 @@ pub fn run(
         let t_k = k as f64 * period_s;
         // 1–2. sample and compute
         if let Some(f) = follower.as_mut() {
-            let m = Master::from_num(menc.count(master.angle_deg(t_k)));
+            let m = menc.count(master.angle_deg(t_k));
             for (j, &i) in follower_idx.iter().enumerate() {
-                let counts = encoders[i].count(plants[i].x_m());
-                pos[j] = PosUm::saturating_from_num(encoders[i].value(counts) * 1e6);
+                enc[j] = encoders[i].count(plants[i].x_m());
+                osc[j].add(plants[i].v_m_per_s());
             }
-            let est = f.tick(m, &pos, &mut dac, &mut cmd, &mut ctrl_target);
-            master_est_deg = est.to_num::<f64>() * sc.master.resolution_deg;
+            let o = f.tick(m, &enc, &mut dac, &mut ctrl_target);
+            master_est_deg = o.master_estimate.to_num::<f64>() * sc.master.resolution_deg;
             for (j, &i) in follower_idx.iter().enumerate() {
-                u_next[i] = dac_to_unit(dac[j]);
+                // Not controlling: the valves are unpowered and their spools centre.
+                u_next[i] = if o.enable { dac_to_unit(dac[j]) } else { 0.0 };
+            }
+            if start_refused.is_none() {
+                start_refused = o.start_refused;
+            }
+            if let Some(r) = o.fault {
+                if faults.last().map(|l| (l.code, l.tick)) != Some((r.fault.code(), r.tick)) {
+                    let axis = r.fault.slave();
+                    faults.push(FaultEvent {
+                        code: r.fault.code(),
+                        name: r.fault.name(),
+                        axis: axis
+                            .and_then(|a| follower_cfgs.get(usize::from(a)))
+                            .map(|a| a.name.clone()),
+                        tick: r.tick,
+                        t_s: t_k,
+                        value: match r.fault {
+                            hydra_core::runtime::Fault::FollowingError { axis } => {
+                                Some(f.error_um(usize::from(axis)))
+                            }
+                            _ => None,
+                        },
+                    });
+                }
             }
         }
         for (p, &i) in presses.iter_mut().zip(&press_idx) {
@@ -439,6 +469,28 @@ pub fn run(
             }
         })
         .collect();
+    if let Some(e) = start_refused {
+        return Err(ScenarioError::Invalid {
+            key: "runtime".into(),
+            value: format!("{e:?}"),
+            reason: "the runtime refused Start".into(),
+        });
+    }
+    let oscillation = follower_cfgs
+        .iter()
+        .zip(&osc)
+        .zip(&columns)
+        .map(|((a, r), col)| Oscillation {
+            axis: a.name.clone(),
+            reversals: r.count,
+            table_reversals: table_reversals(
+                &table.master,
+                col,
+                sc.master.start_deg,
+                sc.master.end_deg,
+            ),
+        })
+        .collect();
     Ok(RunReport {
         scenario: s.name().to_string(),
         controller: spec.controller,
@@ -449,5 +501,94 @@ pub fn run(
         steps: step,
         axes,
         trace,
+        faults,
+        oscillation,
     })
+}
+
+/// A fault the runtime latched during a run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FaultEvent {
+    /// Its code (`hydra_core::runtime::Fault::code`).
+    pub code: u16,
+    /// Its name (`following_error`, …).
+    pub name: &'static str,
+    /// The follower axis it names, if any.
+    pub axis: Option<String>,
+    /// The runtime's tick counter when it latched.
+    pub tick: u32,
+    /// Simulated time of that tick, s.
+    pub t_s: f64,
+    /// The value that tripped it (following error: |target − position| in µm).
+    pub value: Option<f64>,
+}
+
+/// Velocity reversals of one follower axis against the table's own.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Oscillation {
+    /// Axis name.
+    pub axis: String,
+    /// Reversals of the axis' true velocity, sampled every period with a ±1 mm/s
+    /// hysteresis.
+    pub reversals: u32,
+    /// Sign changes of the table's slope over the master's travel.
+    pub table_reversals: u32,
+}
+
+impl Oscillation {
+    /// Reversals beyond the table's own (0 for a run that follows its table).
+    pub fn excess(&self) -> u32 {
+        self.reversals.saturating_sub(self.table_reversals)
+    }
+}
+
+/// Counts velocity reversals with a hysteresis of [`Reversals::BAND_M_PER_S`].
+#[derive(Clone, Copy, Debug, Default)]
+struct Reversals {
+    sign: i8,
+    count: u32,
+}
+
+impl Reversals {
+    /// ±1 mm/s: slower is standing still, not a direction.
+    const BAND_M_PER_S: f64 = 1e-3;
+
+    fn add(&mut self, v: f64) {
+        let s = if v > Self::BAND_M_PER_S {
+            1
+        } else if v < -Self::BAND_M_PER_S {
+            -1
+        } else {
+            return;
+        };
+        if self.sign != 0 && s != self.sign {
+            self.count += 1;
+        }
+        self.sign = s;
+    }
+}
+
+/// Sign changes of a table column's slope between master `a` and `b` (degrees).
+fn table_reversals(master: &[f64], col: &[f64], a: f64, b: f64) -> u32 {
+    let (lo, hi) = (a.min(b), a.max(b));
+    let mut sign = 0i8;
+    let mut n = 0;
+    for k in 1..master.len().min(col.len()) {
+        if master[k] < lo || master[k - 1] > hi {
+            continue;
+        }
+        let d = col[k] - col[k - 1];
+        let s = if d > 0.0 {
+            1
+        } else if d < 0.0 {
+            -1
+        } else {
+            continue;
+        };
+        if sign != 0 && s != sign {
+            n += 1;
+        }
+        sign = s;
+    }
+    n
 }
