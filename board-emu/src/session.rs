@@ -18,10 +18,8 @@ use hydra_core::units::{Master, PosUm};
 use std::cell::RefCell;
 use std::rc::Rc;
 
-/// Slave columns of the board's tables (`firmware/src/board.rs` SLAVES).
-pub const SLAVES: usize = 2;
-/// Rows per TableChunk (what the firmware's Info reports as `max_chunk_rows`).
-pub const CHUNK_ROWS: usize = 31;
+/// Slave columns of the board's tables (`hydra_core::profile`).
+pub const SLAVES: usize = hydra_core::profile::SLAVES;
 
 /// The emulated board, its plant and a host.
 pub struct Session {
@@ -94,12 +92,12 @@ impl Session {
 
     /// Hello, then the table uploaded as `id`, committed and activated.
     pub fn upload_activate(&mut self, id: u32) -> Result<()> {
-        match self.host.request(&mut self.m, &Request::Hello)? {
-            Response::Info(_) => {}
+        let per = match self.host.request(&mut self.m, &Request::Hello)? {
+            Response::Info(i) => usize::from(i.max_chunk_rows),
             r => bail!("Hello answered {r:?}"),
-        }
+        };
         let nodes = self.nodes();
-        match self.host.upload(&mut self.m, id, &nodes, CHUNK_ROWS)? {
+        match self.host.upload(&mut self.m, id, &nodes, per)? {
             Response::Ack { .. } => {}
             r => bail!("TableCommit answered {r:?}"),
         }

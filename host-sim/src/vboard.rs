@@ -34,9 +34,9 @@ use hydra_core::runtime::{
 use hydra_core::table::{AxisLimits, CamTable, TableLimits};
 use hydra_core::units::{Counts, MasterRate, PosUm, PressureBar, VelUmPerS};
 
-/// Table capacity of the virtual board, rows: the firmware's (`firmware/src/program.rs`
-/// `TABLE_NODES`), so a table the board would refuse is refused here too.
-pub const CAPACITY: usize = 256;
+/// Table capacity of the virtual board, rows: the board's (`hydra_core::profile`), so a
+/// table the board would refuse is refused here too.
+pub const CAPACITY: usize = hydra_core::profile::TABLE_NODES;
 /// Slave axes (the tangent cylinder).
 pub const AXES: usize = 1;
 /// Flash slot size, bytes (covers 256 rows of 12 bytes and every parameter record).

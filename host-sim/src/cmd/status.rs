@@ -2,8 +2,11 @@
 //! per-axis position / target / error in engineering units.
 
 use super::serial::Link;
-use hydra_core::protocol::msg::{StatusMsg, NO_TABLE};
+use hydra_core::protocol::msg::{
+    StatusMsg, FLAG_LINK_LOST, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, NO_TABLE,
+};
 use hydra_core::protocol::{Request, Response};
+use hydra_core::runtime::Fault;
 
 /// Arguments of `status`.
 #[derive(Debug, clap::Args)]
@@ -36,6 +39,16 @@ pub struct Report {
     pub state: String,
     /// Latched fault code (0 = none).
     pub fault_code: u16,
+    /// Its name (`following_error`, `estop`, …; `hydra_core::runtime::Fault::name`).
+    pub fault_name: Option<String>,
+    /// The slave axis it names, if any.
+    pub fault_axis: Option<u8>,
+    /// A slave is not referenced yet (Start is refused until it is).
+    pub unreferenced: bool,
+    /// The host-link watchdog held the axes since the last Start.
+    pub link_lost: bool,
+    /// The pressure inputs are stale.
+    pub pressure_stale: bool,
     /// Master, master units (degrees for the rotary table).
     pub master: f64,
     /// Active table id, if any.
@@ -77,6 +90,15 @@ pub fn report(s: &StatusMsg) -> Report {
         }
         .to_string(),
         fault_code: s.fault_code,
+        fault_name: (s.fault_code != 0).then(|| {
+            Fault::from_code(s.fault_code)
+                .map_or("unknown", |f| f.name())
+                .to_string()
+        }),
+        fault_axis: Fault::from_code(s.fault_code).and_then(Fault::slave),
+        unreferenced: s.flags & FLAG_UNREFERENCED != 0,
+        link_lost: s.flags & FLAG_LINK_LOST != 0,
+        pressure_stale: s.flags & FLAG_PRESSURE_STALE != 0,
         master: s.master as f64 / 65536.0 / 1000.0,
         active_id: id(s.active_id),
         committed_id: id(s.committed_id),
@@ -116,14 +138,36 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&r)?);
         return Ok(());
     }
+    let table = |t: Option<u32>| t.map_or_else(|| "none".to_string(), |v| v.to_string());
     println!("state        {}", r.state);
-    println!("fault code   {:#06x}", r.fault_code);
+    match &r.fault_name {
+        None => println!("fault        none"),
+        Some(n) => println!(
+            "fault        {n}{} (code {:#06x})",
+            r.fault_axis
+                .map_or_else(String::new, |a| format!(" on axis {a}")),
+            r.fault_code
+        ),
+    }
+    let mut notes = Vec::new();
+    if r.unreferenced {
+        notes.push("a slave is not referenced: set-position or home it before Start");
+    }
+    if r.link_lost {
+        notes.push("the host-link watchdog held the axes");
+    }
+    if r.pressure_stale {
+        notes.push("pressure inputs stale");
+    }
+    for n in notes {
+        println!("note         {n}");
+    }
     println!("master       {:.3}", r.master);
     println!(
-        "tables       active {:?}, committed {:?}, saved {:?}{}{}",
-        r.active_id,
-        r.committed_id,
-        r.saved_id,
+        "tables       active {}, committed {}, saved {}{}{}",
+        table(r.active_id),
+        table(r.committed_id),
+        table(r.saved_id),
         if r.end_of_table { ", at end" } else { "" },
         if r.activation_pending {
             ", activation armed"
@@ -142,4 +186,44 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hydra_core::protocol::msg::AxisStatus;
+
+    #[test]
+    fn a_fault_is_named_with_its_axis_and_flags_are_spelled_out() {
+        let mut s = StatusMsg {
+            state: 3,
+            flags: FLAG_UNREFERENCED,
+            fault_code: 0x0601,
+            fault_axis: 1,
+            active_id: 7,
+            committed_id: NO_TABLE,
+            saved_id: NO_TABLE,
+            upload_rows: 0,
+            ticks: 10,
+            tick_max_ns: 0,
+            tick_mean_ns: 0,
+            overruns: 0,
+            master: 0,
+            axes: heapless::Vec::new(),
+        };
+        let _ = s.axes.push(AxisStatus {
+            pos_um: 256_000,
+            target_um: 0,
+            error_um: 0,
+            dac: 0,
+        });
+        let r = report(&s);
+        assert_eq!(r.fault_name.as_deref(), Some("following_error"));
+        assert_eq!(r.fault_axis, Some(1));
+        assert!(r.unreferenced && !r.link_lost && !r.pressure_stale);
+        assert_eq!((r.active_id, r.committed_id), (Some(7), None));
+        assert!((r.axes[0].pos_mm - 1.0).abs() < 1e-12);
+        s.fault_code = 0;
+        assert_eq!(report(&s).fault_name, None);
+    }
 }
