@@ -24,12 +24,27 @@ pub const fn motion_command(m: Motion) -> Command {
 }
 
 /// The Nak of a command the runtime refused with `e` in state `state`: the typed codes
-/// for a reference problem (naming the slave), else [`bad_state`].
+/// for a reference problem (naming the slave), else `BadState` with the state in
+/// `detail` and the reason ([`refusal_reason`]) in `detail2`.
 pub const fn command_nak(state: u8, e: CommandError) -> Nak {
     match e {
         CommandError::NotReferenced { axis } => Nak::with(NakCode::NotReferenced, axis as u16, 0),
         CommandError::NoAxis { axis } => Nak::with(NakCode::NoAxis, axis as u16, 0),
-        _ => bad_state(state),
+        _ => Nak::with(NakCode::BadState, state as u16, refusal_reason(e)),
+    }
+}
+
+/// `detail2` of a `BadState` Nak: why the runtime refused (PROTOCOL.md). 0 = not said.
+pub const fn refusal_reason(e: CommandError) -> u8 {
+    match e {
+        CommandError::NoController => 1,
+        CommandError::Faulted => 2,
+        CommandError::CauseActive(_) => 3,
+        CommandError::MasterMoved => 4,
+        CommandError::EndOfTable => 5,
+        CommandError::Busy => 6,
+        CommandError::NotReferenced { .. } => 7,
+        CommandError::NoAxis { .. } => 8,
     }
 }
 
@@ -144,7 +159,11 @@ mod tests {
         );
         assert_eq!(
             command_nak(3, CommandError::Faulted),
-            Nak::with(NakCode::BadState, 3, 0)
+            Nak::with(NakCode::BadState, 3, 2)
+        );
+        assert_eq!(
+            command_nak(0, CommandError::NoController),
+            Nak::with(NakCode::BadState, 0, 1)
         );
     }
 

@@ -27,12 +27,68 @@ pub fn timeout_for(q: &Request<'_>) -> Duration {
 
 /// A request the board refused.
 #[derive(Debug, thiserror::Error)]
-#[error("board refused {req}: {:?} (detail {}, {})", nak.code, nak.detail, nak.detail2)]
+#[error("board refused {req}: {} ({:?}, detail {}, {})", explain(nak), nak.code, nak.detail, nak.detail2)]
 pub struct Refused {
     /// Request name.
     pub req: String,
     /// The Nak.
     pub nak: Nak,
+}
+
+/// A Nak in words a person can act on (PROTOCOL.md's table of codes and details).
+pub fn explain(nak: &Nak) -> String {
+    use hydra_core::protocol::NakCode as C;
+    let (d, d2) = (nak.detail, nak.detail2);
+    let state = match d {
+        0 => "idle",
+        1 => "following",
+        2 => "holding",
+        3 => "in fault",
+        _ => "in an unknown state",
+    };
+    match nak.code {
+        C::BadState => {
+            let why = match d2 {
+                1 => "no table is active: upload one with --activate",
+                2 => "the board is in Fault: clear the fault first (motion clear-fault)",
+                3 => "the fault's cause is still present (e.g. the E-stop chain is open)",
+                4 => "the master moved while holding: stop, then start again",
+                5 => "holding at the end of the table: stop, then start again",
+                6 => "only possible while idle or in fault",
+                _ => "not allowed now",
+            };
+            format!("the board is {state}: {why}")
+        }
+        C::NotReferenced => {
+            format!("slave {d} is not referenced: set its position or home it first")
+        }
+        C::NoAxis => format!("the board has no slave {d}"),
+        C::NoSession => "no session (say Hello first)".into(),
+        C::TooManyRows => format!("more rows than the board holds ({d})"),
+        C::Columns => format!("the board has {d} slave column(s)"),
+        C::Incomplete => format!("only {d} rows arrived before the commit"),
+        C::TableCrc => "the table's CRC does not match the rows received".into(),
+        C::TableTooFewNodes => "a table needs at least 2 rows".into(),
+        C::TableTooManyNodes => "more rows than the board holds".into(),
+        C::TableNotMonotonic => format!("row {d}: the master is not strictly increasing"),
+        C::TableSegmentLength => format!("row {d}: the master step is longer than 65 535 counts"),
+        C::TableOutOfRange => format!("row {d}, slave {d2}: outside the slave's position limits"),
+        C::TableTooSteep => format!(
+            "row {d}, slave {d2}: steeper than the slave can follow at the master's top speed"
+        ),
+        C::TableMasterSpeed => "the board's master top speed is not positive".into(),
+        C::UnknownTable => "no committed table with this id".into(),
+        C::NotIdle => "only possible while every axis is idle".into(),
+        C::UnknownParam => format!("axis {d}: unknown parameter {d2}"),
+        C::ParamRange => format!("axis {d}: parameter {d2} out of its range"),
+        C::NothingToSave => "no active table to save".into(),
+        C::Flash => "the flash erase, write or verify failed".into(),
+        C::Refused if d == 0 => {
+            "the table's law cannot be built with the present parameters".into()
+        }
+        C::Refused => "the board was not at a safe point".into(),
+        c => format!("{c:?}"),
+    }
 }
 
 /// An open session with a board.
@@ -185,5 +241,27 @@ impl Link {
             }
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod explain_tests {
+    use super::explain;
+    use hydra_core::protocol::{Nak, NakCode};
+
+    #[test]
+    fn naks_are_explained_with_their_details() {
+        let e = explain(&Nak::with(NakCode::BadState, 0, 1));
+        assert!(
+            e.contains("idle") && e.contains("no table is active"),
+            "{e}"
+        );
+        let e = explain(&Nak::with(NakCode::TableTooSteep, 17, 1));
+        assert!(
+            e.contains("row 17, slave 1") && e.contains("steeper"),
+            "{e}"
+        );
+        let e = explain(&Nak::with(NakCode::NotReferenced, 1, 0));
+        assert!(e.contains("slave 1 is not referenced"), "{e}");
     }
 }
