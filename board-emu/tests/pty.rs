@@ -59,6 +59,29 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
     })
     .expect("host-sim upload --activate --save");
 
+    // Reference both slaves (this board's encoders are incremental), then Start and Stop
+    // with host-sim's own motion command.
+    let motion = |what, axis, mm| {
+        host_sim::cmd::motion::run(&host_sim::cmd::motion::Args {
+            port: port.clone(),
+            what,
+            axis,
+            mm,
+        })
+    };
+    use host_sim::cmd::motion::What;
+    let e = motion(What::Start, None, None).expect_err("Start before the slaves are referenced");
+    assert!(format!("{e}").contains("not referenced"), "{e}");
+    motion(What::SetPosition, Some(0), Some(t.columns[0][0])).expect("set-position 0");
+    motion(What::SetPosition, Some(1), Some(20.0)).expect("set-position 1");
+    motion(What::Start, None, None).expect("Start");
+    let mut link = host_sim::cmd::serial::Link::open(&port).expect("Hello");
+    match link.request(&Request::GetStatus).expect("GetStatus") {
+        Response::Status(s) => assert_eq!(s.state, 1, "following"),
+        r => panic!("{r:?}"),
+    }
+    drop(link);
+    motion(What::Stop, None, None).expect("Stop");
     let mut link = host_sim::cmd::serial::Link::open(&port).expect("Hello");
     assert_eq!(
         (link.info.axes, link.info.capacity_rows, link.info.active_id),

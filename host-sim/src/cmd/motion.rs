@@ -1,10 +1,13 @@
-//! `host-sim motion --port PORT start|stop|hold|clear-fault`: one motion command.
+//! `host-sim motion --port PORT start|stop|hold|clear-fault|set-position|home`: one motion
+//! command. A board with incremental slaves refuses Start until every slave is
+//! referenced: `set-position --axis N --mm X` (the slave is at X mm now) or `home --axis N`
+//! (referenced at its next index / reference-switch edge).
 
 use super::serial::Link;
 use hydra_core::protocol::Request;
 
 /// The command.
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum What {
     /// Idle → Following.
     Start,
@@ -14,6 +17,10 @@ pub enum What {
     Hold,
     /// Clear a latched fault.
     ClearFault,
+    /// Idle or Fault: slave `--axis` is at `--mm` now.
+    SetPosition,
+    /// Idle or Fault: arm homing of slave `--axis` (its next reference edge).
+    Home,
 }
 
 /// Arguments of `motion`.
@@ -25,16 +32,79 @@ pub struct Args {
     /// What to do.
     #[arg(value_enum)]
     pub what: What,
+    /// Slave axis (0-based) of set-position and home.
+    #[arg(long)]
+    pub axis: Option<u8>,
+    /// Set-position: where the slave is, mm (|x| ≤ 8 000 mm).
+    #[arg(long, allow_negative_numbers = true)]
+    pub mm: Option<f64>,
 }
 
-/// Sends the command; a refusal is an error naming the board's reason.
-pub fn run(args: &Args) -> anyhow::Result<()> {
-    let mut link = Link::open(&args.port)?;
-    link.expect_ack(&match args.what {
+/// The request of `args`, or why it cannot be sent.
+pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
+    let axis = || {
+        args.axis
+            .ok_or_else(|| anyhow::anyhow!("{:?} needs --axis N (the slave, 0-based)", args.what))
+    };
+    Ok(match args.what {
         What::Start => Request::Start,
         What::Stop => Request::Stop,
         What::Hold => Request::Hold,
         What::ClearFault => Request::ClearFault,
-    })?;
+        What::Home => Request::Home { axis: axis()? },
+        What::SetPosition => {
+            let axis = axis()?;
+            let mm = args.mm.ok_or_else(|| {
+                anyhow::anyhow!("set-position needs --mm X (where the slave is now)")
+            })?;
+            anyhow::ensure!(
+                mm.is_finite() && mm.abs() <= 8000.0,
+                "--mm {mm}: a position must be within ±8000 mm"
+            );
+            // I24F8 µm on the wire.
+            Request::SetPosition {
+                axis,
+                pos_um: (mm * 1000.0 * 256.0).round() as i32,
+            }
+        }
+    })
+}
+
+/// Sends the command; a refusal is an error naming the board's reason.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let q = request(args)?;
+    let mut link = Link::open(&args.port)?;
+    link.expect_ack(&q)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn a(what: What, axis: Option<u8>, mm: Option<f64>) -> Args {
+        Args {
+            port: String::new(),
+            what,
+            axis,
+            mm,
+        }
+    }
+
+    #[test]
+    fn set_position_and_home_need_their_axis_and_position() {
+        assert!(matches!(
+            request(&a(What::SetPosition, Some(1), Some(-20.5))).unwrap(),
+            Request::SetPosition { axis: 1, pos_um } if pos_um == -20_500 * 256
+        ));
+        assert!(matches!(
+            request(&a(What::Home, Some(0), None)).unwrap(),
+            Request::Home { axis: 0 }
+        ));
+        assert!(request(&a(What::SetPosition, None, Some(1.0))).is_err());
+        assert!(request(&a(What::SetPosition, Some(0), None)).is_err());
+        assert!(request(&a(What::SetPosition, Some(0), Some(f64::NAN))).is_err());
+        assert!(request(&a(What::SetPosition, Some(0), Some(9000.0))).is_err());
+        assert!(request(&a(What::Home, None, None)).is_err());
+    }
 }
