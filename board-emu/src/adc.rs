@@ -64,6 +64,8 @@ impl Adc {
     }
 
     fn conv_cycles(&self, ch: usize) -> u64 {
+        // Channels 0–18 exist; a higher SQ code converts channel 18's time.
+        let ch = ch.min(18);
         let smp = if ch >= 10 {
             (self.regs[SMPR1] >> (3 * (ch - 10))) & 7
         } else {

@@ -119,6 +119,12 @@ impl Dma {
         if st.cr & 1 == 0 || st.ndtr == 0 {
             return false;
         }
+        if (st.cr >> 13) & 3 == 3 {
+            // MSIZE 0b11 is reserved: a transfer error, the stream disabled.
+            self.streams[s].cr &= !1;
+            self.set_flags(s, 1 << 3);
+            return false;
+        }
         let msize = 1u32 << ((st.cr >> 13) & 3);
         let minc = st.cr & (1 << 10) != 0;
         let addr = st.m0ar + if minc { st.pos * msize } else { 0 };
@@ -134,7 +140,12 @@ impl Dma {
         if st.cr & 1 == 0 || st.ndtr == 0 {
             return None;
         }
-        let b = st.tx_data.get(st.pos as usize).copied().unwrap_or(0);
+        let msize = 1usize << ((st.cr >> 13) & 3).min(2);
+        let b = st
+            .tx_data
+            .get(st.pos as usize * msize)
+            .copied()
+            .unwrap_or(0);
         self.advance(s);
         Some(b)
     }
@@ -189,11 +200,13 @@ impl Dma {
                             st.pos = 0;
                             st.ndtr = st.reload;
                             if (v >> 6) & 3 == 1 {
+                                // Bytes feed this board's USART: MSIZE 8-bit.
+                                let msize = 1u32 << ((v >> 13) & 3).min(2);
                                 out.push(MemAction::Snapshot {
                                     ctrl,
                                     stream: s,
                                     addr: st.m0ar,
-                                    len: st.reload,
+                                    len: st.reload.saturating_mul(msize),
                                 });
                             }
                         }

@@ -79,6 +79,15 @@ impl Flash {
         }
     }
 
+    /// A reset: the interface registers at their reset values (CR locked, ACR and SR
+    /// clear), the array and the counters kept.
+    pub fn reset_registers(&mut self) {
+        self.acr = 0;
+        self.cr = 0x8000_0000;
+        self.sr = 0;
+        self.key_step = 0;
+    }
+
     /// FLASH_ACR: LATENCY (wait states), PRFTEN, ICEN, DCEN.
     pub fn acr(&self) -> u32 {
         self.acr
@@ -190,9 +199,17 @@ impl Flash {
             self.sr |= 1 << 6; // PGPERR
             return;
         }
-        if self.op.is_some() {
-            self.sr |= 1 << 7;
+        if off % size != 0 || off + size > SIZE {
+            self.sr |= 1 << 5; // PGAERR
             return;
+        }
+        if self.op.is_some() {
+            // The part stalls the bus until the operation ends: the caller (the bus) has
+            // synced to `now`, so an operation still running here is a second access
+            // inside the first one's time — treated as its end.
+            if let Some(end) = self.busy_until() {
+                self.sync(end);
+            }
         }
         let old = self.read_mem(off, size);
         self.op = Some(Op::Program {

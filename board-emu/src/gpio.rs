@@ -68,10 +68,8 @@ impl Port {
     pub fn write(&mut self, off: u32, v: u32) -> Option<()> {
         match off {
             0x10 => {}
-            0x18 => {
-                self.regs[5] |= v & 0xFFFF;
-                self.regs[5] &= !(v >> 16);
-            }
+            // BSRR: BRx then BSx (BSx has priority, RM0090 §8.4.7).
+            0x18 => self.regs[5] = (self.regs[5] & !(v >> 16)) | (v & 0xFFFF),
             0x00..=0x24 => *self.regs.get_mut((off / 4) as usize)? = v,
             _ => return None,
         }

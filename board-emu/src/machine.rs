@@ -186,6 +186,7 @@ impl Machine {
     /// A board with `flash` (its code sectors get the image), cold (RAM painted), with the
     /// reset flags `csr_flags` (power-on: POR + PIN + BOR).
     pub fn new(image: Rc<Image>, mut flash: Flash, env: Box<dyn Environment>) -> Result<Self> {
+        flash.reset_registers();
         for (addr, data) in &image.segments {
             let off = addr.wrapping_sub(FLASH_BASE) as usize;
             if off + data.len() > 0xC_0000 {
@@ -384,11 +385,13 @@ impl Machine {
             .add_intr_hook(|uc, intno| {
                 let r = match intno {
                     8 => exception_return(uc),
-                    // UDF / BKPT / invalid state / aborts: the handler of HardFault (the
+                    // BKPT without a debugger, prefetch/data aborts: HardFault (the
                     // configurable faults are disabled at reset and escalate).
-                    1 | 3 | 4 | 7 | 18 => {
+                    3 | 4 | 7 => {
                         let pc = reg(uc, RegisterARM::PC);
-                        uc.get_data_mut().bus.scs.fault_regs[2] |= 1 << 30; // HFSR.FORCED
+                        // HFSR: DEBUGEVT for BKPT, FORCED otherwise.
+                        uc.get_data_mut().bus.scs.fault_regs[2] |=
+                            if intno == 7 { 1 << 31 } else { 1 << 30 };
                         if uc.get_data().bus.scs.active.contains(&3) {
                             Err(anyhow!(
                                 "lockup: fault {intno} inside HardFault at {pc:#010x}"
@@ -408,6 +411,33 @@ impl Machine {
                 }
             })
             .map_err(|e| anyhow!("intr hook: {e:?}"))?;
+        // UDF and invalid instructions (unicorn routes them here, not to the interrupt
+        // hook): UsageFault, disabled at reset, escalates to HardFault.
+        self.uc
+            .add_insn_invalid_hook(|uc| {
+                let pc = reg(uc, RegisterARM::PC);
+                uc.get_data_mut().bus.scs.fault_regs[2] |= 1 << 30; // HFSR.FORCED
+                let r = if uc.get_data().bus.scs.active.contains(&3) {
+                    Err(anyhow!(
+                        "lockup: invalid instruction inside HardFault at {pc:#010x}"
+                    ))
+                } else {
+                    exception_entry(uc, 3, pc)
+                };
+                match r {
+                    Ok(()) => true,
+                    Err(e) => {
+                        let st = uc.get_data_mut();
+                        if st.error.is_none() {
+                            st.error =
+                                Some(format!("{e} (in {})", st.image.symbolize(st.last_block)));
+                        }
+                        let _ = uc.emu_stop();
+                        false
+                    }
+                }
+            })
+            .map_err(|e| anyhow!("invalid-instruction hook: {e:?}"))?;
         // Writes to the code sectors are a firmware bug (it stores tables in 10/11 only).
         self.uc
             .add_mem_hook(
@@ -469,7 +499,8 @@ impl Machine {
         let st = self.uc.get_data_mut();
         let now = st.cycles;
         st.bus.flash.power_cut(now); // an operation in progress is cut
-        let flash = std::mem::take(&mut st.bus.flash);
+        let mut flash = std::mem::take(&mut st.bus.flash);
+        flash.reset_registers();
         let env = std::mem::replace(
             &mut st.bus.env,
             Box::new(crate::bus::Still(Default::default())),
@@ -652,6 +683,14 @@ impl Machine {
     }
 }
 
+/// unicorn's IPSR write does not refresh QEMU's cached translation flags (handler mode
+/// decides whether `bx lr` with EXC_RETURN is an exception return); writing APSR.NZCV
+/// does (`arm_rebuild_hflags`). Called after every IPSR change.
+fn refresh_mode(uc: &mut Unicorn<'_, State>) {
+    let nzcv = reg(uc, RegisterARM::APSR) & 0xF000_0000;
+    set(uc, RegisterARM::APSR_NZCV, nzcv);
+}
+
 /// Exception entry (ARMv7-M B1.5.6): the frame pushed on MSP (the FPU's extended frame
 /// when CONTROL.FPCA), LR = EXC_RETURN, IPSR = `exc`, PC = its vector.
 fn exception_entry(uc: &mut Unicorn<'_, State>, exc: u16, ret_pc: u32) -> Result<()> {
@@ -693,6 +732,7 @@ fn exception_entry(uc: &mut Unicorn<'_, State>, exc: u16, ret_pc: u32) -> Result
     set(uc, RegisterARM::IPSR, u32::from(exc));
     set(uc, RegisterARM::EPSR, 1 << 24);
     set(uc, RegisterARM::CONTROL, control & !4);
+    refresh_mode(uc);
     set(uc, RegisterARM::PC, vector | 1);
     let st = uc.get_data_mut();
     st.bus.scs.enter(exc);

@@ -94,15 +94,11 @@ impl PlantEnv {
     pub fn new(scn: &Scenario, table: &CamCsv) -> anyhow::Result<Self> {
         let step_s = scn.step_s();
         let mut slaves = Vec::new();
-        let mut fj = 0;
         for a in scn.axes.iter().take(2) {
-            let column = if a.role == Role::Follower {
-                let c = table.columns.get(fj).cloned();
-                fj += 1;
-                c
-            } else {
-                None
-            };
+            // A follower follows its column by name (as host-sim matches them).
+            let column = (a.role == Role::Follower)
+                .then(|| table.column(&a.name).map(<[f64]>::to_vec))
+                .flatten();
             let x0_mm = a
                 .x0_mm
                 .or_else(|| column.as_ref().and_then(|c| c.first().copied()))
@@ -144,6 +140,11 @@ impl PlantEnv {
     /// The slaves.
     pub fn slaves(&self) -> &[Slave] {
         &self.slaves
+    }
+
+    /// Slave `k`'s table column (mm), if it follows the table.
+    pub fn column(&self, k: usize) -> Option<&[f64]> {
+        self.slaves.get(k).and_then(|s| s.column.as_deref())
     }
 
     /// Slave `k`'s true position, µm.

@@ -33,6 +33,8 @@ pub struct Session {
     pub table: CamCsv,
     /// Slave names.
     pub names: Vec<String>,
+    /// Each slave's table column (mm), by its name; `None`: it holds where it stands.
+    columns: Vec<Option<Vec<f64>>>,
     wall: std::time::Instant,
     image: Rc<Image>,
     scn: Scenario,
@@ -49,6 +51,9 @@ impl Session {
         let env = PlantEnv::new(scn, &table)?;
         let plant = env.shared.clone();
         let names = env.slaves().iter().map(|s| s.name.clone()).collect();
+        let columns = (0..SLAVES)
+            .map(|k| env.column(k).map(<[f64]>::to_vec))
+            .collect();
         let m = Machine::new(image.clone(), flash, Box::new(env))?;
         Ok(Self {
             m,
@@ -56,6 +61,7 @@ impl Session {
             plant,
             table,
             names,
+            columns,
             wall: std::time::Instant::now(),
             image,
             scn: scn.clone(),
@@ -70,15 +76,19 @@ impl Session {
         Self::new(image, flash, &scn, table)
     }
 
-    /// The table as the board's nodes: the CSV's columns for the followers, and a slave
-    /// without a column holds where it stands.
+    /// The table as the board's nodes: each follower slave's column by its name, and a
+    /// slave without one holds where it stands.
     pub fn nodes(&self) -> Vec<Node<SLAVES>> {
         let pos = self.plant.borrow().positions_um.clone();
         (0..self.table.master.len())
             .map(|i| {
                 let mut slave_um = [PosUm::ZERO; SLAVES];
                 for (k, s) in slave_um.iter_mut().enumerate() {
-                    let mm = self.table.columns.get(k).map(|c| c[i]);
+                    let mm = self
+                        .columns
+                        .get(k)
+                        .and_then(|c| c.as_ref())
+                        .and_then(|c| c.get(i).copied());
                     let um = mm.map_or(pos.get(k).copied().unwrap_or(0.0), |v| v * 1000.0);
                     *s = PosUm::saturating_from_num(um);
                 }

@@ -38,6 +38,10 @@ pub struct Usart {
     pub to_host: Vec<u8>,
     /// Bytes lost to an overrun.
     pub overruns: u64,
+    /// Bytes from the host dropped because the USART was off (UE, RE or a rate unset).
+    pub dropped: u64,
+    /// A frame is on the line (TC is set when the last one completes).
+    tx_busy: bool,
 }
 
 impl Usart {
@@ -56,6 +60,11 @@ impl Usart {
 
     /// Host → board: bytes start arriving at `now`.
     pub fn host_send(&mut self, bytes: &[u8], now: u64) {
+        if self.byte_cycles().is_none() || self.cr[0] & (1 << 2) == 0 {
+            // Nothing samples the line: the bytes are lost, as on the part.
+            self.dropped += bytes.len() as u64;
+            return;
+        }
         self.rx_queue.extend(bytes.iter().copied());
         if self.rx_next.is_none() {
             if let Some(bt) = self.byte_cycles() {
@@ -125,12 +134,15 @@ impl Usart {
                 self.tx_free_at = start + bt;
                 self.dr_empty_since = start;
                 self.tx_inflight.push_back((self.tx_free_at, b));
+                self.tx_busy = true;
+                self.sr |= TXE;
                 continue;
             }
             if self.dmat() {
                 if let Some(b) = dma_tx() {
                     self.tx_dr = Some(b);
                     self.tx_dr_at = self.dr_empty_since.max(from);
+                    self.sr &= !(TXE | TC);
                     continue;
                 }
             }
@@ -143,11 +155,11 @@ impl Usart {
             self.tx_inflight.pop_front();
             self.to_host.push(b);
         }
-        if self.tx_dr.is_none() {
-            self.sr |= TXE;
-            if self.tx_free_at <= now && self.tx_inflight.is_empty() {
-                self.sr |= TC;
-            }
+        // TC when the last frame completes with nothing left to send (once: software may
+        // clear it by writing 0).
+        if self.tx_busy && self.tx_dr.is_none() && self.tx_inflight.is_empty() {
+            self.tx_busy = false;
+            self.sr |= TC;
         }
     }
 

@@ -101,6 +101,22 @@ fn aerated_oil_oscillates_faults_and_the_valve_goes_to_null() {
 }
 
 #[test]
+fn a_following_error_fault_reports_the_error_that_tripped_it() {
+    let mut s = Scenario::load(&scenarios().join("tangent_alone.toml")).unwrap();
+    for t in &mut s.tuning {
+        for g in t.axes.values_mut() {
+            g.following_error_um = 5.0;
+        }
+    }
+    let t = s.load_table(None).unwrap();
+    let r = run(&s, &t, &spec(1000), &mut |_| {}).unwrap();
+    let f = r.faults.first().expect("a 5 µm limit trips");
+    assert_eq!((f.code, f.name), (0x0600, "following_error"), "{f:?}");
+    let v = f.value.expect("the error that tripped it");
+    assert!(v > 5.0 && v < 100.0, "{v} µm");
+}
+
+#[test]
 fn a_period_far_too_long_does_not_run_with_no_word() {
     let s = Scenario::load(&scenarios().join("tangent_alone.toml")).unwrap();
     let t = s.load_table(None).unwrap();

@@ -175,7 +175,8 @@ pub struct Status<const S: usize, const P: usize> {
     pub pos_um: [PosUm; S],
     /// Targets (position + error while controlling, else the position), µm.
     pub target_um: [PosUm; S],
-    /// Following errors (0 when not controlling), µm.
+    /// Following errors, µm: the law's on every tick it ran (also the tick on which a
+    /// fault stopped the control: the error that tripped it), 0 otherwise.
     pub error_um: [PosUm; S],
     /// Valve codes written.
     pub dac: [DacCode; S],
@@ -641,7 +642,10 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             (true, Some(d)) => (d, true),
             _ => (self.null_codes(), false),
         };
-        if !controlling {
+        // The error stays what the law computed on the tick it ran — also the tick on
+        // which a fault stopped the control (Status then shows the error that tripped
+        // it); without a law tick it is zero.
+        if law_dac.is_none() {
             error_um = [PosUm::ZERO; S];
         }
         let st = &mut self.status;

@@ -60,6 +60,9 @@ pub trait FollowerDyn: Send {
 struct Rt<const S: usize> {
     rt: Runtime<Box<Follower<S, TABLE_CAPACITY>>, S, 0>,
     started: bool,
+    /// |target − position| per slave at the last tick (the law's, also on the tick a
+    /// fault latched), µm.
+    error_um: [f64; S],
 }
 
 fn counts(c: i64) -> Counts {
@@ -92,6 +95,9 @@ impl<const S: usize> FollowerDyn for Rt<S> {
         let out = self.rt.step(&sample, cmd);
         dac.copy_from_slice(&out.dac);
         let st = self.rt.status();
+        for (e, s) in self.error_um.iter_mut().zip(st.error_um) {
+            *e = s.to_num::<f64>().abs();
+        }
         target.copy_from_slice(&st.target_um);
         FollowerTick {
             master_estimate: self
@@ -109,11 +115,7 @@ impl<const S: usize> FollowerDyn for Rt<S> {
     }
 
     fn error_um(&self, j: usize) -> f64 {
-        self.rt
-            .status()
-            .error_um
-            .get(j)
-            .map_or(0.0, |e| e.to_num::<f64>().abs())
+        self.error_um.get(j).copied().unwrap_or(0.0)
     }
 }
 
@@ -276,14 +278,18 @@ fn build<const S: usize>(
     Ok(Box::new(Rt::<S> {
         rt: Runtime::new(coeffs, Some(f), BootCause::Normal),
         started: false,
+        error_um: [0.0; S],
     }))
 }
 
 /// The runtime's configuration for the follower axes of `s`: each slave's encoder scale,
 /// its following-error limit (the gain set's `following_error_um`), an encoder step
 /// plausible up to 4× the axis' full-opening no-load speed, the master's up to 4× its
-/// fastest speed (nominal + ripple); every other rule at the runtime's defaults (a
-/// master stall after 10 s standing still while following, never at the table's ends).
+/// fastest speed (nominal + ripple) — both capped by the runtime's step limit of 16 383
+/// counts per tick, which at long periods (≥ ≈ 70 ms with 1 µm encoders) sits below 4×
+/// the axis' speed, so a loop that diverges there latches `encoder_jump`; every other rule
+/// at the runtime's defaults (a master stall after 1 s standing still while following,
+/// never within the end window of the table).
 pub fn runtime_config<const S: usize>(
     s: &Scenario,
     following_error_um: &[f32; S],
