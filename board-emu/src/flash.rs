@@ -199,7 +199,7 @@ impl Flash {
             self.sr |= 1 << 6; // PGPERR
             return;
         }
-        if off % size != 0 || off + size > SIZE {
+        if !off.is_multiple_of(size) || off + size > SIZE {
             self.sr |= 1 << 5; // PGAERR
             return;
         }

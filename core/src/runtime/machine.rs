@@ -173,7 +173,7 @@ pub struct Status<const S: usize, const P: usize> {
     pub master: Master,
     /// Measured slave positions, µm.
     pub pos_um: [PosUm; S],
-    /// Targets (position + error while controlling, else the position), µm.
+    /// Targets (position + error), µm.
     pub target_um: [PosUm; S],
     /// Following errors, µm: the law's on every tick it ran (also the tick on which a
     /// fault stopped the control: the error that tripped it), 0 otherwise.
