@@ -5,7 +5,10 @@
 //! 1. **Sample** at `t_k`: the master angle through its encoder (`round(θ/0.001°)`
 //!    counts), every axis position through its linear encoder, the force axes' two
 //!    chamber pressures through the 12-bit ADC.
-//! 2. **Compute**: the follower (and each press law) returns valve codes.
+//! 2. **Compute**: the follower, inside the core's runtime (Start at the first period;
+//!    its fault rules live: a latched fault unpowers the valves, `u` = 0 from the next
+//!    period, and is reported in [`RunReport::faults`]), and each press law return valve
+//!    codes.
 //! 3. **Apply** one period later: the codes computed at `t_k` drive the valves from
 //!    `t_{k+1}` to `t_{k+2}` (one period of computation delay); during period 0 the valves
 //!    are at null. The DAC holds each code: `u = n/2047`.
