@@ -74,7 +74,10 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
     assert!(format!("{e}").contains("not referenced"), "{e}");
     motion(What::SetPosition, Some(0), Some(t.columns[0][0])).expect("set-position 0");
     motion(What::SetPosition, Some(1), Some(20.0)).expect("set-position 1");
-    motion(What::Start, None, None).expect("Start");
+    if let Err(e) = motion(What::Start, None, None) {
+        let mut l = host_sim::cmd::serial::Link::open(&port).expect("Hello");
+        panic!("Start: {e}; status {:?}", l.request(&Request::GetStatus));
+    }
     let mut link = host_sim::cmd::serial::Link::open(&port).expect("Hello");
     match link.request(&Request::GetStatus).expect("GetStatus") {
         Response::Status(s) => assert_eq!(s.state, 1, "following"),
@@ -82,6 +85,19 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
     }
     drop(link);
     motion(What::Stop, None, None).expect("Stop");
+    // `table list` and a refused `table activate` (nothing committed under that id).
+    let tables = |what, id| {
+        host_sim::cmd::table::run(&host_sim::cmd::table::Args {
+            port: port.clone(),
+            what,
+            id,
+            json: true,
+        })
+    };
+    use host_sim::cmd::table::What as T;
+    tables(T::List, None).expect("table list");
+    let e = tables(T::Activate, Some(78)).expect_err("78 was never committed");
+    assert!(format!("{e}").contains("no committed table"), "{e}");
     let mut link = host_sim::cmd::serial::Link::open(&port).expect("Hello");
     assert_eq!(
         (link.info.axes, link.info.capacity_rows, link.info.active_id),

@@ -30,8 +30,10 @@ enum Command {
     Status(cmd::status::Args),
     /// Record a board's telemetry to CSV (and an SVG plot).
     Trace(cmd::trace::Args),
-    /// Send Start / Stop / Hold / ClearFault to a board.
+    /// Send Start / Stop / Hold / ClearFault / set-position / home to a board.
     Motion(cmd::motion::Args),
+    /// List a board's tables or activate a committed one.
+    Table(cmd::table::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -64,5 +66,6 @@ fn dispatch() -> anyhow::Result<()> {
         Some(Command::Status(a)) => cmd::status::run(&a),
         Some(Command::Trace(a)) => cmd::trace::run(&a),
         Some(Command::Motion(a)) => cmd::motion::run(&a),
+        Some(Command::Table(a)) => cmd::table::run(&a),
     }
 }

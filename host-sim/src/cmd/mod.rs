@@ -8,6 +8,7 @@ pub mod scurve;
 pub mod serial;
 pub mod serve;
 pub mod status;
+pub mod table;
 pub mod trace;
 pub mod upload;
 pub mod xy;
