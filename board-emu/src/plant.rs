@@ -15,6 +15,7 @@ use host_sim::camfile::{interpolate, CamCsv};
 use host_sim::plant::sensors::{Encoder, PressureAdc};
 use host_sim::plant::{HydraulicAxis, MasterProfile};
 use host_sim::scenario::{Role, Scenario};
+use host_sim::sim::ErrorStat;
 use std::cell::RefCell;
 use std::rc::Rc;
 
@@ -29,28 +30,6 @@ pub struct Slave {
     column: Option<Vec<f64>>,
 }
 
-/// Error statistics of one axis.
-#[derive(Debug, Clone, Default)]
-pub struct ErrStats {
-    /// Samples.
-    pub n: u64,
-    /// Sum of squares, µm².
-    pub sum_sq: f64,
-    /// Largest |e|, µm.
-    pub max: f64,
-}
-
-impl ErrStats {
-    /// RMS, µm.
-    pub fn rms(&self) -> f64 {
-        if self.n == 0 {
-            0.0
-        } else {
-            (self.sum_sq / self.n as f64).sqrt()
-        }
-    }
-}
-
 /// What the test or the CLI reads and drives while the board runs.
 #[derive(Debug, Clone)]
 pub struct Shared {
@@ -59,7 +38,7 @@ pub struct Shared {
     /// Core cycle at which the master starts moving (set when the host sends Start).
     pub master_start: Option<u64>,
     /// Per-slave error statistics (followers only).
-    pub errors: Vec<ErrStats>,
+    pub errors: Vec<ErrorStat>,
     /// Trace rows every millisecond: t_s, master_deg, then per slave target_mm, x_mm,
     /// u, enable.
     pub trace: Vec<Vec<f64>>,
@@ -128,7 +107,7 @@ impl PlantEnv {
             shared: Rc::new(RefCell::new(Shared {
                 estop_closed: true,
                 master_start: None,
-                errors: vec![ErrStats::default(); n],
+                errors: vec![ErrorStat::default(); n],
                 trace: Vec::new(),
                 record: false,
                 outputs: Outputs::default(),
@@ -185,11 +164,7 @@ impl Environment for PlantEnv {
                         .as_ref()
                         .map(|c| interpolate(&self.table_master, c, theta, &mut self.hints[k]));
                     if let (Some(tg), true) = (target, started && tm >= self.error_skip_s) {
-                        let e = (tg - x_mm) * 1e3;
-                        let st = &mut sh.errors[k];
-                        st.n += 1;
-                        st.sum_sq += e * e;
-                        st.max = st.max.max(e.abs());
+                        sh.errors[k].add((tg - x_mm) * 1e3);
                     }
                     row.extend_from_slice(&[
                         target.unwrap_or(f64::NAN),

@@ -93,7 +93,11 @@ impl Session {
                     *s = PosUm::saturating_from_num(um);
                 }
                 Node {
-                    master: Master::saturating_from_num(self.table.master[i] * 1000.0),
+                    // Master units → counts of the scenario's master encoder, as host-sim
+                    // builds its table.
+                    master: Master::saturating_from_num(
+                        self.table.master[i] / self.scn.master.resolution_deg,
+                    ),
                     slave_um,
                 }
             })

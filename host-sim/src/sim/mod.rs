@@ -163,23 +163,28 @@ impl RunReport {
     }
 }
 
-/// Accumulates max |e| and Σe².
+/// Accumulates max |e| and Σe² (the error statistics of a run; board-emu measures the
+/// emulated board with the same).
 #[derive(Clone, Copy, Debug, Default)]
-struct Stat {
-    max: f64,
+pub struct ErrorStat {
+    /// Largest |e|.
+    pub max: f64,
     sum2: f64,
-    n: u64,
+    /// Samples.
+    pub n: u64,
 }
 
-impl Stat {
+impl ErrorStat {
+    /// Adds one sample.
     #[inline]
-    fn add(&mut self, e: f64) {
+    pub fn add(&mut self, e: f64) {
         self.max = self.max.max(e.abs());
         self.sum2 += e * e;
         self.n += 1;
     }
 
-    fn rms(&self) -> f64 {
+    /// RMS of the samples (0 without any).
+    pub fn rms(&self) -> f64 {
         if self.n == 0 {
             0.0
         } else {
@@ -197,7 +202,7 @@ struct PressRt {
     switch_s: Option<f64>,
     jump_lsb: f64,
     last_cmd: f64,
-    stat: Stat,
+    stat: ErrorStat,
 }
 
 /// Runs one scenario with one controller and period. `progress` is called with the
@@ -265,7 +270,7 @@ pub fn run(
                     switch_s: None,
                     jump_lsb: 0.0,
                     last_cmd: 0.0,
-                    stat: Stat::default(),
+                    stat: ErrorStat::default(),
                 });
             }
         }
@@ -309,7 +314,7 @@ pub fn run(
     let mut start_refused = None;
     let mut osc: Vec<Reversals> = vec![Reversals::default(); nf];
     let mut master_est_deg = 0.0;
-    let mut err_stats = vec![Stat::default(); nf];
+    let mut err_stats = vec![ErrorStat::default(); nf];
     let mut peak = vec![0.0f64; n_axes];
     let mut cursors = vec![0usize; nf];
     let mut step: u64 = 0;
