@@ -108,7 +108,7 @@ fn follow_after_reboot(table: host_sim::camfile::CamCsv, id: u32) -> (f64, f64, 
     let st = s.status().expect("status");
     assert_eq!(st.fault_code, 0, "no fault while following");
     assert_stack(&s);
-    let e = s.plant.borrow().errors[0].clone();
+    let e = s.plant.borrow().errors[0];
     let sim = host_sim::sim::run(
         &scn,
         &table,
