@@ -4,7 +4,7 @@
 //!
 //! | item | value |
 //! |---|---|
-//! | slaves | [`SLAVES`] = 2 (DAC1 ch 1/2) |
+//! | slaves | [`SLAVES`] = 2 (DAC1 ch 1/2), [`PRESSURES`] = 4 chamber pressures |
 //! | table rows | [`TABLE_NODES`] = 256 |
 //! | period | [`PERIOD_US`] = 1000 µs (1 kHz) |
 //! | analog supply | [`VDDA_MV`] = 3000 mV, DAC swing margin [`DAC_SWING_MARGIN_MV`] = 200 mV |
@@ -12,6 +12,7 @@
 //! | limits | slaves 0 … 500 mm at ≤ 200 mm/s, master ≤ 10 °/s ([`table_limits`]) |
 
 use crate::axis::{AxisConfig, ControlMode};
+use crate::dac::DacRange;
 use crate::follower::FollowerConfig;
 use crate::runtime::{ReferenceMode, RuntimeConfig};
 use crate::table::{AxisLimits, TableLimits};
@@ -20,6 +21,8 @@ use crate::valve::ValveCal;
 
 /// Slave axes of the board (the on-chip DAC's two channels).
 pub const SLAVES: usize = 2;
+/// Pressure inputs: chambers A and B of each slave (slave k: inputs 2k, 2k + 1).
+pub const PRESSURES: usize = 2 * SLAVES;
 /// Table capacity, nodes.
 pub const TABLE_NODES: usize = 256;
 /// Control period, µs (1 kHz; 100 µs = 10 kHz is the fastest the runtime accepts).
@@ -28,6 +31,15 @@ pub const PERIOD_US: u32 = 1000;
 pub const VDDA_MV: u32 = 3000;
 /// How close to each rail the DAC's buffered output gets, mV (DS8626: ≈ 0.2 V).
 pub const DAC_SWING_MARGIN_MV: u32 = 200;
+
+/// The board's usable DAC range ([`VDDA_MV`] less [`DAC_SWING_MARGIN_MV`] at each rail);
+/// `None` only if those two constants were inconsistent (a unit test checks they are not).
+pub const fn dac_range() -> Option<DacRange> {
+    match DacRange::new(VDDA_MV, DAC_SWING_MARGIN_MV) {
+        Ok(r) => Some(r),
+        Err(_) => None,
+    }
+}
 
 /// The runtime limits (reference machine defaults at [`PERIOD_US`]).
 pub fn runtime_config() -> RuntimeConfig<SLAVES> {
@@ -88,5 +100,17 @@ pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {
         period_us: PERIOD_US,
         axes: [axis; SLAVES],
         ..FollowerConfig::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dac_range_is_consistent() {
+        let r = dac_range().map(|r| r.max_code());
+        // (1500 − 200) mV of 1500 mV half-scale → ±1774 codes.
+        assert_eq!(r, Some(1774));
     }
 }

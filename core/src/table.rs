@@ -270,6 +270,15 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         }
     }
 
+    /// Makes this the [`Self::empty`] placeholder again, in place.
+    pub fn clear(&mut self) {
+        self.segs.clear();
+        self.last = Node {
+            master: Master::ZERO,
+            slave_um: [PosUm::ZERO; S],
+        };
+    }
+
     /// Makes this table a copy of `other`, in place (no temporary on the stack).
     pub fn copy_from(&mut self, other: &Self) {
         self.segs.clear();

@@ -46,7 +46,7 @@ use crate::valves::{OnChipDac, ValveBank};
 /// Slave axes driven by this board (the on-chip DAC's two channels).
 pub const SLAVES: usize = hydra_core::profile::SLAVES;
 /// Pressure channels.
-pub const PRESSURES: usize = 4;
+pub const PRESSURES: usize = hydra_core::profile::PRESSURES;
 /// Host-link baud rate (the host tools' `host-sim … --port`: 921 600). USART6 on the
 /// 84 MHz APB2 with 16× oversampling: USARTDIV = 84 MHz / (16 · 921 600) = 5.696 →
 /// 5 + 11/16 = 5.6875, 923 077 Bd, +0.16 %. (On USART2 and the 42 MHz APB1 it would be
@@ -123,9 +123,9 @@ pub const DAC_SWING_MARGIN_MV: u32 = hydra_core::profile::DAC_SWING_MARGIN_MV;
 /// The usable valve-DAC code range on this board: ±1774 LSB around mid-scale (273 codes
 /// lost at each end). Every code written is clamped to it (`crate::valves`), and the
 /// valve calibration's clamp is set to it (`crate::program`).
-pub const DAC_RANGE: DacRange = match DacRange::new(VDDA_MV, DAC_SWING_MARGIN_MV) {
-    Ok(r) => r,
-    Err(_) => panic!("VDDA_MV / DAC_SWING_MARGIN_MV"),
+pub const DAC_RANGE: DacRange = match hydra_core::profile::dac_range() {
+    Some(r) => r,
+    None => panic!("VDDA_MV / DAC_SWING_MARGIN_MV"),
 };
 
 /// Core clock, Hz (DWT cycles per second).

@@ -19,11 +19,12 @@ use hydra_core::protocol::{Handler, SlotHeader, Store, StoreError};
 use static_cell::ConstStaticCell;
 
 use crate::board::SLAVES;
-use crate::device::{BoardDevice, DeviceState};
+use crate::device::{device_state, Dev, DeviceState, FwGlue};
 use crate::flash::{SlotFlash, SLOT0_OFFSET, SLOT_BYTES};
 use crate::link::{LinkIo, LinkProtocol};
 use crate::program::TABLE_NODES;
 use crate::tick::{BoardStatus, Reply, TickSample};
+use hydra_core::protocol::BoardDevice;
 
 /// Output bytes one `on_rx` call may produce (a 64-byte chunk of garbage yields at most
 /// 64 Nak frames of 15 wire bytes).
@@ -63,17 +64,18 @@ impl Framed {
         Ok(Self {
             handler,
             flash,
-            dev: DeviceState::new().ok_or(FramedError::Taken)?,
+            dev: device_state().ok_or(FramedError::Taken)?,
             tx: Vec::new(),
         })
     }
 
     /// Loads the newest valid slot and builds its law in place (call before the tick
-    /// starts; then take the law with [`DeviceState::take_boot_law`]).
+    /// starts; then build the runtime with `DeviceState::start`).
     pub fn boot(&mut self) -> Option<SlotHeader> {
-        let mut dev = BoardDevice {
+        let mut glue = FwGlue { io: None };
+        let mut dev: Dev<'_, '_> = BoardDevice {
             st: &mut self.dev,
-            io: None,
+            glue: &mut glue,
         };
         self.handler.boot(&mut dev, &mut self.flash)
     }
@@ -112,9 +114,10 @@ fn telemetry(s: &TickSample) -> Telemetry {
 
 impl LinkProtocol for Framed {
     fn on_rx(&mut self, bytes: &[u8], io: &mut LinkIo<'_>) {
-        let mut dev = BoardDevice {
+        let mut glue = FwGlue { io: Some(&mut *io) };
+        let mut dev: Dev<'_, '_> = BoardDevice {
             st: &mut self.dev,
-            io: Some(&mut *io),
+            glue: &mut glue,
         };
         let tx = &mut self.tx;
         self.handler
@@ -132,9 +135,10 @@ impl LinkProtocol for Framed {
     }
 
     fn on_wake(&mut self, io: &mut LinkIo<'_>) {
-        let mut dev = BoardDevice {
+        let mut glue = FwGlue { io: Some(&mut *io) };
+        let mut dev: Dev<'_, '_> = BoardDevice {
             st: &mut self.dev,
-            io: Some(&mut *io),
+            glue: &mut glue,
         };
         if let Err(e) = self.handler.poll(&mut dev) {
             defmt::warn!("deferred activation refused: {}", e);

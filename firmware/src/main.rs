@@ -39,7 +39,8 @@ mod watchdog;
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use heapless::spsc::Queue;
-use hydra_core::runtime::{Controller, Runtime};
+#[cfg(feature = "console")]
+use hydra_core::runtime::Runtime;
 use static_cell::StaticCell;
 
 use board::Board;
@@ -65,10 +66,14 @@ async fn main(spawner: Spawner) {
     flash_acr::enable_accelerator();
     let mut board = Board::new(p);
 
-    // The framed protocol and the boot law from the newest valid flash slot (built in
-    // place in a law buffer).
+    let coeffs = match program::runtime_coeffs() {
+        Ok(c) => c,
+        Err(e) => defmt::panic!("runtime configuration rejected: {}", e),
+    };
+    // The framed protocol and the runtime with the boot law from the newest valid flash
+    // slot (built in place in a law buffer) and the reference offsets saved with it.
     #[cfg(not(feature = "console"))]
-    let (proto, law) = {
+    let (proto, rt) = {
         let flash = flash::SlotFlash::new(board.flash);
         // `Framed` itself is small (its tables are statics): moved once into its cell.
         let fr = match framed::Framed::new(flash) {
@@ -85,38 +90,32 @@ async fn main(spawner: Spawner) {
             ),
             None => defmt::warn!("no valid table in flash: idle without a law"),
         }
-        let law = fr.dev.take_boot_law();
-        (fr, law)
+        let (rt, refused) = fr.dev.start(coeffs, boot);
+        if refused != 0 {
+            defmt::warn!("persisted offsets not restored (slaves {=u32:b})", refused);
+        }
+        (fr, rt)
     };
     #[cfg(feature = "console")]
-    let (proto, law) = match program::boot_law() {
-        Ok(l) => (console::Console::default(), Some(l)),
+    let (proto, rt) = match program::boot_law() {
+        Ok(l) => (
+            console::Console::default(),
+            Runtime::new(coeffs, Some(l), boot),
+        ),
         Err(e) => {
             defmt::error!("boot program rejected: {}; running without a law", e);
-            (console::Console::default(), None)
+            (
+                console::Console::default(),
+                Runtime::new(coeffs, None, boot),
+            )
         }
     };
-    // The boot law (built in place in a law buffer) and its valve nulls first: the DAC
-    // leaves mid-scale for the calibrated null before the runtime exists.
-    let nulls = law.as_ref().map(|l| l.null_codes());
-    if let Some(n) = nulls {
+    // The boot law's valve nulls first: the DAC leaves mid-scale for the calibrated null
+    // before the tick runs.
+    if rt.law().is_some() {
+        let n = rt.null_codes();
         ValveBank::publish_safe_codes(&n);
         board.io.valves.write(&n);
-    }
-    let coeffs = match program::runtime_coeffs() {
-        Ok(c) => c,
-        Err(e) => defmt::panic!("runtime configuration rejected: {}", e),
-    };
-    #[allow(unused_mut)] // mutable for the framed build's offsets
-    let mut rt = Runtime::new(coeffs, law, boot);
-    // Persisted offsets of absolute slaves (none on this board's incremental encoders).
-    #[cfg(not(feature = "console"))]
-    for (axis, off) in (0u8..).zip(proto.dev.boot_offsets.iter()) {
-        if let Some(o) = off {
-            if rt.restore_reference_offset(axis, *o).is_err() {
-                defmt::warn!("slave {}: persisted offset not restored", axis);
-            }
-        }
     }
     defmt::info!(
         "hydra firmware: boot {}, period {} us, state {}, flash prefetch+caches {}",

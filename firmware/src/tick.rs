@@ -1,4 +1,8 @@
-//! The hard-period tick: TIM7's update interrupt at the highest priority.
+//! The hard-period tick: TIM7's update interrupt at the highest priority, running
+//! core's board tick ([`hydra_core::runtime::TickLoop::run`], the same entry point the
+//! host's virtual board calls). This file is the glue: the DWT cycle counter as the
+//! clock, TIM7's update flag as the period flag, the SPSC queues to the host link and
+//! the independent watchdog ([`FwHost`]); the per-tick order of operations is core's.
 //!
 //! Deadline: the whole tick (encoder latch → runtime → valve write → watchdog feed) must
 //! finish within one period (1 ms by default, down to 100 µs). Nothing else runs at
@@ -6,22 +10,6 @@
 //! read is the interrupt entry (12 cycles) plus the longest critical section of the
 //! lower-priority code (the single-core `critical-section` masks interrupts; embassy's
 //! own sections are a few dozen cycles).
-//!
-//! Per tick:
-//! 1. `t0` ← DWT cycle counter; TIM7's update flag cleared; at most one command taken
-//!    from its queue; then the encoders are latched (the first thing `Runtime::tick_io`
-//!    does, about 30 cycles after the handler's entry);
-//! 2. the runtime's step with at most one queued command and the overrun flag of the
-//!    previous tick; valves and enable written;
-//! 3. the independent watchdog fed (only here: a tick that stops running resets the
-//!    board within the watchdog timeout);
-//! 4. every 10 ms a status snapshot is queued for the host link;
-//! 5. a [`TickSample`] (tick, master, per-axis target/actual/DAC code) is queued for the
-//!    host link's telemetry (a full queue drops it);
-//! 6. the tick's cycles are recorded (max, window mean); if TIM7's update flag is set
-//!    again the next period began before the tick finished, and if two tick starts are
-//!    more than 1.5 periods apart a period was skipped: either is an overrun, reported to
-//!    the runtime (which latches `Fault::Overrun`) at the next tick.
 
 use core::cell::RefCell;
 use critical_section::Mutex;
@@ -33,82 +21,82 @@ use embassy_stm32::Peri;
 use heapless::spsc::{Consumer, Producer};
 #[cfg(not(feature = "console"))]
 use hydra_core::runtime::State;
-use hydra_core::runtime::{Command, CommandError, Runtime, Status};
+use hydra_core::runtime::{Runtime, Status, TickHost, TickLoop};
 use static_cell::StaticCell;
 
 use crate::board::{BoardIo, PRESSURES, SLAVES, SYSCLK_HZ};
 use crate::laws::LawRef;
 use crate::watchdog::{self, Timeout};
 
+pub use hydra_core::runtime::{Reply, TickCommand};
+
 /// The runtime as this board runs it: the law in one of the two static law buffers
 /// (`crate::laws`), so installing one swaps a reference.
 pub type BoardRuntime = Runtime<LawRef, SLAVES, PRESSURES>;
 /// The status snapshot of this board.
 pub type BoardStatus = Status<SLAVES, PRESSURES>;
-
-/// A command for the tick, with the token its answer carries and when it was queued.
-#[derive(Clone, Copy, Debug, defmt::Format)]
-pub struct TickCommand {
-    /// The command.
-    pub cmd: Command,
-    /// Chosen by the sender; the reply carries it back.
-    pub token: u16,
-    /// DWT cycle count when it was queued: a command older than [`COMMAND_MAX_AGE_US`]
-    /// when the tick takes it is dropped, never applied (its sender has given up waiting
-    /// and answered the host already).
-    pub queued_at: u32,
-}
+/// One tick's telemetry sample of this board.
+pub type TickSample = hydra_core::runtime::TickSample<SLAVES>;
 
 /// Age beyond which a queued command is dropped unapplied, µs: the link's wait for an
 /// answer (`crate::link::COMMAND_WAIT_MS`) less one period, so a command whose wait
 /// timed out can never take effect later (e.g. a Start after a flash erase).
 pub const COMMAND_MAX_AGE_US: u32 = crate::link::COMMAND_WAIT_MS * 1000 - crate::program::PERIOD_US;
 
-/// A command's answer, sent back to the host link.
-#[derive(Clone, Copy, Debug, defmt::Format)]
-pub struct Reply {
-    /// The command.
-    pub cmd: Command,
-    /// The sender's token ([`TickCommand::token`]).
-    pub token: u16,
-    /// Applied and accepted (`Ok`), refused by the runtime (`Err(Some(e))`), or dropped
-    /// unapplied because it was older than [`COMMAND_MAX_AGE_US`] (`Err(None)`).
-    pub result: Result<(), Option<CommandError>>,
-}
-
-/// One tick's telemetry sample (raw fixed-point bits, as on the wire).
-#[derive(Clone, Copy, Debug)]
-#[cfg_attr(feature = "console", allow(dead_code))]
-pub struct TickSample {
-    /// Tick number since boot.
-    pub tick: u32,
-    /// Filtered master, I48F16 master counts (raw bits).
-    pub master: i64,
-    /// Per slave: target, I24F8 µm (raw bits).
-    pub target_um: [i32; SLAVES],
-    /// Per slave: measured position, I24F8 µm (raw bits).
-    pub actual_um: [i32; SLAVES],
-    /// Per slave: valve command, DAC LSB.
-    pub dac: [i16; SLAVES],
-}
-
-/// Status snapshots are queued every this many µs.
-pub const STATUS_PERIOD_US: u32 = 10_000;
-
-/// Everything the tick owns.
-pub struct Tick {
-    rt: BoardRuntime,
-    io: BoardIo,
+/// The tick's glue: clock, period timer, queues, watchdog.
+pub struct FwHost {
     timer: Timer<'static, TIM7>,
     cmd_rx: Consumer<'static, TickCommand>,
     reply_tx: Producer<'static, Reply>,
     status_tx: Producer<'static, BoardStatus>,
     sample_tx: Producer<'static, TickSample>,
-    period_cycles: u32,
-    last_start: Option<u32>,
-    overrun_pending: bool,
-    status_every: u32,
-    status_countdown: u32,
+}
+
+impl TickHost<SLAVES, PRESSURES> for FwHost {
+    #[inline(always)]
+    fn now_cycles(&mut self) -> u32 {
+        cortex_m::peripheral::DWT::cycle_count()
+    }
+    #[inline(always)]
+    fn clear_period_flag(&mut self) {
+        self.timer.clear_update_interrupt();
+    }
+    #[inline(always)]
+    fn period_flag(&mut self) -> bool {
+        self.timer.regs_core().sr().read().uif()
+    }
+    #[inline(always)]
+    fn take_command(&mut self) -> Option<TickCommand> {
+        self.cmd_rx.dequeue()
+    }
+    #[inline(always)]
+    fn feed_watchdog(&mut self) {
+        // The watchdog is fed here and nowhere else.
+        watchdog::pet();
+    }
+    #[inline(always)]
+    fn reply(&mut self, r: Reply) {
+        crate::link::REPLY.signal(r);
+        // A full reply queue drops the reply; the command was applied regardless.
+        let _ = self.reply_tx.enqueue(r);
+    }
+    #[inline(always)]
+    fn status(&mut self, st: &BoardStatus) {
+        // A full queue means the link is behind: skip this snapshot.
+        let _ = self.status_tx.enqueue(*st);
+    }
+    #[inline(always)]
+    fn sample(&mut self, s: &TickSample) {
+        // A full queue means the link is behind: dropped.
+        let _ = self.sample_tx.enqueue(*s);
+    }
+}
+
+/// Everything the tick owns.
+pub struct Tick {
+    tl: TickLoop<LawRef, SLAVES, PRESSURES>,
+    io: BoardIo,
+    host: FwHost,
 }
 
 /// The channels between the tick and the host link.
@@ -135,88 +123,22 @@ impl Tick {
         let timer = Timer::new(tim7);
         timer.set_period_us(period_us, RoundTo::Slower);
         timer.enable_update_interrupt(true);
-        let period_cycles = (SYSCLK_HZ / 1_000_000).saturating_mul(period_us);
-        let status_every = (STATUS_PERIOD_US / period_us).max(1);
         Self {
-            rt,
+            tl: TickLoop::new(rt, SYSCLK_HZ / 1_000_000, COMMAND_MAX_AGE_US),
             io,
-            timer,
-            cmd_rx: links.cmd_rx,
-            reply_tx: links.reply_tx,
-            status_tx: links.status_tx,
-            sample_tx: links.sample_tx,
-            period_cycles,
-            last_start: None,
-            overrun_pending: false,
-            status_every,
-            status_countdown: status_every,
+            host: FwHost {
+                timer,
+                cmd_rx: links.cmd_rx,
+                reply_tx: links.reply_tx,
+                status_tx: links.status_tx,
+                sample_tx: links.sample_tx,
+            },
         }
     }
 
     #[inline(always)]
     fn run(&mut self) {
-        let t0 = cortex_m::peripheral::DWT::cycle_count();
-        // The update flag is cleared first, so the check at the end sees only the *next*
-        // period's update event.
-        self.timer.clear_update_interrupt();
-        let queued = self.cmd_rx.dequeue();
-        // A command older than its sender's wait is dropped, never applied.
-        let max_age = (SYSCLK_HZ / 1_000_000).saturating_mul(COMMAND_MAX_AGE_US);
-        let fresh = queued.filter(|c| t0.wrapping_sub(c.queued_at) <= max_age);
-        let overrun = self.overrun_pending || self.skipped(t0);
-        // 1.–2. latch, step, write (encoders are the first thing tick_io touches).
-        let reply = self.rt.tick_io(&mut self.io, fresh.map(|c| c.cmd), overrun);
-        self.overrun_pending = false;
-        // 3. the watchdog is fed here and nowhere else.
-        watchdog::pet();
-        if let Some(c) = queued {
-            let result = match (fresh, reply) {
-                (Some(_), Some(r)) => r.map_err(Some),
-                // Applied with no answer cannot happen (`tick_io` answers every command).
-                (Some(_), None) => Ok(()),
-                (None, _) => Err(None),
-            };
-            let reply = Reply {
-                cmd: c.cmd,
-                token: c.token,
-                result,
-            };
-            crate::link::REPLY.signal(reply);
-            // A full reply queue drops the reply; the command was applied regardless.
-            let _ = self.reply_tx.enqueue(reply);
-        }
-        // 4. status for the host link.
-        self.status_countdown = self.status_countdown.saturating_sub(1);
-        if self.status_countdown == 0 {
-            self.status_countdown = self.status_every;
-            // A full queue means the link is behind: skip this snapshot.
-            let _ = self.status_tx.enqueue(*self.rt.status());
-        }
-        // 5. telemetry sample (a full queue means the link is behind: dropped).
-        let st = self.rt.status();
-        let _ = self.sample_tx.enqueue(TickSample {
-            tick: st.tick,
-            master: st.master.to_bits(),
-            target_um: st.target_um.map(|v| v.to_bits()),
-            actual_um: st.pos_um.map(|v| v.to_bits()),
-            dac: st.dac.map(|d| d.get()),
-        });
-        // 6. timing and overrun.
-        let t1 = cortex_m::peripheral::DWT::cycle_count();
-        self.rt.record_tick_cycles(t1.wrapping_sub(t0));
-        if self.timer.regs_core().sr().read().uif() {
-            self.overrun_pending = true;
-        }
-    }
-
-    /// Whether more than 1.5 periods passed since the previous tick started.
-    #[inline(always)]
-    fn skipped(&mut self, t0: u32) -> bool {
-        let late = self.last_start.is_some_and(|prev| {
-            t0.wrapping_sub(prev) > self.period_cycles.saturating_add(self.period_cycles / 2)
-        });
-        self.last_start = Some(t0);
-        late
+        self.tl.run(&mut self.io, &mut self.host);
     }
 }
 
@@ -225,7 +147,11 @@ impl Tick {
 /// meanwhile): keep `f` short, it delays the next tick by its duration. `None` before
 /// [`start`].
 pub fn with_runtime<R>(f: impl FnOnce(&mut BoardRuntime) -> R) -> Option<R> {
-    critical_section::with(|cs| TICK.borrow_ref_mut(cs).as_mut().map(|t| f(&mut t.rt)))
+    critical_section::with(|cs| {
+        TICK.borrow_ref_mut(cs)
+            .as_mut()
+            .map(|t| f(t.tl.runtime_mut()))
+    })
 }
 
 #[cfg(not(feature = "console"))]
@@ -256,20 +182,17 @@ pub fn stalled<R>(f: impl FnOnce() -> R) -> Result<R, StallError> {
     critical_section::with(|cs| {
         let mut cell = TICK.borrow_ref_mut(cs);
         if let Some(t) = cell.as_mut() {
-            if !matches!(t.rt.state(), State::Idle | State::Fault) {
+            if !matches!(t.tl.runtime().state(), State::Idle | State::Fault) {
                 return Err(StallError::NotIdle);
             }
-            while t.cmd_rx.dequeue().is_some() {}
+            while t.host.cmd_rx.dequeue().is_some() {}
         }
         let before = watchdog::current();
         watchdog::set(Timeout::STALL);
         let r = f();
         if let Some(t) = cell.as_mut() {
-            let c = *t.rt.coeffs();
             // Idle/Fault was checked above and nothing ran since: cannot be refused.
-            let _ = t.rt.set_coeffs(c);
-            t.last_start = None;
-            t.overrun_pending = false;
+            let _ = t.tl.resync();
         }
         watchdog::set(before);
         Ok(r)
@@ -281,7 +204,7 @@ pub fn start(tick: Tick) {
     let t = TICK_CELL.init(tick);
     // From the boot timeout to the running one (fed by every tick from now on).
     watchdog::set(Timeout::TICK);
-    t.timer.start();
+    t.host.timer.start();
     critical_section::with(|cs| {
         TICK.borrow_ref_mut(cs).replace(t);
     });

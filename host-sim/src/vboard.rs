@@ -1,334 +1,322 @@
-//! The virtual board: the same `hydra_core` runtime and protocol handler as the firmware,
-//! against the simulated tangent axis of the reference machine (`shared/PLANT.md`).
+//! The virtual board: the firmware's board (`hydra_core::profile`: two slaves, 256-row
+//! tables, the reference gains, the runtime limits) against the simulated reference
+//! machine — the tangent axis on slave 0 and the side press on slave 1
+//! ([`crate::plant::BoardPlant`]). It runs core's code exactly as the firmware does:
+//! the tick is core's [`TickLoop::run`] (the firmware's TIM7 handler calls the same), the
+//! protocol's device is core's [`BoardDevice`] (the firmware's `device.rs` is only glue
+//! too), the handler and the store are core's.
 //!
-//! | board | virtual board |
+//! | board (`firmware/`) | virtual board |
 //! |---|---|
-//! | encoder timers, DAC | plant ([`crate::plant`]) sampled through the scenario's encoders; the DAC code is applied one period after its sample |
-//! | `Runtime<Follower<1, N>, 1, 0>` tick | the same, once per simulated period |
-//! | USART + DMA | a pseudo-terminal (`host-sim serve --pty`) |
-//! | two flash sectors | [`RamFlash`] (in memory: lost when the process ends) |
+//! | TIM5 / TIM2 / TIM3 encoders | [`VirtualIo`]: the plant's positions through the scenario's encoders |
+//! | ADC1 chamber pressures | the plant's chamber pressures through the scenario's transducers, bar |
+//! | E-stop input PE8 | [`VirtualIo::estop`] (closed unless a test opens it) |
+//! | DAC1 ch 1/2 + valve enable PE7 | the codes (clamped to the board's DAC range) drive the plant's valves, 0 while unpowered; a code acts from the next period on (one period of computation delay) |
+//! | DWT cycle counter | simulated time in ns plus the host's real compute time of the tick |
+//! | TIM7 period, overrun flag | one tick per simulated period (never late) |
+//! | SPSC queues to the link | one command slot, answered by the tick that applies it |
+//! | two flash sectors | [`RamFlash`] (in memory, or in a file: `serve --flash`) |
 //!
-//! Units: table master in master counts = mdeg of the rotary table (encoder 0.001°),
-//! slave positions in µm (encoder 1 µm per count). The master rotates through the
-//! scenario's profile from the first `Start` on; before that it rests at its start angle.
-//! A motion command is answered after the tick that applies it (the firmware's UART task
-//! likewise waits for the tick's reply).
+//! Units: master counts = mdeg of the rotary table (encoder 0.001°), slave positions in
+//! µm (encoders 1 µm per count). The master rotates through the scenario's profile from
+//! the first accepted `Start` on; before that it rests at its start angle. A motion
+//! command is answered by the next tick, which applies it — the firmware's link task
+//! likewise waits for the tick's reply; that tick is the next period of the simulated
+//! timeline, not an extra one (`serve` paces on [`VBoard::ticks`]).
 
-use crate::plant::sensors::dac_to_unit;
-use crate::plant::{HydraulicAxis, MasterProfile};
+use crate::plant::{valve_command, BoardPlant};
 use crate::scenario::Scenario;
-use hydra_core::axis::AxisConfig;
-use hydra_core::follower::{Follower, FollowerConfig};
-use hydra_core::protocol::msg::{AxisSample, StatusMsg, Telemetry};
+use hydra_core::dac::DacRange;
+use hydra_core::follower::Follower;
+use hydra_core::profile;
+use hydra_core::protocol::device::{BoardDevice, DeviceGlue, LawDevice};
+use hydra_core::protocol::msg::{AxisSample, Telemetry};
 use hydra_core::protocol::ramflash::RamFlash;
-use hydra_core::protocol::report::{
-    command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
-};
-use hydra_core::protocol::{
-    apply_param, apply_saved_set, reference_offset_um, Device, Handler, Motion, Nak, NakCode,
-    ParamId, ParamRecord, Store,
-};
+use hydra_core::protocol::{Handler, Store};
 use hydra_core::runtime::{
-    BootCause, Command, CommandError, EncoderSample, Runtime, RuntimeConfig, Sample, State,
+    BootCause, Command, CommandError, EncoderInput, EncoderSample, PressureInput, Reply, Runtime,
+    SafetyInput, Status, TickCommand, TickHost, TickLoop, TickSample, ValveOutput,
 };
-use hydra_core::table::{AxisLimits, CamTable, TableLimits};
-use hydra_core::units::{Counts, MasterRate, PosUm, PressureBar, VelUmPerS};
+use hydra_core::table::CamTable;
+use hydra_core::units::{Counts, DacCode, PressureBar};
+use std::time::Instant;
 
-/// Table capacity of the virtual board, rows: the board's (`hydra_core::profile`), so a
-/// table the board would refuse is refused here too.
-pub const CAPACITY: usize = hydra_core::profile::TABLE_NODES;
-/// Slave axes (the tangent cylinder).
-pub const AXES: usize = 1;
-/// Flash slot size, bytes (covers 256 rows of 12 bytes and every parameter record).
-pub const SLOT_BYTES: u32 = 8 * 1024;
-/// Firmware version reported by Info.
+/// Slave axes: the board's.
+pub const AXES: usize = profile::SLAVES;
+/// Pressure inputs: the board's (A, B per slave).
+pub const PRESSURES: usize = profile::PRESSURES;
+/// Table capacity, rows: the board's, so a table the board would refuse is refused here.
+pub const CAPACITY: usize = profile::TABLE_NODES;
+/// Flash slot size, bytes (covers 256 rows of two slaves and every parameter record).
+pub const SLOT_BYTES: u32 = 16 * 1024;
+/// Firmware version reported by Info: the firmware crate's version of this workspace.
 pub const FIRMWARE: [u8; 3] = [0, 1, 0];
 
-/// The law, on the heap: built in place (`Follower::unconfigured` → `configure` →
+/// A law buffer, on the heap: built in place (`Follower::unconfigured` → `configure` →
 /// `load_table`) and installed by moving the pointer, as the firmware swaps references.
-type Law = Box<Follower<AXES, CAPACITY>>;
+pub type Law = Box<Follower<AXES, CAPACITY>>;
+/// The runtime of the virtual board.
+pub type VRuntime = Runtime<Law, AXES, PRESSURES>;
+type Table = CamTable<AXES, CAPACITY>;
+type DeviceState = LawDevice<Law, Box<Table>, AXES, CAPACITY>;
 
-/// The simulated machine plus the runtime: the protocol's [`Device`].
-pub struct Machine {
-    rt: Runtime<Law, AXES, 0>,
-    fcfg: FollowerConfig<AXES>,
-    limits: TableLimits<AXES>,
-    /// The boot configuration (`fcfg`, `limits` before any SetParam).
-    boot: (FollowerConfig<AXES>, TableLimits<AXES>),
-    plant: HydraulicAxis,
-    master: MasterProfile,
+/// The board's inputs and outputs over the plant: core's board traits.
+pub struct VirtualIo {
+    /// The machine.
+    pub plant: BoardPlant,
+    /// The E-stop chain open (stop requested).
+    pub estop: bool,
+    /// Master time, s (advances once started).
+    pub t_master: f64,
+    /// The master has been started (by the first accepted Start).
+    pub started: bool,
     master_res_deg: f64,
-    step_s: f64,
+    range: DacRange,
+    written: [DacCode; AXES],
+    enable: bool,
+    applied: [f64; AXES],
+}
+
+impl EncoderInput<AXES> for VirtualIo {
+    fn latch(&mut self) -> EncoderSample<AXES> {
+        let m = (self.plant.master.angle_deg(self.t_master) / self.master_res_deg).round();
+        let mut slaves = [Counts(0); AXES];
+        for (k, c) in slaves.iter_mut().enumerate() {
+            *c = Counts(self.plant.slave_count(k) as i32);
+        }
+        EncoderSample {
+            master: Counts(m as i32),
+            slaves,
+        }
+    }
+}
+
+impl PressureInput<PRESSURES> for VirtualIo {
+    fn read(&mut self) -> [PressureBar; PRESSURES] {
+        let mut p = [PressureBar::ZERO; PRESSURES];
+        for (k, s) in self.plant.slaves.iter().enumerate().take(AXES) {
+            let (a, b) = s.pressures_bar();
+            if let Some(pair) = p.get_mut(2 * k..2 * k + 2) {
+                pair[0] = PressureBar::saturating_from_num(a);
+                pair[1] = PressureBar::saturating_from_num(b);
+            }
+        }
+        p
+    }
+}
+
+impl SafetyInput for VirtualIo {
+    fn estop_active(&mut self) -> bool {
+        self.estop
+    }
+}
+
+impl ValveOutput<AXES> for VirtualIo {
+    fn write(&mut self, codes: &[DacCode; AXES]) {
+        self.written = codes.map(|c| self.range.clamp(c));
+    }
+    fn set_enable(&mut self, on: bool) {
+        self.enable = on;
+    }
+}
+
+impl VirtualIo {
+    /// The plant runs one period (`steps` integration steps) with the codes of the
+    /// previous tick; this tick's codes act from the next period on.
+    fn advance(&mut self, steps: u32, period_s: f64) {
+        for _ in 0..steps {
+            self.plant.step(&self.applied);
+        }
+        for (u, c) in self.applied.iter_mut().zip(&self.written) {
+            *u = valve_command(c.get(), self.enable);
+        }
+        if self.started {
+            self.t_master += period_s;
+        }
+    }
+
+    /// Whether the valve power is on (the last tick's enable).
+    pub fn enabled(&self) -> bool {
+        self.enable
+    }
+}
+
+/// The tick's glue: a simulated clock, one command slot, the last reply and sample.
+struct VHost {
+    sim_ns: u64,
+    wall: Instant,
+    cmd: Option<TickCommand>,
+    reply: Option<Reply>,
+    sample: Option<TickSample<AXES>>,
+    feeds: u64,
+}
+
+impl TickHost<AXES, PRESSURES> for VHost {
+    fn now_cycles(&mut self) -> u32 {
+        // ns of simulated time at the tick's start plus the host's compute time since.
+        let ns = self
+            .sim_ns
+            .wrapping_add(self.wall.elapsed().as_nanos() as u64);
+        ns as u32
+    }
+    fn clear_period_flag(&mut self) {}
+    fn period_flag(&mut self) -> bool {
+        // The simulated clock stops while the tick runs: never late.
+        false
+    }
+    fn take_command(&mut self) -> Option<TickCommand> {
+        self.cmd.take()
+    }
+    fn feed_watchdog(&mut self) {
+        self.feeds += 1;
+    }
+    fn reply(&mut self, r: Reply) {
+        self.reply = Some(r);
+    }
+    fn status(&mut self, _st: &Status<AXES, PRESSURES>) {
+        // The handler reads the runtime's status directly (`Device::status`).
+    }
+    fn sample(&mut self, s: &TickSample<AXES>) {
+        self.sample = Some(*s);
+    }
+}
+
+/// The simulated machine, its board I/O and the runtime's tick: the protocol device's
+/// glue ([`DeviceGlue`]).
+pub struct Machine {
+    tl: Option<TickLoop<Law, AXES, PRESSURES>>,
+    /// The board's I/O over the plant.
+    pub io: VirtualIo,
+    host: VHost,
     steps: u32,
     period_s: f64,
-    /// Master time, s (advances once started).
-    t_master: f64,
-    started: bool,
-    dac: hydra_core::units::DacCode,
-    enc_um: f64,
+    period_ns: u64,
+    ticks: u64,
 }
 
 impl Machine {
-    /// The tangent axis of `scn` (its first follower axis) with the reference gains.
-    pub fn new(scn: &Scenario) -> anyhow::Result<Self> {
-        let ax = scn
-            .axes
-            .first()
-            .ok_or_else(|| anyhow::anyhow!("the scenario has no axis"))?;
-        let x0_mm = ax.x0_mm.unwrap_or(250.0);
-        let plant = ax.plant(scn.supply(), x0_mm * 1e-3);
-        // No-load speeds at full opening, measured on the plant itself (0.3 s open loop).
-        let speed = |u: f64| {
-            let mut p = plant.clone();
-            for _ in 0..(0.3 / scn.step_s()) as usize {
-                p.step(u, scn.step_s());
-            }
-            p.v_m_per_s().abs() * 1e6
-        };
-        let (v_ext, v_ret) = (speed(1.0), speed(-1.0));
-        let period_us = scn.sim.period_us;
-        // Velocity feed-forward from the no-load speeds: full DAC range at full speed.
-        let axis = AxisConfig {
-            kp_lsb_per_um: 0.2,
-            kv_pos_lsb_per_um_s: (2047.0 / v_ext) as f32,
-            kv_neg_lsb_per_um_s: (2047.0 / v_ret) as f32,
-            following_error_um: 20_000.0,
-            ..AxisConfig::default()
-        };
-        let fcfg = FollowerConfig {
-            period_us,
-            axes: [axis],
-            ..FollowerConfig::default()
-        };
-        let rcfg = RuntimeConfig::<AXES> {
-            period_us,
-            following_error_limit_um: [20_000.0],
-            master_max_speed_counts_per_s: 100_000.0,
-            slave_max_speed_um_per_s: [2_000_000.0],
-            ..RuntimeConfig::default()
-        };
-        let rcoeffs = rcfg
-            .build()
-            .map_err(|e| anyhow::anyhow!("runtime config: {e:?}"))?;
-        let limits = TableLimits {
-            // 3 °/s nominal + 3 % ripple, with margin: 5 °/s = 5000 mdeg/s.
-            master_speed_per_s: MasterRate::from_num(5000),
-            axes: [AxisLimits {
-                min_um: PosUm::from_num(0),
-                max_um: PosUm::from_num(ax.cylinder.stroke_mm * 1000.0),
-                max_speed_um_per_s: VelUmPerS::from_num(v_ext.min(v_ret)),
-            }],
-        };
+    fn new(scn: &Scenario) -> anyhow::Result<Self> {
+        let period_us = profile::PERIOD_US;
+        let step_s = scn.step_s();
+        let steps = (f64::from(period_us) * 1e-6 / step_s).round().max(1.0) as u32;
         Ok(Self {
-            rt: Runtime::new(rcoeffs, None, BootCause::Normal),
-            fcfg,
-            limits,
-            boot: (fcfg, limits),
-            plant,
-            master: scn.master_profile()?,
-            master_res_deg: scn.master.resolution_deg,
-            step_s: scn.step_s(),
-            steps: scn.steps_per_period(),
-            period_s: scn.period_s(),
-            t_master: 0.0,
-            started: false,
-            dac: hydra_core::units::DacCode::NULL,
-            enc_um: ax.sensors.encoder_um,
+            tl: None,
+            io: VirtualIo {
+                plant: BoardPlant::new(scn, None, AXES)?,
+                estop: false,
+                t_master: 0.0,
+                started: false,
+                master_res_deg: scn.master.resolution_deg,
+                range: profile::dac_range()
+                    .ok_or_else(|| anyhow::anyhow!("the board profile's DAC range"))?,
+                written: [DacCode::NULL; AXES],
+                enable: false,
+                applied: [0.0; AXES],
+            },
+            host: VHost {
+                sim_ns: 0,
+                wall: Instant::now(),
+                cmd: None,
+                reply: None,
+                sample: None,
+                feeds: 0,
+            },
+            steps,
+            period_s: f64::from(period_us) * 1e-6,
+            period_ns: u64::from(period_us) * 1000,
+            ticks: 0,
         })
     }
 
-    /// Control period, s.
+    /// Control period, s (the board's).
     pub fn period_s(&self) -> f64 {
         self.period_s
     }
 
-    /// The runtime.
-    pub fn runtime(&self) -> &Runtime<Law, AXES, 0> {
-        &self.rt
+    /// The runtime (`None` only during boot).
+    pub fn runtime(&self) -> Option<&VRuntime> {
+        self.tl.as_ref().map(TickLoop::runtime)
     }
 
-    fn sample(&self) -> Sample<AXES, 0> {
-        let deg = self.master.angle_deg(self.t_master);
-        let m = (deg / self.master_res_deg).round() as i32;
-        let x = (self.plant.x_m() * 1e6 / self.enc_um).round() as i32;
-        Sample {
-            enc: EncoderSample {
-                master: Counts(m),
-                slaves: [Counts(x)],
-            },
-            pressure_bar: [PressureBar::ZERO; 0],
-            estop: false,
-            overrun: false,
-        }
+    /// Ticks run since boot (one per simulated period).
+    pub fn ticks(&self) -> u64 {
+        self.ticks
     }
 
-    /// One control period: sample, runtime step (with `cmd`), then the plant runs the
-    /// period with the previous period's DAC code (one period of computation delay).
-    pub fn tick(&mut self, cmd: Option<Command>) -> Option<Result<(), CommandError>> {
-        let s = self.sample();
-        let t0 = std::time::Instant::now();
-        let out = self.rt.step(&s, cmd);
-        let ns = u32::try_from(t0.elapsed().as_nanos()).unwrap_or(u32::MAX);
-        self.rt.record_tick_cycles(ns);
-        let u = dac_to_unit(self.dac);
-        for _ in 0..self.steps {
-            self.plant.step(u, self.step_s);
-        }
-        self.dac = if out.enable {
-            out.dac[0]
-        } else {
-            self.rt.null_codes()[0]
-        };
-        if self.started {
-            self.t_master += self.period_s;
-        }
-        out.reply
+    /// Times the tick fed the watchdog (once per tick, as on the board).
+    pub fn watchdog_feeds(&self) -> u64 {
+        self.host.feeds
+    }
+
+    /// One control period: core's tick (sample → runtime → valves), then the plant runs
+    /// the period. Returns the reply to a command the tick took.
+    fn tick(&mut self) -> Option<Reply> {
+        let tl = self.tl.as_mut()?;
+        self.host.wall = Instant::now();
+        tl.run(&mut self.io, &mut self.host);
+        self.io.advance(self.steps, self.period_s);
+        self.host.sim_ns = self.host.sim_ns.wrapping_add(self.period_ns);
+        self.ticks += 1;
+        self.host.reply.take()
     }
 
     /// The telemetry sample of the last tick.
-    pub fn telemetry(&self) -> Telemetry {
-        let st = self.rt.status();
-        let mut t = Telemetry {
-            tick: st.tick,
-            master: st.master.to_bits(),
-            axes: heapless::Vec::new(),
-        };
-        for i in 0..AXES {
-            let _ = t.axes.push(AxisSample {
-                target_um: st.target_um[i].to_bits(),
-                actual_um: st.pos_um[i].to_bits(),
-                dac: st.dac[i].get(),
-            });
+    fn telemetry(&self) -> Telemetry {
+        let mut t = Telemetry::default();
+        if let Some(s) = self.host.sample {
+            t.tick = s.tick;
+            t.master = s.master;
+            for ((&target_um, &actual_um), &dac) in s.target_um.iter().zip(&s.actual_um).zip(&s.dac)
+            {
+                let _ = t.axes.push(AxisSample {
+                    target_um,
+                    actual_um,
+                    dac,
+                });
+            }
         }
         t
     }
 }
 
-/// A law for `table` with `cfg`, built in place on the heap.
-fn build_law(
-    cfg: &FollowerConfig<AXES>,
-    table: &CamTable<AXES, CAPACITY>,
-) -> Result<Law, hydra_core::follower::FollowerError> {
-    let mut f: Law = Box::new(Follower::unconfigured());
-    f.configure(cfg)?;
-    f.load_table(table);
-    Ok(f)
-}
-
-impl Device<AXES, CAPACITY> for Machine {
-    fn firmware(&self) -> [u8; 3] {
-        FIRMWARE
+impl DeviceGlue<Law, AXES, PRESSURES> for Machine {
+    fn read<R>(&self, f: impl FnOnce(&VRuntime) -> R) -> Option<R> {
+        self.tl.as_ref().map(|t| f(t.runtime()))
     }
-    fn period_us(&self) -> u32 {
-        self.fcfg.period_us
+    fn write<R>(&mut self, f: impl FnOnce(&mut VRuntime) -> R) -> Option<R> {
+        self.tl.as_mut().map(|t| f(t.runtime_mut()))
     }
-    fn table_limits(&self) -> TableLimits<AXES> {
-        self.limits
-    }
-    fn active_table(&self) -> Option<&CamTable<AXES, CAPACITY>> {
-        self.rt.law().map(|l| l.table())
-    }
-    fn at_safe_point(&self) -> bool {
-        self.rt.at_safe_point()
-    }
-    fn all_idle(&self) -> bool {
-        matches!(self.rt.state(), State::Idle | State::Fault)
-    }
-    fn install_table(&mut self, table: &CamTable<AXES, CAPACITY>) -> Result<(), Nak> {
-        let f = build_law(&self.fcfg, table).map_err(|_| refused(REFUSED_LAW))?;
-        // at_safe_point() was checked by the handler, so Busy would be a handler bug.
-        self.rt
-            .install(f)
-            .map(|_| ())
-            .map_err(|_| refused(REFUSED_NOT_SAFE))
-    }
-    fn command(&mut self, m: Motion) -> Result<(), Nak> {
-        let cmd = motion_command(m);
-        let state = state_code(self.rt.state());
-        match self.tick(Some(cmd)) {
-            Some(Err(e)) => Err(command_nak(state, e)),
-            _ => {
-                if m == Motion::Start {
-                    self.started = true;
+    fn command(&mut self, cmd: Command) -> Option<Result<(), CommandError>> {
+        let queued_at = self.host.now_cycles();
+        self.host.cmd = Some(TickCommand {
+            cmd,
+            token: 0,
+            queued_at,
+        });
+        let r = self.tick()?.result.map_err(|e| e.ok_or(()));
+        match r {
+            Ok(()) => {
+                if cmd == Command::Start {
+                    self.io.started = true;
                 }
-                Ok(())
+                Some(Ok(()))
             }
+            Err(Ok(e)) => Some(Err(e)),
+            // Dropped unapplied (cannot happen here: the tick takes it at once).
+            Err(Err(())) => None,
         }
     }
-    fn persisted_offset_um(&self, axis: u8) -> Option<f32> {
-        self.rt.absolute_offset_um(axis).map(|o| o.to_num())
-    }
-    fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
-        let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
-        if param == ParamId::SlaveOffsetUm {
-            let off = reference_offset_um(axis, value)?;
-            return self
-                .rt
-                .restore_reference_offset(axis, off)
-                .map_err(|_| range);
-        }
-        if !self.all_idle() {
-            return Err(Nak::new(NakCode::NotIdle));
-        }
-        let mut f = self.fcfg;
-        let mut lim = self.limits;
-        let active = self.rt.law().map(|l| l.table());
-        apply_param(&mut f, &mut lim, active, axis, param, value)?;
-        // Rebuild the law if one runs.
-        if let Some(t) = self.rt.law().map(|l| l.table()) {
-            let law = build_law(&f, t).map_err(|_| range)?;
-            self.rt
-                .install(law)
-                .map_err(|_| Nak::new(NakCode::NotIdle))?;
-        }
-        self.fcfg = f;
-        self.limits = lim;
-        Ok(())
-    }
-    fn set_params(&mut self, records: &[ParamRecord]) -> Result<(), Nak> {
-        // Boot only: the whole set on copies, kept only if all of it is valid.
-        if self.rt.law().is_some() {
-            return Err(Nak::new(NakCode::NotIdle));
-        }
-        let (mut f, mut lim) = (self.fcfg, self.limits);
-        let mut offsets = [None; AXES];
-        apply_saved_set::<AXES, CAPACITY>(&mut f, &mut lim, &mut offsets, records)?;
-        for (axis, off) in (0u8..).zip(offsets) {
-            if let Some(o) = off {
-                let range = Nak::with(
-                    NakCode::ParamRange,
-                    u16::from(axis),
-                    ParamId::SlaveOffsetUm as u8,
-                );
-                self.rt
-                    .restore_reference_offset(axis, o)
-                    .map_err(|_| range)?;
-            }
-        }
-        (self.fcfg, self.limits) = (f, lim);
-        Ok(())
-    }
-    fn reset_params(&mut self) -> Result<(), Nak> {
-        if self.rt.law().is_some() {
-            return Err(Nak::new(NakCode::NotIdle));
-        }
-        (self.fcfg, self.limits) = self.boot;
-        // A refused slot's restored reference offsets go too.
-        for axis in 0..AXES as u8 {
-            let _ = self.rt.restore_reference_offset(axis, PosUm::ZERO);
-        }
-        Ok(())
-    }
-    fn status(&self, out: &mut StatusMsg) {
-        // The simulation has no CPU clock: its timing fields are 0 (reported as is).
-        fill_status(self.rt.status(), |c| c, out);
+    fn cycles_to_ns(&self, cycles: u32) -> u32 {
+        // The clock counts ns.
+        cycles
     }
 }
 
-/// The whole virtual board: machine, protocol handler and flash.
+/// The whole virtual board: machine, the protocol's device state, handler and flash.
 pub struct VBoard {
     /// The machine.
     pub machine: Machine,
+    dev: DeviceState,
     /// The protocol handler.
     pub handler: Handler<AXES, CAPACITY>,
     /// The flash (two slots).
@@ -336,22 +324,51 @@ pub struct VBoard {
 }
 
 impl VBoard {
-    /// A board on the reference tangent scenario, booted from an empty flash.
+    /// A board on `scn`'s machine, booted from an empty flash.
     pub fn new(scn: &Scenario) -> anyhow::Result<Self> {
         Self::with_flash(scn, RamFlash::new(2 * SLOT_BYTES as usize))
     }
 
     /// A board booted from `flash` (e.g. another board's flash after a Save: a power
-    /// cycle). `flash` must be at least two slots ([`SLOT_BYTES`] each).
+    /// cycle), as the firmware boots: the handler loads the newest valid slot and the
+    /// law is built from it before the runtime exists, then the runtime starts with it.
+    /// `flash` must be at least two slots ([`SLOT_BYTES`] each).
     pub fn with_flash(scn: &Scenario, flash: RamFlash) -> anyhow::Result<Self> {
         let mut machine = Machine::new(scn)?;
+        let range = machine.io.range;
+        let mut dev = LawDevice::new(
+            profile::follower_config(range.max_code().unsigned_abs()),
+            profile::table_limits(),
+            Box::new(Table::empty()),
+            [
+                Box::new(Follower::unconfigured()),
+                Box::new(Follower::unconfigured()),
+            ],
+            FIRMWARE,
+        );
         let store = Store::new::<_, AXES, CAPACITY>(&flash, 0, SLOT_BYTES)
             .map_err(|e| anyhow::anyhow!("flash geometry: {e:?}"))?;
         let mut handler = Handler::new(store);
         let mut flash = flash;
-        handler.boot(&mut machine, &mut flash);
+        handler.boot(
+            &mut BoardDevice::<_, _, _, AXES, CAPACITY, PRESSURES> {
+                st: &mut dev,
+                glue: &mut machine,
+            },
+            &mut flash,
+        );
+        let coeffs = profile::runtime_config()
+            .build()
+            .map_err(|e| anyhow::anyhow!("the board profile's runtime limits: {e:?}"))?;
+        let (rt, refused) = dev.start(coeffs, BootCause::Normal);
+        anyhow::ensure!(
+            refused == 0,
+            "saved reference offsets refused (slaves {refused:b})"
+        );
+        machine.tl = Some(TickLoop::new(rt, 1000, u32::MAX / 1000));
         Ok(Self {
             machine,
+            dev,
             handler,
             flash,
         })
@@ -391,22 +408,47 @@ impl VBoard {
         Ok(())
     }
 
-    /// Received bytes → responses through `tx`.
-    pub fn on_bytes(&mut self, bytes: &[u8], tx: &mut impl FnMut(&[u8])) {
-        self.handler
-            .on_bytes(&mut self.machine, &mut self.flash, bytes, tx);
+    /// The runtime.
+    pub fn runtime(&self) -> &VRuntime {
+        // Set at the end of `with_flash`: always present on a built board.
+        match self.machine.runtime() {
+            Some(rt) => rt,
+            None => unreachable!("the runtime is built at boot"),
+        }
     }
 
-    /// One control period, with telemetry through `tx` when due.
+    /// Ticks run since boot (one per simulated period, commands' ticks included).
+    pub fn ticks(&self) -> u64 {
+        self.machine.ticks()
+    }
+
+    /// Received bytes → responses through `tx`.
+    pub fn on_bytes(&mut self, bytes: &[u8], tx: &mut impl FnMut(&[u8])) {
+        let mut dev = BoardDevice::<_, _, _, AXES, CAPACITY, PRESSURES> {
+            st: &mut self.dev,
+            glue: &mut self.machine,
+        };
+        self.handler.on_bytes(&mut dev, &mut self.flash, bytes, tx);
+    }
+
+    /// One control period, with telemetry through `tx` when due; then the link side's
+    /// periodic work (a deferred activation, the host-link watchdog), as the firmware's
+    /// link task does after each tick.
     pub fn tick(&mut self, tx: &mut impl FnMut(&[u8])) {
-        self.machine.tick(None);
+        self.machine.tick();
+        let mut dev = BoardDevice::<_, _, _, AXES, CAPACITY, PRESSURES> {
+            st: &mut self.dev,
+            glue: &mut self.machine,
+        };
         // A refused deferred activation keeps the running table; Status shows the id.
-        let _ = self.handler.poll(&mut self.machine);
+        let _ = self.handler.poll(&mut dev);
         // The host-link watchdog on the board's own clock (ticks × period).
-        let ms = u64::from(self.machine.runtime().status().tick)
-            * u64::from(self.machine.runtime().coeffs().period_us)
-            / 1000;
-        self.handler.watch_link(&mut self.machine, ms as u32);
+        let ms = self.machine.ticks() * self.machine.period_ns / 1_000_000;
+        let mut dev = BoardDevice::<_, _, _, AXES, CAPACITY, PRESSURES> {
+            st: &mut self.dev,
+            glue: &mut self.machine,
+        };
+        self.handler.watch_link(&mut dev, ms as u32);
         let m = &self.machine;
         self.handler.on_tick(tx, || m.telemetry());
     }

@@ -20,6 +20,7 @@
 
 pub mod cobs;
 pub mod crc;
+pub mod device;
 pub mod frame;
 pub mod handler;
 pub mod msg;
@@ -36,6 +37,7 @@ pub mod report;
 pub mod store;
 pub mod wire;
 
+pub use device::{BoardDevice, DeviceGlue, LawBuffer, LawDevice};
 pub use handler::{Device, Handler, Motion};
 pub use msg::{Nak, NakCode, ParamId, Request, Response};
 pub use overrides::{ParamOverrides, ParamRecord};

@@ -12,6 +12,7 @@
 //!   follower behind it;
 //! - [`io`]: the traits a board implements (encoders, pressures, E-stop, valves);
 //! - [`encoder`]: 16 → 32-bit counter extension and the plausibility check;
+//! - [`tick`]: the board's per-period entry point ([`TickLoop::run`]) both boards call;
 //! - [`stall`]: master-stall detection; [`timing`]: tick execution-time statistics;
 //! - [`pressure`]: transducer scaling;
 //! - [`reference`]: where each slave is (set-position, homing, absolute encoders).
@@ -26,6 +27,7 @@ pub mod machine;
 pub mod pressure;
 pub mod reference;
 pub mod stall;
+pub mod tick;
 pub mod timing;
 
 #[cfg(test)]
@@ -43,3 +45,4 @@ pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
 };
 pub use reference::{RefState, ReferenceMode, References};
+pub use tick::{Reply, TickCommand, TickHost, TickLoop, TickSample, STATUS_PERIOD_US};

@@ -2,7 +2,8 @@
 //!
 //! Prints the PTY path on the first line of stdout, then runs until killed: the
 //! simulated machine advances in real time (one control period per period of wall
-//! clock; if the host falls behind it catches up by at most 100 periods at once).
+//! clock, counted by the board's own ticks; if the host falls behind it catches up by at
+//! most 100 periods at once and the rest is dropped from the timeline).
 
 use crate::scenario::Scenario;
 use crate::vboard::VBoard;
@@ -71,7 +72,8 @@ pub fn serve_with(
     serialport::SerialPort::set_timeout(&mut master, Duration::from_millis(1))?;
     let period = Duration::from_secs_f64(board.machine.period_s());
     let t0 = Instant::now();
-    let mut ticks: u64 = 0;
+    // Periods the host fell behind by more than 100 at once: dropped from the timeline.
+    let mut lost: u64 = 0;
     let mut buf = [0u8; 1024];
     let mut pending: Vec<u8> = Vec::new();
     let mut dropped: u64 = 0;
@@ -90,12 +92,16 @@ pub fn serve_with(
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
             Err(e) => return Err(e.into()),
         }
+        // Paced on the board's own tick count, which includes the tick that answered a
+        // command: the command's tick is the next period of the timeline, not an extra.
         let due = (t0.elapsed().as_nanos() / period.as_nanos().max(1)) as u64;
-        let behind = due.saturating_sub(ticks).min(100);
-        for _ in 0..behind {
+        let behind = due.saturating_sub(lost).saturating_sub(board.ticks());
+        if behind > 100 {
+            lost += behind - 100;
+        }
+        for _ in 0..behind.min(100) {
             board.tick(&mut |f| tx.extend_from_slice(f));
         }
-        ticks = ticks.max(due.saturating_sub(100)) + behind;
         // A host that does not read must never stop the board: what the PTY will not take
         // now waits in `pending` (written as far as the PTY accepts each loop, partial
         // writes kept); beyond PENDING_MAX new output is dropped whole, as the board drops

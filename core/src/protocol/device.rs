@@ -1,0 +1,351 @@
+//! The protocol's [`Device`], once, for every board that runs the follower law in the
+//! runtime: the firmware and the host's virtual board supply only the glue
+//! ([`DeviceGlue`]: how to reach the runtime, how a command reaches the tick, what to
+//! publish when a law is installed).
+//!
+//! What the link side keeps ([`LawDevice`]): the follower's configuration and the table
+//! limits (SetParam edits them; the boot values are kept for [`Device::reset_params`]),
+//! a copy of the active table (for Save and for rebuilding the law when a gain changes,
+//! so the link side never borrows the table the tick runs), the law buffers the runtime
+//! does not hold, and, at boot, the law built from flash and the restored reference
+//! offsets, which [`LawDevice::start`] hands to the runtime.
+//!
+//! A new law (a table activated, a parameter changed) is built *in place* in a free law
+//! buffer (`Follower::configure`, then one table copy) outside any critical section, then
+//! installed in one [`DeviceGlue::write`] call that checks the safe point and only swaps
+//! references (`Runtime::install`). No law or table is moved by value: a law buffer is a
+//! pointer (`&'static mut` on the board, `Box` on the host).
+
+use core::ops::DerefMut;
+
+use super::handler::{Device, Motion};
+use super::msg::ParamId;
+use super::msg::{Nak, NakCode, StatusMsg};
+use super::overrides::ParamRecord;
+use super::params::{apply_param, apply_saved_set, reference_offset_um};
+use super::report::{
+    command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
+};
+use crate::follower::{Follower, FollowerConfig};
+use crate::runtime::{BootCause, Command, CommandError, Controller, Runtime, RuntimeCoeffs, State};
+use crate::table::{CamTable, TableLimits};
+use crate::units::{DacCode, PosUm};
+
+/// A law buffer: a pointer to a follower the runtime can run.
+pub trait LawBuffer<const S: usize, const N: usize>:
+    Controller<S> + DerefMut<Target = Follower<S, N>>
+{
+}
+
+impl<T, const S: usize, const N: usize> LawBuffer<S, N> for T where
+    T: Controller<S> + DerefMut<Target = Follower<S, N>>
+{
+}
+
+/// What a board supplies around [`LawDevice`].
+pub trait DeviceGlue<L, const S: usize, const P: usize> {
+    /// Runs `f` on the runtime (briefly: on the board inside a critical section the tick
+    /// waits for); `None` before the runtime runs (boot).
+    fn read<R>(&self, f: impl FnOnce(&Runtime<L, S, P>) -> R) -> Option<R>;
+    /// [`DeviceGlue::read`], mutable.
+    fn write<R>(&mut self, f: impl FnOnce(&mut Runtime<L, S, P>) -> R) -> Option<R>;
+    /// Has the tick apply `cmd` and waits for its answer; `None` if there is no answer
+    /// (no tick yet, a full queue, or the wait timed out: the tick then drops it unapplied).
+    fn command(&mut self, cmd: Command) -> Option<Result<(), CommandError>>;
+    /// The valve null codes of a law just installed (the board's panic handler writes
+    /// them). Default: nothing to publish.
+    fn publish_nulls(&mut self, _nulls: &[DacCode; S]) {}
+    /// Tick timing in the runtime's status (host clock cycles) → ns.
+    fn cycles_to_ns(&self, cycles: u32) -> u32;
+}
+
+/// The link side's state (see the module docs). `T` holds the copy of the active table.
+pub struct LawDevice<L, T, const S: usize, const N: usize> {
+    fcfg: FollowerConfig<S>,
+    limits: TableLimits<S>,
+    boot_cfg: FollowerConfig<S>,
+    boot_limits: TableLimits<S>,
+    active: T,
+    pool: LawPool<L>,
+    boot_offsets: [Option<PosUm>; S],
+    firmware: [u8; 3],
+}
+
+impl<L, T, const S: usize, const N: usize> LawDevice<L, T, S, N>
+where
+    L: LawBuffer<S, N>,
+    T: DerefMut<Target = CamTable<S, N>>,
+{
+    /// Boots with `fcfg` and `limits`, no table (`active` is emptied), both law buffers
+    /// free; `firmware` is what Info reports.
+    pub fn new(
+        fcfg: FollowerConfig<S>,
+        limits: TableLimits<S>,
+        mut active: T,
+        laws: [L; 2],
+        firmware: [u8; 3],
+    ) -> Self {
+        active.clear();
+        let [a, b] = laws;
+        Self {
+            fcfg,
+            limits,
+            boot_cfg: fcfg,
+            boot_limits: limits,
+            active,
+            pool: LawPool {
+                free: [Some(a), Some(b)],
+                boot_law: None,
+            },
+            boot_offsets: [None; S],
+            firmware,
+        }
+    }
+
+    /// The follower's configuration in force.
+    pub fn follower_config(&self) -> &FollowerConfig<S> {
+        &self.fcfg
+    }
+
+    /// The runtime after boot: the law built from flash (if a slot was loaded) and the
+    /// reference offsets restored with it (an offset the runtime refuses is left out and
+    /// its slave reported in the returned mask, bit k = slave k).
+    pub fn start<const P: usize>(
+        &mut self,
+        coeffs: RuntimeCoeffs<S>,
+        boot: BootCause,
+    ) -> (Runtime<L, S, P>, u32) {
+        let mut rt = Runtime::new(coeffs, self.pool.boot_law.take(), boot);
+        let mut refused_mask = 0u32;
+        for (axis, off) in (0u8..).zip(self.boot_offsets.iter()) {
+            if let Some(o) = off {
+                if rt.restore_reference_offset(axis, *o).is_err() {
+                    refused_mask |= 1u32.checked_shl(u32::from(axis)).unwrap_or(0);
+                }
+            }
+        }
+        (rt, refused_mask)
+    }
+}
+
+/// The law buffers the runtime does not hold (both at boot, one once a law runs), and the
+/// law built at boot before the runtime runs.
+struct LawPool<L> {
+    free: [Option<L>; 2],
+    boot_law: Option<L>,
+}
+
+impl<L> LawPool<L> {
+    fn take_free(&mut self) -> Option<L> {
+        self.free.iter_mut().find_map(Option::take)
+    }
+
+    fn give_back(&mut self, law: L) {
+        if let Some(slot) = self.free.iter_mut().find(|s| s.is_none()) {
+            *slot = Some(law);
+        }
+    }
+
+    /// Builds a law for `table` with `fcfg` in a free buffer and installs it: before the
+    /// runtime runs (boot) it becomes the boot law; otherwise it is swapped in if the
+    /// runtime is at a safe point (checked and installed in one [`DeviceGlue::write`]),
+    /// and the buffer of the law that ran becomes free. On any refusal what runs is
+    /// unchanged and the buffer is free again.
+    fn install<G, const S: usize, const N: usize, const P: usize>(
+        &mut self,
+        glue: &mut G,
+        fcfg: &FollowerConfig<S>,
+        table: &CamTable<S, N>,
+    ) -> Result<(), Nak>
+    where
+        L: LawBuffer<S, N>,
+        G: DeviceGlue<L, S, P>,
+    {
+        let Some(mut law) = self.take_free() else {
+            return Err(refused(REFUSED_LAW));
+        };
+        if law.configure(fcfg).is_err() {
+            self.give_back(law);
+            return Err(refused(REFUSED_LAW));
+        }
+        law.load_table(table);
+        if !law.is_ready() {
+            // An empty table: never handed to the runtime.
+            self.give_back(law);
+            return Err(refused(REFUSED_LAW));
+        }
+        let nulls = Controller::null_codes(&*law);
+        if glue.read(|_| ()).is_none() {
+            glue.publish_nulls(&nulls);
+            if let Some(old) = self.boot_law.replace(law) {
+                self.give_back(old);
+            }
+            return Ok(());
+        }
+        let mut new = Some(law);
+        let swapped = glue
+            .write(|rt| {
+                if !rt.at_safe_point() {
+                    return None;
+                }
+                // At a safe point (checked in this call): `install` cannot refuse.
+                rt.install(new.take()?).ok()
+            })
+            .flatten();
+        match swapped {
+            Some(old) => {
+                glue.publish_nulls(&nulls);
+                // `None` at the first activation after an empty boot.
+                if let Some(o) = old {
+                    self.give_back(o);
+                }
+                Ok(())
+            }
+            None => {
+                if let Some(n) = new {
+                    self.give_back(n);
+                }
+                Err(refused(REFUSED_NOT_SAFE))
+            }
+        }
+    }
+}
+
+/// The [`Device`] for one handler call: the link side's state and the board's glue.
+pub struct BoardDevice<'a, L, T, G, const S: usize, const N: usize, const P: usize> {
+    /// The link side's state.
+    pub st: &'a mut LawDevice<L, T, S, N>,
+    /// The board's glue.
+    pub glue: &'a mut G,
+}
+
+impl<L, T, G, const S: usize, const N: usize, const P: usize> BoardDevice<'_, L, T, G, S, N, P>
+where
+    L: LawBuffer<S, N>,
+    T: DerefMut<Target = CamTable<S, N>>,
+    G: DeviceGlue<L, S, P>,
+{
+    fn active(&self) -> Option<&CamTable<S, N>> {
+        (!self.st.active.is_empty()).then_some(&*self.st.active)
+    }
+}
+
+impl<L, T, G, const S: usize, const N: usize, const P: usize> Device<S, N>
+    for BoardDevice<'_, L, T, G, S, N, P>
+where
+    L: LawBuffer<S, N>,
+    T: DerefMut<Target = CamTable<S, N>>,
+    G: DeviceGlue<L, S, P>,
+{
+    fn firmware(&self) -> [u8; 3] {
+        self.st.firmware
+    }
+    fn period_us(&self) -> u32 {
+        self.st.fcfg.period_us
+    }
+    fn table_limits(&self) -> TableLimits<S> {
+        self.st.limits
+    }
+    fn active_table(&self) -> Option<&CamTable<S, N>> {
+        self.active()
+    }
+    fn at_safe_point(&self) -> bool {
+        // Before the runtime runs (boot) nothing runs: always safe.
+        self.glue.read(|rt| rt.at_safe_point()).unwrap_or(true)
+    }
+    fn all_idle(&self) -> bool {
+        self.glue
+            .read(|rt| matches!(rt.state(), State::Idle | State::Fault))
+            .unwrap_or(true)
+    }
+    fn install_table(&mut self, table: &CamTable<S, N>) -> Result<(), Nak> {
+        let fcfg = self.st.fcfg;
+        self.st.pool.install(self.glue, &fcfg, table)?;
+        self.st.active.copy_from(table);
+        Ok(())
+    }
+    fn command(&mut self, m: Motion) -> Result<(), Nak> {
+        let state = self.glue.read(|rt| state_code(rt.state())).unwrap_or(0xFF);
+        match self.glue.command(motion_command(m)) {
+            Some(Ok(())) => Ok(()),
+            Some(Err(e)) => Err(command_nak(state, e)),
+            // No tick answered in time (or none runs yet): detail 0xFFFF.
+            None => Err(Nak::with(NakCode::BadState, 0xFFFF, 0)),
+        }
+    }
+    fn persisted_offset_um(&self, axis: u8) -> Option<f32> {
+        self.glue
+            .read(|rt| rt.absolute_offset_um(axis))
+            .flatten()
+            .map(|o| o.to_num())
+    }
+    fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
+        let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+        if param == ParamId::SlaveOffsetUm {
+            let off = reference_offset_um(axis, value)?;
+            // Before the runtime runs (boot): kept for `LawDevice::start`.
+            return match self.glue.write(|rt| rt.restore_reference_offset(axis, off)) {
+                Some(r) => r.map_err(|_| range),
+                None => {
+                    let slot = self
+                        .st
+                        .boot_offsets
+                        .get_mut(usize::from(axis))
+                        .ok_or(range)?;
+                    *slot = Some(off);
+                    Ok(())
+                }
+            };
+        }
+        if !self.all_idle() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        let mut f = self.st.fcfg;
+        let mut lim = self.st.limits;
+        apply_param(&mut f, &mut lim, self.active(), axis, param, value)?;
+        // Rebuild the law if one runs (in the free buffer, from the copy of its table).
+        if !self.st.active.is_empty() {
+            let st = &mut *self.st;
+            match st.pool.install(self.glue, &f, &st.active) {
+                Ok(()) => {}
+                Err(n) if n.code == NakCode::Refused && n.detail == REFUSED_NOT_SAFE => {
+                    return Err(Nak::new(NakCode::NotIdle))
+                }
+                Err(_) => return Err(range),
+            }
+        }
+        self.st.fcfg = f;
+        self.st.limits = lim;
+        Ok(())
+    }
+    fn set_params(&mut self, records: &[ParamRecord]) -> Result<(), Nak> {
+        // Boot only (no table yet): the whole set on copies, then kept only if all of it
+        // is valid (the reference offsets checked before any is kept).
+        if !self.st.active.is_empty() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        let mut f = self.st.fcfg;
+        let mut lim = self.st.limits;
+        let mut offsets = self.st.boot_offsets;
+        apply_saved_set::<S, N>(&mut f, &mut lim, &mut offsets, records)?;
+        self.st.fcfg = f;
+        self.st.limits = lim;
+        self.st.boot_offsets = offsets;
+        Ok(())
+    }
+    fn reset_params(&mut self) -> Result<(), Nak> {
+        // Only at boot, before a table is installed (no law to rebuild).
+        if !self.st.active.is_empty() {
+            return Err(Nak::new(NakCode::NotIdle));
+        }
+        self.st.fcfg = self.st.boot_cfg;
+        self.st.limits = self.st.boot_limits;
+        self.st.boot_offsets = [None; S];
+        Ok(())
+    }
+    fn status(&self, out: &mut StatusMsg) {
+        if let Some(st) = self.glue.read(|rt| *rt.status()) {
+            fill_status::<S, P>(&st, |c| self.glue.cycles_to_ns(c), out);
+        }
+    }
+}
