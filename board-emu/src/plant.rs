@@ -12,23 +12,11 @@
 
 use crate::bus::{Environment, Inputs, Outputs, SYSCLK_HZ};
 use host_sim::camfile::{interpolate, CamCsv};
-use host_sim::plant::sensors::{Encoder, PressureAdc};
-use host_sim::plant::{HydraulicAxis, MasterProfile};
-use host_sim::scenario::{Role, Scenario};
+use host_sim::plant::{valve_command, BoardPlant, BoardSlave};
+use host_sim::scenario::Scenario;
 use host_sim::sim::ErrorStat;
 use std::cell::RefCell;
 use std::rc::Rc;
-
-/// One slave's plant.
-pub struct Slave {
-    /// Name (the scenario's).
-    pub name: String,
-    plant: HydraulicAxis,
-    enc: Encoder,
-    adc: PressureAdc,
-    /// Its table column (mm), if it follows the table.
-    column: Option<Vec<f64>>,
-}
 
 /// What the test or the CLI reads and drives while the board runs.
 #[derive(Debug, Clone)]
@@ -52,11 +40,8 @@ pub struct Shared {
 
 /// The plant environment.
 pub struct PlantEnv {
-    slaves: Vec<Slave>,
-    master: MasterProfile,
-    master_enc: Encoder,
+    plant: BoardPlant,
     table_master: Vec<f64>,
-    step_s: f64,
     step_cycles: u64,
     error_skip_s: f64,
     /// Cycles at the plant's time.
@@ -72,32 +57,13 @@ impl PlantEnv {
     /// The scenario's axes (at most two: the board's slaves) following `table`.
     pub fn new(scn: &Scenario, table: &CamCsv) -> anyhow::Result<Self> {
         let step_s = scn.step_s();
-        let mut slaves = Vec::new();
-        for a in scn.axes.iter().take(2) {
-            // A follower follows its column by name (as host-sim matches them).
-            let column = (a.role == Role::Follower)
-                .then(|| table.column(&a.name).map(<[f64]>::to_vec))
-                .flatten();
-            let x0_mm = a
-                .x0_mm
-                .or_else(|| column.as_ref().and_then(|c| c.first().copied()))
-                .unwrap_or(250.0);
-            slaves.push(Slave {
-                name: a.name.clone(),
-                plant: a.plant(scn.supply(), x0_mm * 1e-3),
-                enc: a.encoder(),
-                adc: a.pressure_adc(),
-                column,
-            });
-        }
-        let n = slaves.len();
+        // The machine as host-sim assembles it for a board (slave k = scenario axis k).
+        let plant = BoardPlant::new(scn, Some(table), 2)?;
+        let n = plant.slaves.len();
         let step_cycles = (step_s * SYSCLK_HZ as f64).round() as u64;
         Ok(Self {
-            slaves,
-            master: scn.master_profile()?,
-            master_enc: scn.master_encoder(),
+            plant,
             table_master: table.master.clone(),
-            step_s,
             step_cycles: step_cycles.max(1),
             error_skip_s: scn.sim.error_skip_s,
             t: 0,
@@ -117,18 +83,18 @@ impl PlantEnv {
     }
 
     /// The slaves.
-    pub fn slaves(&self) -> &[Slave] {
-        &self.slaves
+    pub fn slaves(&self) -> &[BoardSlave] {
+        &self.plant.slaves
     }
 
     /// Slave `k`'s table column (mm), if it follows the table.
     pub fn column(&self, k: usize) -> Option<&[f64]> {
-        self.slaves.get(k).and_then(|s| s.column.as_deref())
+        self.plant.slaves.get(k).and_then(|s| s.column.as_deref())
     }
 
     /// Slave `k`'s true position, µm.
     pub fn position_um(&self, k: usize) -> Option<f64> {
-        self.slaves.get(k).map(|s| s.plant.x_m() * 1e6)
+        self.plant.slaves.get(k).map(|s| s.plant.x_m() * 1e6)
     }
 
     fn master_s(&self, at: u64) -> f64 {
@@ -139,25 +105,24 @@ impl PlantEnv {
 
 impl Environment for PlantEnv {
     fn advance(&mut self, now: u64, out: &Outputs) -> Inputs {
-        let u: Vec<f64> = (0..self.slaves.len())
+        // The DAC's unipolar register value → signed code (2048 = null).
+        let u: Vec<f64> = (0..self.plant.slaves.len())
             .map(|k| match out.dac.get(k).copied().flatten() {
-                Some(code) if out.enable => ((f64::from(code) - 2048.0) / 2047.0).clamp(-1.0, 1.0),
-                _ => 0.0,
+                Some(code) => valve_command((i32::from(code) - 2048) as i16, out.enable),
+                None => 0.0,
             })
             .collect();
         while self.t + self.step_cycles <= now {
-            for (s, &uk) in self.slaves.iter_mut().zip(&u) {
-                s.plant.step(uk, self.step_s);
-            }
+            self.plant.step(&u);
             self.t += self.step_cycles;
             self.steps += 1;
             if self.steps.is_multiple_of(self.metric_every) {
                 let tm = self.master_s(self.t);
                 let started = self.shared.borrow().master_start.is_some();
-                let theta = self.master.angle_deg(tm);
+                let theta = self.plant.master.angle_deg(tm);
                 let mut sh = self.shared.borrow_mut();
                 let mut row = vec![self.t as f64 / SYSCLK_HZ as f64, theta];
-                for (k, s) in self.slaves.iter().enumerate() {
+                for (k, s) in self.plant.slaves.iter().enumerate() {
                     let x_mm = s.plant.x_m() * 1e3;
                     let target = s
                         .column
@@ -178,17 +143,17 @@ impl Environment for PlantEnv {
                 }
             }
         }
-        let theta = self.master.angle_deg(self.master_s(now));
+        let tm = self.master_s(now);
         let mut sh = self.shared.borrow_mut();
         sh.outputs = *out;
         let mut inp = Inputs {
-            master: self.master_enc.count(theta),
+            master: self.plant.master_count(tm),
             estop_closed: sh.estop_closed,
             ..Inputs::default()
         };
-        for (k, s) in self.slaves.iter().enumerate() {
+        for (k, s) in self.plant.slaves.iter().enumerate() {
             sh.positions_um[k] = s.plant.x_m() * 1e6;
-            inp.slaves[k] = s.enc.count(s.plant.x_m());
+            inp.slaves[k] = s.count();
             let (pa, pb) = s.plant.pressures_pa();
             inp.pressures[2 * k] = s.adc.code(pa) as u16;
             inp.pressures[2 * k + 1] = s.adc.code(pb) as u16;

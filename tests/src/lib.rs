@@ -8,7 +8,7 @@ pub fn workspace_root() -> std::path::PathBuf {
         .unwrap_or_default()
 }
 
-use host_sim::vboard::{VBoard, CAPACITY};
+use host_sim::vboard::{VBoard, AXES, CAPACITY};
 use hydra_core::protocol::crc::crc32;
 use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
 use hydra_core::protocol::handler::encode_request;
@@ -62,19 +62,19 @@ impl VbHost {
         assert!(matches!(r, Response::Ack { .. }), "{q:?}: {r:?}");
     }
 
-    /// Uploads `nodes` as table `id` (Begin, chunks of the board's size, each Ack'd) and
+    /// Uploads `nodes` (one column per slave of the board) as table `id` (Begin, chunks of the board's size, each Ack'd) and
     /// returns the answer to TableCommit.
-    pub fn upload(&mut self, b: &mut VBoard, id: u32, nodes: &[Node<1>]) -> Response {
+    pub fn upload(&mut self, b: &mut VBoard, id: u32, nodes: &[Node<AXES>]) -> Response {
         let rows = u16::try_from(nodes.len()).expect("rows fit u16");
         self.ack(
             b,
             &Request::TableBegin {
                 id,
-                columns: 1,
+                columns: AXES as u8,
                 rows,
             },
         );
-        let per = Handler::<1, CAPACITY>::MAX_CHUNK_ROWS;
+        let per = Handler::<AXES, CAPACITY>::MAX_CHUNK_ROWS;
         let mut all = Vec::new();
         for (k, c) in nodes.chunks(per).enumerate() {
             let bytes = rows_bytes(c);
@@ -93,8 +93,8 @@ impl VbHost {
 }
 
 /// Rows as on the wire.
-pub fn rows_bytes(ns: &[Node<1>]) -> Vec<u8> {
-    let mut b = vec![0u8; ns.len() * row_len(1)];
+pub fn rows_bytes<const S: usize>(ns: &[Node<S>]) -> Vec<u8> {
+    let mut b = vec![0u8; ns.len() * row_len(S)];
     let mut w = Writer::new(&mut b);
     for n in ns {
         write_row(&mut w, n).expect("row fits");

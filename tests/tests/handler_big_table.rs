@@ -186,19 +186,21 @@ fn a_valid_512_row_table_builds_directly() {
     );
 }
 
-/// The virtual board (host-sim's `Machine` as the `Device`, `Handler<1, CAPACITY>`):
-/// a gentle, non-flat table of `CAPACITY` rows inside the board's limits (5 000 counts/s,
-/// 500 mm stroke): at most 1 mm per 500-count segment = 10 mm/s.
+/// The virtual board (core's `BoardDevice` over host-sim's `Machine`, `Handler<2, CAPACITY>`):
+/// a gentle, non-flat table of `CAPACITY` rows inside the board's limits (10 000 counts/s,
+/// 0 … 500 mm at ≤ 200 mm/s): at most 1 mm per 500-count segment = 20 mm/s.
 #[test]
 fn a_valid_full_table_commits_on_the_virtual_board() {
     use host_sim::scenario::Scenario;
     use host_sim::vboard::{VBoard, CAPACITY};
-    let nodes: Vec<Node<1>> = (0..CAPACITY)
+    // Slave 0 (the tangent axis) moves, slave 1 (the side press) holds 20 mm.
+    let nodes: Vec<Node<2>> = (0..CAPACITY)
         .map(|j| Node {
             master: Master::from_num(j as i64 * 500),
-            slave_um: [PosUm::from_num(
-                250_000.0 + 20_000.0 * (j as f64 * 0.05).sin(),
-            )],
+            slave_um: [
+                PosUm::from_num(250_000.0 + 20_000.0 * (j as f64 * 0.05).sin()),
+                PosUm::from_num(20_000),
+            ],
         })
         .collect();
     let mut b = VBoard::new(&Scenario::default()).unwrap();

@@ -3,15 +3,32 @@
 //! trace and read the status exactly as against a board.
 
 use host_sim::cmd::serial::Link;
-use host_sim::cmd::{serve, status, trace, upload};
+use host_sim::cmd::{motion, serve, status, trace, upload};
 use host_sim::scenario::Scenario;
 use hydra_core::protocol::{NakCode, Request, Response};
 use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::Duration;
 
+/// The board's table: the tangent column and the side press holding at its 10 mm start.
 fn table_csv() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios/tangent_table.csv")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios/tangent_board.csv")
+}
+
+/// Set-position of every slave where the board measures it (the board's encoders are
+/// incremental: Start is refused until each slave is referenced).
+fn reference_all(port: &str) {
+    let st = status::fetch(port).unwrap();
+    assert_eq!(st.axes.len(), 2);
+    for (k, a) in st.axes.iter().enumerate() {
+        motion::run(&motion::Args {
+            port: port.to_string(),
+            what: motion::What::SetPosition,
+            axis: Some(k as u8),
+            mm: Some(a.pos_mm),
+        })
+        .unwrap();
+    }
 }
 
 fn start_board() -> String {
@@ -30,7 +47,10 @@ fn upload_activate_start_trace_status() {
     let dir = tempfile::tempdir().unwrap();
     // Before any table: Start is refused with a typed reason.
     let mut link = Link::open(&port).unwrap();
-    assert_eq!(link.info.axes, 1);
+    // The board's profile: two slaves, 256-row tables, 1 ms.
+    assert_eq!(link.info.axes, 2);
+    assert_eq!(link.info.capacity_rows, 256);
+    assert_eq!(link.info.period_us, 1000);
     match link.request(&Request::Start).unwrap() {
         Response::Nak { nak, .. } => assert_eq!(nak.code, NakCode::BadState),
         r => panic!("{r:?}"),
@@ -49,6 +69,14 @@ fn upload_activate_start_trace_status() {
     assert_eq!(st.state, "idle");
     assert_eq!(st.active_id, Some(42));
     assert_eq!(st.saved_id, Some(42));
+    // Unreferenced: Start is refused naming the slave.
+    let mut link = Link::open(&port).unwrap();
+    match link.request(&Request::Start).unwrap() {
+        Response::Nak { nak, .. } => assert_eq!(nak.code, NakCode::NotReferenced),
+        r => panic!("{r:?}"),
+    }
+    drop(link);
+    reference_all(&port);
     // Start, then trace 3 s of the master's ramp into 3 °/s.
     let mut link = Link::open(&port).unwrap();
     link.expect_ack(&Request::Start).unwrap();

@@ -31,12 +31,13 @@ impl Host {
         );
     }
 
-    /// Uploads a flat table at `x_mm` (three nodes, 1 000 counts apart) and commits it.
+    /// Uploads a flat table, slave 0 at `x_mm` (three nodes, 1 000 counts apart) and commits it.
     fn commit(&mut self, b: &mut VBoard, id: u32, x_mm: f64) -> Response {
-        let nodes: Vec<Node<1>> = (0..3)
+        // Slave 0 at `x_mm`, slave 1 (the side press) at 20 mm.
+        let nodes: Vec<Node<2>> = (0..3)
             .map(|j| Node {
                 master: Master::from_num(j * 1000),
-                slave_um: [PosUm::from_num(x_mm * 1000.0)],
+                slave_um: [PosUm::from_num(x_mm * 1000.0), PosUm::from_num(20_000)],
             })
             .collect();
         self.0.upload(b, id, &nodes)
