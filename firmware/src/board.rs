@@ -5,7 +5,7 @@
 //!
 //! | function | pin(s) | peripheral | notes |
 //! |---|---|---|---|
-//! | valve 1 (slave 0) | PA4 | DAC1 ch 1 | 12-bit, output buffer on: swings 0.2 V … VDDA − 0.2 V; code 0 = 2048 = VDDA/2 = 1.500 V at [`VDDA_MV`] = 3.0 V; usable codes ±1774 ([`DAC_RANGE`]) |
+//! | valve 1 (slave 0) | PA4 | DAC1 ch 1 | 12-bit, output buffer on: swings 0.2 V … VDDA − 0.2 V; code 0 = 2048 = VDDA/2 = 1.500 V at VDDA = 3.0 V (`hydra_core::profile::VDDA_MV`); usable codes ±1774 ([`DAC_RANGE`]) |
 //! | valve 2 (slave 1) | PA5 | DAC1 ch 2 | |
 //! | master encoder A/B | PA0 / PA1 | TIM5 ch 1/2 (32-bit) | rotary table, 0.001°/count |
 //! | slave 0 encoder A/B | PA15 / PB3 | TIM2 ch 1/2 (32-bit) | PA15/PB3 are JTDI/SWO: debug with SWD only |
@@ -115,17 +115,14 @@ pub const ENABLE_PORT: pac::gpio::Gpio = pac::GPIOE;
 /// See [`ENABLE_PORT`].
 pub const ENABLE_PIN: usize = 7;
 
-/// The board's analog supply (VDDA = VREF+), mV: 3.0 V, as on the STM32F4-Discovery
-/// (`hydra_core::profile`). The valve amplifiers' null must be set to VDDA/2 = 1.500 V.
-pub const VDDA_MV: u32 = hydra_core::profile::VDDA_MV;
-/// How close to each rail the DAC's buffered output gets, mV (DS8626: ≈ 0.2 V).
-pub const DAC_SWING_MARGIN_MV: u32 = hydra_core::profile::DAC_SWING_MARGIN_MV;
-/// The usable valve-DAC code range on this board: ±1774 LSB around mid-scale (273 codes
-/// lost at each end). Every code written is clamped to it (`crate::valves`), and the
+/// The usable valve-DAC code range on this board (`hydra_core::profile::dac_range`: the
+/// analog supply VDDA = 3.0 V, as on the STM32F4-Discovery — the valve amplifiers' null
+/// must be set to VDDA/2 = 1.500 V — less the buffered output's 0.2 V swing margin at
+/// each rail): ±1774 LSB around mid-scale (273 codes lost at each end). Every code written is clamped to it (`crate::valves`), and the
 /// valve calibration's clamp is set to it (`crate::program`).
 pub const DAC_RANGE: DacRange = match hydra_core::profile::dac_range() {
     Some(r) => r,
-    None => panic!("VDDA_MV / DAC_SWING_MARGIN_MV"),
+    None => panic!("hydra_core::profile::VDDA_MV / DAC_SWING_MARGIN_MV"),
 };
 
 /// Core clock, Hz (DWT cycles per second).

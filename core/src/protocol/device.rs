@@ -349,3 +349,171 @@ where
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::runtime::{EncoderSample, RuntimeConfig, Sample};
+    use crate::table::{AxisLimits, Node};
+    use crate::units::{Counts, Master, MasterRate, VelUmPerS};
+    use std::boxed::Box;
+
+    type Law = Box<Follower<1, 8>>;
+    type Rt = Runtime<Law, 1, 0>;
+
+    /// The glue of a board whose runtime is a plain value (`None` until boot ends).
+    struct Direct {
+        rt: Option<Rt>,
+        published: u32,
+    }
+
+    impl DeviceGlue<Law, 1, 0> for Direct {
+        fn read<R>(&self, f: impl FnOnce(&Rt) -> R) -> Option<R> {
+            self.rt.as_ref().map(f)
+        }
+        fn write<R>(&mut self, f: impl FnOnce(&mut Rt) -> R) -> Option<R> {
+            self.rt.as_mut().map(f)
+        }
+        fn command(&mut self, cmd: Command) -> Option<Result<(), CommandError>> {
+            let s = Sample {
+                enc: EncoderSample {
+                    master: Counts(0),
+                    slaves: [Counts(100_000)],
+                },
+                pressure_bar: [],
+                estop: false,
+                overrun: false,
+            };
+            self.rt.as_mut()?.step(&s, Some(cmd)).reply
+        }
+        fn publish_nulls(&mut self, _nulls: &[DacCode; 1]) {
+            self.published += 1;
+        }
+        fn cycles_to_ns(&self, c: u32) -> u32 {
+            c
+        }
+    }
+
+    fn limits() -> TableLimits<1> {
+        TableLimits {
+            master_speed_per_s: MasterRate::from_num(1000),
+            axes: [AxisLimits {
+                min_um: PosUm::from_num(0),
+                max_um: PosUm::from_num(500_000),
+                max_speed_um_per_s: VelUmPerS::from_num(200_000),
+            }],
+        }
+    }
+
+    fn table(x_um: i32) -> Box<CamTable<1, 8>> {
+        let nodes: [Node<1>; 3] = core::array::from_fn(|j| Node {
+            master: Master::from_num(j as i32 * 1000),
+            slave_um: [PosUm::from_num(x_um)],
+        });
+        let mut t = Box::new(CamTable::empty());
+        t.rebuild_from_nodes(&nodes, &limits()).unwrap();
+        t
+    }
+
+    fn device() -> LawDevice<Law, Box<CamTable<1, 8>>, 1, 8> {
+        LawDevice::new(
+            FollowerConfig::default(),
+            limits(),
+            table(1),
+            [
+                Box::new(Follower::unconfigured()),
+                Box::new(Follower::unconfigured()),
+            ],
+            [1, 2, 3],
+        )
+    }
+
+    fn coeffs() -> RuntimeCoeffs<1> {
+        RuntimeConfig::<1>::default().build().unwrap()
+    }
+
+    #[test]
+    fn boot_builds_the_law_before_the_runtime_exists_then_hands_it_over() {
+        let mut st = device();
+        let mut g = Direct {
+            rt: None,
+            published: 0,
+        };
+        let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
+            st: &mut st,
+            glue: &mut g,
+        };
+        assert_eq!(d.firmware(), [1, 2, 3]);
+        assert!(d.active_table().is_none(), "`new` empties the table copy");
+        assert!(d.at_safe_point() && d.all_idle());
+        // A command before the runtime runs has no tick to answer it.
+        assert_eq!(
+            d.command(Motion::Start).unwrap_err(),
+            Nak::with(NakCode::BadState, 0xFFFF, 0)
+        );
+        d.install_table(&table(100_000)).unwrap();
+        d.set_param(0, ParamId::SlaveOffsetUm, 2500.0).unwrap();
+        assert_eq!(g.published, 1);
+        let (rt, refused) = st.start::<0>(coeffs(), BootCause::Normal);
+        assert_eq!(refused, 0);
+        assert!(rt.law().is_some_and(|l| l.is_ready()));
+        assert_eq!(rt.absolute_offset_um(0), Some(PosUm::from_num(2500)));
+        assert_eq!(st.active.len(), 3);
+    }
+
+    #[test]
+    fn a_running_law_is_swapped_only_at_a_safe_point_and_rebuilt_by_set_param() {
+        let mut st = device();
+        let mut g = Direct {
+            rt: None,
+            published: 0,
+        };
+        let (rt, _) = st.start::<0>(coeffs(), BootCause::Normal);
+        g.rt = Some(rt);
+        let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
+            st: &mut st,
+            glue: &mut g,
+        };
+        // Parameters first, a table next: reset is refused once one is installed.
+        d.reset_params().unwrap();
+        d.install_table(&table(100_000)).unwrap();
+        assert_eq!(d.reset_params().unwrap_err(), Nak::new(NakCode::NotIdle));
+        // Following: not a safe point, and parameters are refused.
+        d.command(Motion::Start).unwrap();
+        assert!(!d.at_safe_point() && !d.all_idle());
+        assert_eq!(
+            d.install_table(&table(200_000)).unwrap_err(),
+            refused(REFUSED_NOT_SAFE)
+        );
+        assert_eq!(
+            d.set_param(0, ParamId::KpLsbPerUm, 2.0).unwrap_err(),
+            Nak::new(NakCode::NotIdle)
+        );
+        // The running table is unchanged by the refusals.
+        let x = |d: &BoardDevice<'_, _, _, Direct, 1, 8, 0>| {
+            d.active_table()
+                .and_then(|t| t.node(0))
+                .map(|n| n.slave_um[0])
+        };
+        assert_eq!(x(&d), Some(PosUm::from_num(100_000)));
+        d.command(Motion::Stop).unwrap();
+        // Idle: a gain change rebuilds the running law (same table, new parameters) …
+        d.set_param(0, ParamId::KpLsbPerUm, 2.0).unwrap();
+        assert_eq!(d.st.follower_config().axes[0].kp_lsb_per_um, 2.0);
+        let published = d.glue.published;
+        d.set_param(0, ParamId::ValveNullLsb, 50.0).unwrap();
+        let nulls = d.glue.rt.as_ref().map(|r| r.null_codes()[0].get());
+        assert_eq!(nulls, Some(50), "the running law has the new valve null");
+        assert_eq!(d.glue.published, published + 1);
+        // … an impossible one is refused with the parameter named, nothing changed.
+        assert_eq!(
+            d.set_param(0, ParamId::KpLsbPerUm, -1.0).unwrap_err(),
+            Nak::with(NakCode::ParamRange, 0, ParamId::KpLsbPerUm as u8)
+        );
+        assert_eq!(d.st.follower_config().axes[0].kp_lsb_per_um, 2.0);
+        // A limit the running table violates is refused too.
+        assert!(d.set_param(0, ParamId::MaxUm, 50_000.0).is_err());
+        assert_eq!(x(&d), Some(PosUm::from_num(100_000)));
+    }
+}

@@ -111,7 +111,7 @@ forward_controller!(
 forward_controller!(
     /// A law on the heap (host builds): the host's laws with large tables are built in
     /// place in a `Box` (never on the stack) and installed by moving the pointer.
-    #[cfg(feature = "std")]
+    #[cfg(any(test, feature = "std"))]
     std::boxed::Box<C>
 );
 

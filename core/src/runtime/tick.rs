@@ -122,7 +122,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> TickLoop<C, S, P> {
     /// commands older than `max_age_us` when taken are dropped unapplied.
     pub fn new(rt: Runtime<C, S, P>, cycles_per_us: u32, max_age_us: u32) -> Self {
         let period_us = rt.coeffs().period_us;
-        let status_every = (STATUS_PERIOD_US / period_us.max(1)).max(1);
+        let status_every = STATUS_PERIOD_US.checked_div(period_us).unwrap_or(1).max(1);
         Self {
             rt,
             period_cycles: cycles_per_us.saturating_mul(period_us),
@@ -209,5 +209,185 @@ impl<C: Controller<S>, const S: usize, const P: usize> TickLoop<C, S, P> {
         });
         self.last_start = Some(t0);
         late
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runtime::controller::mock::MockLaw;
+    use crate::runtime::io::{
+        EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput,
+    };
+    use crate::runtime::{BootCause, Fault, RuntimeConfig, State};
+    use crate::units::{Counts, DacCode, PressureBar};
+    use heapless::Vec;
+
+    /// A board that holds still: every count 0.
+    #[derive(Default)]
+    struct Still {
+        enable: bool,
+        writes: u32,
+    }
+
+    impl EncoderInput<1> for Still {
+        fn latch(&mut self) -> EncoderSample<1> {
+            EncoderSample {
+                master: Counts(0),
+                slaves: [Counts(0)],
+            }
+        }
+    }
+    impl PressureInput<0> for Still {
+        fn read(&mut self) -> [PressureBar; 0] {
+            []
+        }
+    }
+    impl SafetyInput for Still {
+        fn estop_active(&mut self) -> bool {
+            false
+        }
+    }
+    impl ValveOutput<1> for Still {
+        fn write(&mut self, _codes: &[DacCode; 1]) {
+            self.writes += 1;
+        }
+        fn set_enable(&mut self, on: bool) {
+            self.enable = on;
+        }
+    }
+
+    /// A host whose clock the test sets; it records what the tick hands it.
+    #[derive(Default)]
+    struct Rec {
+        now: u32,
+        late: bool,
+        cmd: Option<TickCommand>,
+        feeds: u32,
+        replies: Vec<Reply, 8>,
+        statuses: u32,
+        samples: u32,
+    }
+
+    impl TickHost<1, 0> for Rec {
+        fn now_cycles(&mut self) -> u32 {
+            self.now
+        }
+        fn clear_period_flag(&mut self) {}
+        fn period_flag(&mut self) -> bool {
+            core::mem::take(&mut self.late)
+        }
+        fn take_command(&mut self) -> Option<TickCommand> {
+            self.cmd.take()
+        }
+        fn feed_watchdog(&mut self) {
+            self.feeds += 1;
+        }
+        fn reply(&mut self, r: Reply) {
+            let _ = self.replies.push(r);
+        }
+        fn status(&mut self, _st: &Status<1, 0>) {
+            self.statuses += 1;
+        }
+        fn sample(&mut self, _s: &TickSample<1>) {
+            self.samples += 1;
+        }
+    }
+
+    const PERIOD: u32 = 1000; // cycles: 1 cycle per µs at 1 ms
+
+    fn tl() -> TickLoop<MockLaw<1>, 1, 0> {
+        let cfg = RuntimeConfig::<1>::default().build().unwrap();
+        TickLoop::new(
+            Runtime::new(cfg, Some(MockLaw::new()), BootCause::Normal),
+            1,
+            5000,
+        )
+    }
+
+    fn run_ticks(t: &mut TickLoop<MockLaw<1>, 1, 0>, b: &mut Still, h: &mut Rec, n: u32) {
+        for _ in 0..n {
+            t.run(b, h);
+            h.now = h.now.wrapping_add(PERIOD);
+        }
+    }
+
+    #[test]
+    fn one_feed_and_sample_per_tick_a_status_every_10_ms() {
+        let (mut t, mut b, mut h) = (tl(), Still::default(), Rec::default());
+        run_ticks(&mut t, &mut b, &mut h, 25);
+        assert_eq!((h.feeds, h.samples, b.writes), (25, 25, 25));
+        assert_eq!(h.statuses, 2);
+        assert_eq!(t.runtime().status().tick, 25);
+        assert_eq!(t.period_cycles(), PERIOD);
+    }
+
+    #[test]
+    fn a_command_is_answered_and_a_stale_one_dropped_unapplied() {
+        let (mut t, mut b, mut h) = (tl(), Still::default(), Rec::default());
+        run_ticks(&mut t, &mut b, &mut h, 3);
+        h.cmd = Some(TickCommand {
+            cmd: Command::Start,
+            token: 7,
+            queued_at: h.now.wrapping_sub(100),
+        });
+        run_ticks(&mut t, &mut b, &mut h, 1);
+        assert_eq!(h.replies[0].token, 7);
+        assert_eq!(h.replies[0].result, Ok(()));
+        assert_eq!(t.runtime().state(), State::Following);
+        assert!(b.enable);
+        // Queued 5 001 µs ago, the maximum age 5 000 µs: never applied.
+        h.cmd = Some(TickCommand {
+            cmd: Command::Stop,
+            token: 8,
+            queued_at: h.now.wrapping_sub(5001),
+        });
+        run_ticks(&mut t, &mut b, &mut h, 1);
+        assert_eq!(h.replies[1].token, 8);
+        assert_eq!(h.replies[1].result, Err(None));
+        assert_eq!(t.runtime().state(), State::Following);
+        // A refusal carries the runtime's reason.
+        h.cmd = Some(TickCommand {
+            cmd: Command::Home { axis: 5 },
+            token: 9,
+            queued_at: h.now,
+        });
+        run_ticks(&mut t, &mut b, &mut h, 1);
+        assert_eq!(
+            h.replies[2].result,
+            Err(Some(CommandError::Busy)),
+            "homing while following"
+        );
+    }
+
+    #[test]
+    fn a_tick_still_running_at_the_next_period_is_an_overrun() {
+        let (mut t, mut b, mut h) = (tl(), Still::default(), Rec::default());
+        run_ticks(&mut t, &mut b, &mut h, 2);
+        h.late = true;
+        run_ticks(&mut t, &mut b, &mut h, 1);
+        assert_eq!(
+            t.runtime().state(),
+            State::Idle,
+            "reported at the next tick"
+        );
+        run_ticks(&mut t, &mut b, &mut h, 1);
+        assert_eq!(t.runtime().fault().map(|f| f.fault), Some(Fault::Overrun));
+        assert!(!b.enable);
+    }
+
+    #[test]
+    fn a_skipped_period_is_an_overrun_unless_resynchronised() {
+        let (mut t, mut b, mut h) = (tl(), Still::default(), Rec::default());
+        run_ticks(&mut t, &mut b, &mut h, 2);
+        // A pause of 2 periods with a resync (a flash erase): no fault.
+        h.now = h.now.wrapping_add(2 * PERIOD);
+        t.resync().unwrap();
+        run_ticks(&mut t, &mut b, &mut h, 2);
+        assert_eq!(t.runtime().fault(), None);
+        // 1.6 periods between two starts without one: an overrun.
+        h.now = h.now.wrapping_add(PERIOD * 6 / 10);
+        run_ticks(&mut t, &mut b, &mut h, 1);
+        assert_eq!(t.runtime().fault().map(|f| f.fault), Some(Fault::Overrun));
     }
 }
