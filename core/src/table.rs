@@ -206,6 +206,20 @@ pub struct CamTable<const S: usize, const N: usize> {
 
 /// Largest segment length, raw bits (65 535 counts · 2^16 < 2^32).
 const MAX_LEN_BITS: i64 = (1 << 32) - (1 << 16);
+/// Longest segment between two nodes, master counts (the table's rule; Info reports it).
+pub const MAX_SEGMENT_COUNTS: u32 = 65_535;
+
+/// Checks `nodes` against every rule a table of `capacity` rows obeys (the rules of
+/// [`CamTable::rebuild_from_nodes`], which a board applies at commit), building nothing:
+/// a host checks a table before uploading it with the limits and capacity the board
+/// reported. Rows in the errors are indices into `nodes`.
+pub fn check_nodes<const S: usize>(
+    nodes: &[Node<S>],
+    limits: &TableLimits<S>,
+    capacity: usize,
+) -> Result<(), TableError> {
+    build_segments(nodes, limits, capacity, |_| Ok(())).map(|_| ())
+}
 
 impl<const S: usize, const N: usize> CamTable<S, N> {
     /// An empty table (no segment): the starting value of a table buffer that is filled

@@ -12,6 +12,7 @@ pub mod plant;
 pub mod plot;
 pub mod scenario;
 pub mod sim;
+pub mod tablecheck;
 pub mod tuning;
 pub mod vboard;
 pub mod xy;

@@ -131,3 +131,44 @@ fn upload_activate_start_trace_status() {
         r => panic!("{r:?}"),
     }
 }
+
+/// The host refuses, before sending anything, what the board would refuse at commit —
+/// with the board's own limits from Info, naming the CSV line — and the board is untouched.
+#[test]
+fn upload_refuses_what_the_board_would_refuse_naming_the_line() {
+    let port = start_board();
+    let dir = tempfile::tempdir().unwrap();
+    let up = |table: PathBuf| {
+        upload::run(&upload::Args {
+            port: port.clone(),
+            table,
+            activate: true,
+            save: false,
+            id: Some(5),
+            master_counts_per_unit: 1000.0,
+        })
+    };
+    // One column for a two-slave board: the header line.
+    let one =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios/tangent_table.csv");
+    let e = up(one).unwrap_err().to_string();
+    assert!(
+        e.contains("tangent_table.csv:1:") && e.contains("the board has 2 slaves"),
+        "{e}"
+    );
+    // Slave 0 jumps 40 mm in 0.1°: 4 000 mm/s at the board's 10 °/s, 200 mm/s allowed.
+    let steep = dir.path().join("steep.csv");
+    std::fs::write(
+        &steep,
+        "master,tangent,side_press\n0,100,10\n1,110,10\n1.1,150,10\n",
+    )
+    .unwrap();
+    let e = up(steep).unwrap_err().to_string();
+    assert!(
+        e.contains("steep.csv:4:") && e.contains("4000.0 mm/s") && e.contains("200 mm/s"),
+        "{e}"
+    );
+    // Nothing reached the board.
+    let st = status::fetch(&port).unwrap();
+    assert_eq!((st.active_id, st.committed_id), (None, None), "{st:?}");
+}

@@ -61,7 +61,15 @@ fn limits_set_in_any_order_come_back_exactly_after_a_power_cycle() {
     let mut b2 = VBoard::with_flash(&scn, b.flash.clone()).unwrap();
     let mut h2 = Host(VbHost::new(9));
     match h2.req(&mut b2, &Request::Hello) {
-        Response::Info(i) => assert_eq!(i.active_id, 1, "the saved table boots"),
+        Response::Info(i) => {
+            assert_eq!(i.active_id, 1, "the saved table boots");
+            // Info reports the limits in force: the saved ones, I24F8 raw µm.
+            assert_eq!(
+                (i.limits.axes[0].min_um, i.limits.axes[0].max_um),
+                (550_000 << 8, 700_000 << 8)
+            );
+            assert_eq!((i.axes, i.capacity_rows, i.law_buffers), (2, 256, 2));
+        }
         r => panic!("{r:?}"),
     }
     // The limits are [550, 700] mm again: a table at 100 mm is refused, as before the

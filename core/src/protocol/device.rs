@@ -246,6 +246,9 @@ where
     fn table_limits(&self) -> TableLimits<S> {
         self.st.limits
     }
+    fn law_buffers(&self) -> u8 {
+        2
+    }
     fn active_table(&self) -> Option<&CamTable<S, N>> {
         self.active()
     }

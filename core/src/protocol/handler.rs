@@ -72,6 +72,10 @@ pub trait Device<const S: usize, const N: usize> {
     fn period_us(&self) -> u32;
     /// Limits a table is validated against.
     fn table_limits(&self) -> TableLimits<S>;
+    /// Law buffers (Info): 2 where a new law is built beside the running one.
+    fn law_buffers(&self) -> u8 {
+        1
+    }
     /// The running table, if any.
     fn active_table(&self) -> Option<&CamTable<S, N>>;
     /// Idle, or the running table has ended: a table may be swapped now.
@@ -542,6 +546,11 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             max_chunk_rows: u8::try_from(Self::MAX_CHUNK_ROWS).unwrap_or(u8::MAX),
             period_us: dev.period_us(),
             active_id: self.active_id(),
+            law_buffers: dev.law_buffers(),
+            period_min_us: crate::runtime::PERIOD_MIN_US,
+            period_max_us: crate::runtime::PERIOD_MAX_US,
+            max_segment_counts: crate::table::MAX_SEGMENT_COUNTS,
+            limits: super::msg::InfoLimits::of(&dev.table_limits()),
         }
     }
 

@@ -12,7 +12,7 @@ use crate::units::{Master, PosUm};
 use heapless::Vec;
 
 /// Protocol version reported in `Info`.
-pub const PROTOCOL_VERSION: u8 = 1;
+pub const PROTOCOL_VERSION: u8 = 2;
 /// Most axes a `Status`/`Telemetry` message can describe.
 pub const MAX_AXES: usize = 8;
 /// "No table" in id fields.
@@ -521,8 +521,9 @@ impl<'a> Request<'a> {
     }
 }
 
-/// `Info`: what the board is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// `Info`: what the board is — its profile (slaves, table rows, chunk size, law buffers,
+/// period and the periods it accepts, the longest segment) and the table limits in force.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Info {
     /// [`PROTOCOL_VERSION`].
     pub protocol: u8,
@@ -538,6 +539,54 @@ pub struct Info {
     pub period_us: u32,
     /// Id of the active table ([`NO_TABLE`] if none).
     pub active_id: u32,
+    /// Law buffers (2: a new law is built beside the running one, then swapped).
+    pub law_buffers: u8,
+    /// Control periods the runtime accepts, µs.
+    pub period_min_us: u32,
+    /// See [`Info::period_min_us`].
+    pub period_max_us: u32,
+    /// Longest segment between two table rows, master counts.
+    pub max_segment_counts: u32,
+    /// The limits tables are validated against now (SetParam changes them).
+    pub limits: InfoLimits,
+}
+
+/// The table limits in `Info` (raw fixed-point bits, as the board holds them).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct InfoLimits {
+    /// Fastest master speed, master counts/s, I48F16 raw.
+    pub master_speed_per_s: i64,
+    /// Per slave (the first [`Info::axes`] entries).
+    pub axes: [AxisLimitsMsg; MAX_AXES],
+}
+
+/// One slave's table limits in `Info`: I24F8 raw µm and µm/s.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AxisLimitsMsg {
+    /// Lowest position, µm (I24F8 raw).
+    pub min_um: i32,
+    /// Highest position, µm (I24F8 raw).
+    pub max_um: i32,
+    /// Top speed, µm/s (I24F8 raw).
+    pub max_speed_um_per_s: i32,
+}
+
+impl InfoLimits {
+    /// The wire form of `l`.
+    pub fn of<const S: usize>(l: &crate::table::TableLimits<S>) -> Self {
+        let mut out = Self {
+            master_speed_per_s: l.master_speed_per_s.to_bits(),
+            ..Self::default()
+        };
+        for (o, a) in out.axes.iter_mut().zip(l.axes.iter()) {
+            *o = AxisLimitsMsg {
+                min_um: a.min_um.to_bits(),
+                max_um: a.max_um.to_bits(),
+                max_speed_um_per_s: a.max_speed_um_per_s.to_bits(),
+            };
+        }
+        out
+    }
 }
 
 /// `StatusMsg::flags`: a slave is not referenced (Start is refused).
@@ -678,6 +727,16 @@ impl Response {
                 w.u8(i.max_chunk_rows)?;
                 w.u32(i.period_us)?;
                 w.u32(i.active_id)?;
+                w.u8(i.law_buffers)?;
+                w.u32(i.period_min_us)?;
+                w.u32(i.period_max_us)?;
+                w.u32(i.max_segment_counts)?;
+                w.i64(i.limits.master_speed_per_s)?;
+                for a in i.limits.axes.iter().take(usize::from(i.axes)) {
+                    w.i32(a.min_um)?;
+                    w.i32(a.max_um)?;
+                    w.i32(a.max_speed_um_per_s)?;
+                }
             }
             Response::Status(s) => {
                 w.u8(s.state)?;
@@ -731,15 +790,36 @@ impl Response {
                     detail2: r.u8()?,
                 },
             },
-            ty::INFO => Response::Info(Info {
-                protocol: r.u8()?,
-                firmware: r.bytes(3)?.try_into().ok()?,
-                axes: r.u8()?,
-                capacity_rows: r.u16()?,
-                max_chunk_rows: r.u8()?,
-                period_us: r.u32()?,
-                active_id: r.u32()?,
-            }),
+            ty::INFO => {
+                let mut i = Info {
+                    protocol: r.u8()?,
+                    firmware: r.bytes(3)?.try_into().ok()?,
+                    axes: r.u8()?,
+                    capacity_rows: r.u16()?,
+                    max_chunk_rows: r.u8()?,
+                    period_us: r.u32()?,
+                    active_id: r.u32()?,
+                    law_buffers: r.u8()?,
+                    period_min_us: r.u32()?,
+                    period_max_us: r.u32()?,
+                    max_segment_counts: r.u32()?,
+                    limits: InfoLimits {
+                        master_speed_per_s: r.i64()?,
+                        ..InfoLimits::default()
+                    },
+                };
+                if usize::from(i.axes) > MAX_AXES {
+                    return None;
+                }
+                for a in i.limits.axes.iter_mut().take(usize::from(i.axes)) {
+                    *a = AxisLimitsMsg {
+                        min_um: r.i32()?,
+                        max_um: r.i32()?,
+                        max_speed_um_per_s: r.i32()?,
+                    };
+                }
+                Response::Info(i)
+            }
             ty::STATUS => {
                 let mut s = StatusMsg {
                     state: r.u8()?,
@@ -887,13 +967,34 @@ mod tests {
                 nak: Nak::with(NakCode::TableTooSteep, 4, 1),
             },
             Response::Info(Info {
-                protocol: 1,
+                protocol: PROTOCOL_VERSION,
                 firmware: [0, 1, 0],
-                axes: 1,
+                axes: 2,
                 capacity_rows: 1024,
                 max_chunk_rows: 20,
                 period_us: 1000,
                 active_id: NO_TABLE,
+                law_buffers: 2,
+                period_min_us: 100,
+                period_max_us: 1_000_000,
+                max_segment_counts: 65_535,
+                limits: InfoLimits {
+                    master_speed_per_s: 10_000 << 16,
+                    axes: {
+                        let mut a = [AxisLimitsMsg::default(); MAX_AXES];
+                        a[0] = AxisLimitsMsg {
+                            min_um: 0,
+                            max_um: 500_000 << 8,
+                            max_speed_um_per_s: 200_000 << 8,
+                        };
+                        a[1] = AxisLimitsMsg {
+                            min_um: -1,
+                            max_um: 2,
+                            max_speed_um_per_s: 3,
+                        };
+                        a
+                    },
+                },
             }),
             Response::Status(st),
             Response::Telemetry(tm),

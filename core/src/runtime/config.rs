@@ -199,10 +199,15 @@ fn step_limit(counts_per_s: f64, period_us: u32) -> Option<u32> {
     Some(per_tick.max(1))
 }
 
+/// Shortest control period the runtime accepts, µs (10 kHz).
+pub const PERIOD_MIN_US: u32 = 100;
+/// Longest control period the runtime accepts, µs (1 Hz).
+pub const PERIOD_MAX_US: u32 = 1_000_000;
+
 impl<const S: usize> RuntimeConfig<S> {
     /// Validates the configuration and converts it to per-tick integers.
     pub fn build(&self) -> Result<RuntimeCoeffs<S>, RuntimeConfigError> {
-        if !(100..=1_000_000).contains(&self.period_us) {
+        if !(PERIOD_MIN_US..=PERIOD_MAX_US).contains(&self.period_us) {
             return Err(RuntimeConfigError::Period);
         }
         let master_step_limit = step_limit(

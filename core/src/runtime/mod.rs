@@ -37,6 +37,7 @@ mod tests_reference;
 
 pub use config::{
     MasterSource, RuntimeCoeffs, RuntimeConfig, RuntimeConfigError, MAX_STEP_LIMIT_COUNTS,
+    PERIOD_MAX_US, PERIOD_MIN_US,
 };
 pub use controller::{ControlInputs, ControlOutputs, Controller, LawFault};
 pub use fault::{Fault, FaultKind, FaultRecord, FaultSet};

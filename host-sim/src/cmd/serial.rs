@@ -3,7 +3,7 @@
 
 use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
 use hydra_core::protocol::handler::encode_request;
-use hydra_core::protocol::msg::{Info, Telemetry};
+use hydra_core::protocol::msg::{Info, Telemetry, PROTOCOL_VERSION};
 use hydra_core::protocol::{Nak, Request, Response};
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
@@ -114,15 +114,7 @@ impl Link {
             dec: FrameDecoder::new(),
             seq: (std::process::id() & 0x7FFF) as u16,
             telemetry: Vec::new(),
-            info: Info {
-                protocol: 0,
-                firmware: [0; 3],
-                axes: 0,
-                capacity_rows: 0,
-                max_chunk_rows: 0,
-                period_us: 0,
-                active_id: 0,
-            },
+            info: Info::default(),
         };
         // Resynchronise: a delimiter ends whatever partial frame a host that died mid-frame
         // left in the board's decoder; the board answers that garbage with a seq-0xFFFF
@@ -132,7 +124,11 @@ impl Link {
         l.port.flush()?;
         l.drain(Duration::from_millis(40), Duration::from_millis(400))?;
         match l.request(&Request::Hello)? {
-            Response::Info(i) => l.info = i,
+            Response::Info(i) if i.protocol == PROTOCOL_VERSION => l.info = i,
+            Response::Info(i) => anyhow::bail!(
+                "{path}: the board speaks protocol version {}, this host {PROTOCOL_VERSION}",
+                i.protocol
+            ),
             r => anyhow::bail!("Hello answered {r:?}"),
         }
         Ok(l)

@@ -1,6 +1,9 @@
 //! `host-sim table list|activate --port PORT [--id N] [--json]`: the board's tables — the
 //! active one, the committed one waiting for Activate, the saved one — and activating a
 //! committed table (`upload` commits without activating unless `--activate`).
+//! `host-sim table check FILE.csv [--port PORT] [--json]`: every rule the board applies
+//! at commit ([`crate::tablecheck`]), with the connected board's profile and limits, or
+//! the firmware's own without `--port`; a failure names the CSV line and exits non-zero.
 
 use super::serial::Link;
 use super::status;
@@ -15,17 +18,24 @@ pub enum What {
     /// Activate the committed table `--id` (now if idle or at the table's end, else at
     /// the next such point).
     Activate,
+    /// Check a CSV table against the board's rules (no upload).
+    Check,
 }
 
 /// Arguments of `table`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Serial port.
+    /// Serial port (list, activate; check: the board whose rules apply).
     #[arg(long)]
-    pub port: String,
+    pub port: Option<String>,
     /// What to do.
     #[arg(value_enum)]
     pub what: What,
+    /// The table (check).
+    pub file: Option<std::path::PathBuf>,
+    /// Master counts per master unit of the CSV (check; default 1000: degrees → mdeg).
+    #[arg(long, default_value_t = 1000.0)]
+    pub master_counts_per_unit: f64,
     /// Table id (activate).
     #[arg(long)]
     pub id: Option<u32>,
@@ -45,8 +55,16 @@ pub fn tables_json(r: &status::Report) -> serde_json::Value {
 
 /// Runs `table`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let mut link = Link::open(&args.port)?;
+    if args.what == What::Check {
+        return check(args);
+    }
+    let port = args
+        .port
+        .as_deref()
+        .ok_or_else(|| anyhow::anyhow!("table {:?} needs --port PORT", args.what))?;
+    let mut link = Link::open(port)?;
     match args.what {
+        What::Check => unreachable!("handled above"),
         What::List => {
             let r = match link.request(&Request::GetStatus)? {
                 Response::Status(s) => status::report(&s),
@@ -77,4 +95,47 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `table check`.
+fn check(args: &Args) -> anyhow::Result<()> {
+    use crate::tablecheck::{check, BoardRules};
+    let file = args
+        .file
+        .as_deref()
+        .ok_or_else(|| anyhow::anyhow!("table check needs the table: table check FILE.csv"))?;
+    let csv = crate::camfile::CamCsv::load(file)?;
+    let (rules, of) = match &args.port {
+        Some(p) => (
+            BoardRules::of_info(&Link::open(p)?.info),
+            "the connected board",
+        ),
+        None => (BoardRules::firmware(), "the firmware's profile"),
+    };
+    let r = check(&csv, &rules, args.master_counts_per_unit);
+    if args.json {
+        let e = r.as_ref().err();
+        println!(
+            "{}",
+            serde_json::json!({
+                "file": file.display().to_string(),
+                "rules": of,
+                "rows": csv.master.len(),
+                "ok": e.is_none(),
+                "line": e.and_then(|e| e.line),
+                "error": e.map(|e| e.reason.clone()),
+            })
+        );
+    } else if r.is_ok() {
+        println!(
+            "{}: {} rows pass every rule of {of} ({} slaves, ≤ {} rows, segments ≤ {} counts, master ≤ {} counts/s)",
+            file.display(),
+            csv.master.len(),
+            rules.axes,
+            rules.capacity_rows,
+            rules.max_segment_counts,
+            rules.master_speed_per_s()
+        );
+    }
+    r.map_err(Into::into)
 }

@@ -4,7 +4,10 @@
 //! converted to the wire's fixed point — master counts = mdeg (the rotary table's
 //! encoder: 0.001° per count) in I48F16, slaves µm in I24F8 — sent in chunks of the
 //! board's `max_chunk_rows`, committed with its CRC-32, then optionally activated and
-//! saved. Any Nak stops the upload with the board's typed reason.
+//! saved. First the table is checked against every rule the board applies, with the
+//! limits the board reports in Info ([`crate::tablecheck`]): a table it would refuse is
+//! refused before anything is sent, naming the CSV line. Any Nak stops the upload with
+//! the board's typed reason.
 
 use super::serial::Link;
 use crate::camfile::CamCsv;
@@ -72,17 +75,13 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let id = args.id.unwrap_or(crc & 0x7FFF_FFFF);
     let mut link = Link::open(&args.port)?;
     let info = link.info;
-    anyhow::ensure!(
-        usize::from(info.axes) == cols,
-        "the board has {} axes, the table {} columns",
-        info.axes,
-        cols
-    );
-    anyhow::ensure!(
-        rows <= usize::from(info.capacity_rows),
-        "the table has {rows} rows, the board holds {}",
-        info.capacity_rows
-    );
+    // Every rule the board applies at commit, with the limits it reported: a table it
+    // would refuse is refused here, naming the CSV line, before anything is sent.
+    crate::tablecheck::check(
+        &csv,
+        &crate::tablecheck::BoardRules::of_info(&info),
+        args.master_counts_per_unit,
+    )?;
     link.expect_ack(&Request::TableBegin {
         id,
         columns: cols as u8,

@@ -1,0 +1,315 @@
+//! What a board checks when a table is committed, checked on the host before an upload:
+//! the same rules (`hydra_core::table::check_nodes`, the code the board runs) with the
+//! board's profile and limits — those a connected board reports in Info, or the
+//! firmware's own (`hydra_core::profile`) — each failure naming the CSV line, the value
+//! and the limit.
+//!
+//! The CSV is converted exactly as `upload` sends it: master × counts per unit in I48F16
+//! master counts, slaves mm × 1000 in I24F8 µm.
+
+use crate::camfile::CamCsv;
+use hydra_core::profile;
+use hydra_core::protocol::msg::{Info, InfoLimits};
+use hydra_core::table::{
+    check_nodes, AxisLimits, Node, TableError, TableLimits, MAX_SEGMENT_COUNTS,
+};
+use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
+
+/// The rules of one board.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoardRules {
+    /// Slave columns.
+    pub axes: usize,
+    /// Table capacity, rows.
+    pub capacity_rows: usize,
+    /// Longest segment, master counts.
+    pub max_segment_counts: u32,
+    /// The limits in force (raw fixed-point bits).
+    pub limits: InfoLimits,
+}
+
+impl BoardRules {
+    /// The rules a connected board reported.
+    pub fn of_info(i: &Info) -> Self {
+        Self {
+            axes: usize::from(i.axes),
+            capacity_rows: usize::from(i.capacity_rows),
+            max_segment_counts: i.max_segment_counts,
+            limits: i.limits,
+        }
+    }
+
+    /// The firmware's own profile at boot (before any SetParam).
+    pub fn firmware() -> Self {
+        Self {
+            axes: profile::SLAVES,
+            capacity_rows: profile::TABLE_NODES,
+            max_segment_counts: MAX_SEGMENT_COUNTS,
+            limits: InfoLimits::of(&profile::table_limits()),
+        }
+    }
+
+    /// The master top speed, master counts/s.
+    pub fn master_speed_per_s(&self) -> f64 {
+        MasterRate::from_bits(self.limits.master_speed_per_s).to_num()
+    }
+
+    fn table_limits<const S: usize>(&self) -> TableLimits<S> {
+        TableLimits {
+            master_speed_per_s: MasterRate::from_bits(self.limits.master_speed_per_s),
+            axes: core::array::from_fn(|k| {
+                let a = self.limits.axes.get(k).copied().unwrap_or_default();
+                AxisLimits {
+                    min_um: PosUm::from_bits(a.min_um),
+                    max_um: PosUm::from_bits(a.max_um),
+                    max_speed_um_per_s: VelUmPerS::from_bits(a.max_speed_um_per_s),
+                }
+            }),
+        }
+    }
+}
+
+/// Why a table would be refused: the line and the message.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{file}{}: {reason}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+pub struct CheckError {
+    /// The file.
+    pub file: String,
+    /// The 1-based line of the row the board would refuse (`None`: the table as a whole).
+    pub line: Option<usize>,
+    /// What is wrong, with the value and the board's limit.
+    pub reason: String,
+}
+
+/// The table as the board would receive it: `(master counts I48F16, slaves I24F8 µm)`
+/// bits per row.
+fn wire_rows(csv: &CamCsv, counts_per_unit: f64) -> Result<Vec<(i64, Vec<i32>)>, CheckError> {
+    let err = |row: usize, reason: String| CheckError {
+        file: csv.path.display().to_string(),
+        line: csv.lines.get(row).copied(),
+        reason,
+    };
+    let mut out = Vec::with_capacity(csv.master.len());
+    for (i, m) in csv.master.iter().enumerate() {
+        let mc = (m * counts_per_unit * 65536.0).round();
+        if !(mc.abs() < 9.0e18) {
+            return Err(err(i, format!("master {m} is out of range")));
+        }
+        let mut xs = Vec::with_capacity(csv.columns.len());
+        for (a, col) in csv.columns.iter().enumerate() {
+            let um = (col[i] * 1000.0 * 256.0).round();
+            if !(um.abs() < 2.1e9) {
+                return Err(err(
+                    i,
+                    format!(
+                        "{} = {} mm is out of range (±8 388 mm)",
+                        csv.axes[a], col[i]
+                    ),
+                ));
+            }
+            xs.push(um as i32);
+        }
+        out.push((mc as i64, xs));
+    }
+    Ok(out)
+}
+
+/// Checks `csv` against `rules` (`counts_per_unit`: master counts per CSV master unit).
+pub fn check(csv: &CamCsv, rules: &BoardRules, counts_per_unit: f64) -> Result<(), CheckError> {
+    let file = csv.path.display().to_string();
+    if csv.axes.len() != rules.axes {
+        return Err(CheckError {
+            file,
+            line: csv.lines.first().map(|l| l.saturating_sub(1)),
+            reason: format!(
+                "{} slave column{} ({}); the board has {} slaves, one column each",
+                csv.axes.len(),
+                if csv.axes.len() == 1 { "" } else { "s" },
+                csv.axes.join(", "),
+                rules.axes
+            ),
+        });
+    }
+    let rows = wire_rows(csv, counts_per_unit)?;
+    let r = match rules.axes {
+        1 => check_s::<1>(&rows, rules),
+        2 => check_s::<2>(&rows, rules),
+        3 => check_s::<3>(&rows, rules),
+        4 => check_s::<4>(&rows, rules),
+        5 => check_s::<5>(&rows, rules),
+        6 => check_s::<6>(&rows, rules),
+        7 => check_s::<7>(&rows, rules),
+        8 => check_s::<8>(&rows, rules),
+        n => {
+            return Err(CheckError {
+                file,
+                line: None,
+                reason: format!("a board of {n} slaves (1 … 8 supported)"),
+            })
+        }
+    };
+    r.map_err(|e| explain(csv, rules, counts_per_unit, e))
+}
+
+fn check_s<const S: usize>(rows: &[(i64, Vec<i32>)], rules: &BoardRules) -> Result<(), TableError> {
+    let nodes: Vec<Node<S>> = rows
+        .iter()
+        .map(|(m, xs)| Node {
+            master: Master::from_bits(*m),
+            slave_um: core::array::from_fn(|k| PosUm::from_bits(xs.get(k).copied().unwrap_or(0))),
+        })
+        .collect();
+    check_nodes(&nodes, &rules.table_limits::<S>(), rules.capacity_rows)
+}
+
+/// The board's rule broken, in engineering units.
+fn explain(csv: &CamCsv, rules: &BoardRules, cpu: f64, e: TableError) -> CheckError {
+    let at = |row: usize| csv.lines.get(row).copied();
+    let lim = |axis: usize| rules.limits.axes.get(axis).copied().unwrap_or_default();
+    let mm = |bits: i32| f64::from(bits) / 256.0 / 1000.0;
+    let vmax_master = rules.master_speed_per_s() / cpu; // master units/s
+    let prev = |row: usize| -> usize {
+        // The row before in increasing master order (the board's order).
+        let decreasing = csv.master.len() > 1 && csv.master[1] < csv.master[0];
+        if decreasing {
+            row + 1
+        } else {
+            row.saturating_sub(1)
+        }
+    };
+    let (line, reason) = match e {
+        TableError::TooFewNodes => (None, "a table needs at least 2 rows".to_string()),
+        TableError::TooManyNodes { capacity } => (
+            None,
+            format!("{} rows; the board holds {capacity}", csv.master.len()),
+        ),
+        TableError::NotMonotonic { row } => (
+            at(row),
+            format!(
+                "master {} does not continue the master column's direction (it must be strictly monotonic)",
+                csv.master[row]
+            ),
+        ),
+        TableError::SegmentLength { row } => {
+            let p = prev(row);
+            let d = (csv.master[row] - csv.master[p]).abs();
+            (
+                at(row),
+                format!(
+                    "the segment from line {} is {d} master units = {:.0} master counts; the board allows 2^-15 … {} counts ({} master units) between rows",
+                    at(p).unwrap_or(0),
+                    d * cpu,
+                    rules.max_segment_counts,
+                    f64::from(rules.max_segment_counts) / cpu
+                ),
+            )
+        }
+        TableError::OutOfRange { row, axis } => {
+            let l = lim(axis);
+            (
+                at(row),
+                format!(
+                    "{} = {} mm is outside the board's limits {} … {} mm",
+                    csv.axes[axis],
+                    csv.columns[axis][row],
+                    mm(l.min_um),
+                    mm(l.max_um)
+                ),
+            )
+        }
+        TableError::TooSteep { row, axis } => {
+            let p = prev(row);
+            let dx = csv.columns[axis][row] - csv.columns[axis][p];
+            let dm = (csv.master[row] - csv.master[p]).abs();
+            let v = if dm > 0.0 { dx.abs() / dm * vmax_master } else { f64::INFINITY };
+            (
+                at(row),
+                format!(
+                    "{} moves {dx:.3} mm over {dm} master units from line {}: {v:.1} mm/s at the master's top speed of {vmax_master} units/s; the board allows {} mm/s",
+                    csv.axes[axis],
+                    at(p).unwrap_or(0),
+                    mm(lim(axis).max_speed_um_per_s)
+                ),
+            )
+        }
+        TableError::MasterSpeed => (
+            None,
+            "the board's master top speed is not positive".to_string(),
+        ),
+    };
+    CheckError {
+        file: csv.path.display().to_string(),
+        line,
+        reason,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn csv(text: &str) -> CamCsv {
+        CamCsv::parse(text, Path::new("t.csv")).expect("csv")
+    }
+
+    #[test]
+    fn the_board_table_passes_the_firmware_rules() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let t = CamCsv::load(&root.join("scenarios/tangent_board.csv")).expect("load");
+        assert_eq!(check(&t, &BoardRules::firmware(), 1000.0), Ok(()));
+        // The one-column table is refused for the two-slave board, naming the header.
+        let t1 = CamCsv::load(&root.join("scenarios/tangent_table.csv")).expect("load");
+        let e = check(&t1, &BoardRules::firmware(), 1000.0).unwrap_err();
+        assert_eq!(e.line, Some(1), "{e}");
+        assert!(e.reason.contains("the board has 2 slaves"), "{e}");
+    }
+
+    #[test]
+    fn each_rule_names_its_line_value_and_limit() {
+        let r = BoardRules::firmware();
+        let cases = [
+            // 600 mm > 500 mm on line 4 (comment line 2 counts).
+            (
+                "master,a,b\n# c\n0,10,10\n1,600,10\n",
+                Some(4),
+                "600 mm is outside the board's limits 0 … 500 mm",
+            ),
+            // 30 mm in 0.1° at 10°/s = 3000 mm/s > 200 mm/s.
+            ("master,a,b\n0,10,10\n0.1,40,10\n", Some(3), "3000.0 mm/s"),
+            // 70° = 70 000 counts > 65 535.
+            ("master,a,b\n0,10,10\n70,10,10\n", Some(3), "65535 counts"),
+        ];
+        for (text, line, needle) in cases {
+            let e = check(&csv(text), &r, 1000.0).unwrap_err();
+            assert_eq!(e.line, line, "{e}");
+            assert!(e.to_string().contains(needle), "{e}");
+            assert!(e.to_string().starts_with("t.csv:"), "{e}");
+        }
+        // Too many rows for the board: the table as a whole.
+        let mut big = String::from("master,a,b\n");
+        for i in 0..300 {
+            big.push_str(&format!("{},10,10\n", i as f64 * 0.1));
+        }
+        let e = check(&csv(&big), &r, 1000.0).unwrap_err();
+        assert_eq!(e.line, None);
+        assert!(e.reason.contains("300 rows; the board holds 256"), "{e}");
+    }
+
+    #[test]
+    fn a_board_with_other_limits_is_checked_with_them() {
+        let mut i = Info {
+            axes: 2,
+            capacity_rows: 256,
+            max_segment_counts: MAX_SEGMENT_COUNTS,
+            limits: InfoLimits::of(&profile::table_limits()),
+            ..Info::default()
+        };
+        let t = csv("master,a,b\n0,10,10\n1,300,10\n");
+        // 290 mm over 1° at 10°/s = 2 900 mm/s: refused by the firmware's 200 mm/s …
+        assert!(check(&t, &BoardRules::of_info(&i), 1000.0).is_err());
+        // … accepted by a board whose axis 0 may move 5 m/s.
+        i.limits.axes[0].max_speed_um_per_s = 5_000_000 << 8;
+        assert_eq!(check(&t, &BoardRules::of_info(&i), 1000.0), Ok(()));
+    }
+}
