@@ -81,9 +81,9 @@ pub struct CheckError {
     pub reason: String,
 }
 
-/// The table as the board would receive it: `(master counts I48F16, slaves I24F8 µm)`
-/// bits per row.
-fn wire_rows(csv: &CamCsv, counts_per_unit: f64) -> Result<Vec<(i64, Vec<i32>)>, CheckError> {
+/// The table as the board receives it (`upload` sends these): per row the master in
+/// I48F16 master counts and each slave in I24F8 µm, raw bits.
+pub fn wire_rows(csv: &CamCsv, counts_per_unit: f64) -> Result<Vec<(i64, Vec<i32>)>, CheckError> {
     let err = |row: usize, reason: String| CheckError {
         file: csv.path.display().to_string(),
         line: csv.lines.get(row).copied(),
@@ -92,13 +92,13 @@ fn wire_rows(csv: &CamCsv, counts_per_unit: f64) -> Result<Vec<(i64, Vec<i32>)>,
     let mut out = Vec::with_capacity(csv.master.len());
     for (i, m) in csv.master.iter().enumerate() {
         let mc = (m * counts_per_unit * 65536.0).round();
-        if !(mc.abs() < 9.0e18) {
+        if !mc.is_finite() || mc.abs() >= 9.0e18 {
             return Err(err(i, format!("master {m} is out of range")));
         }
         let mut xs = Vec::with_capacity(csv.columns.len());
         for (a, col) in csv.columns.iter().enumerate() {
             let um = (col[i] * 1000.0 * 256.0).round();
-            if !(um.abs() < 2.1e9) {
+            if !um.is_finite() || um.abs() >= 2.1e9 {
                 return Err(err(
                     i,
                     format!(

@@ -39,23 +39,15 @@ pub struct Args {
     pub master_counts_per_unit: f64,
 }
 
-/// Rows of a CSV in wire format: master I48F16 raw, then each slave µm I24F8 raw.
+/// Rows of a CSV in wire format: master I48F16 raw, then each slave µm I24F8 raw
+/// ([`crate::tablecheck::wire_rows`]).
 pub fn rows_bytes(csv: &CamCsv, counts_per_unit: f64) -> anyhow::Result<Vec<u8>> {
-    let cols = csv.axes.len();
-    let mut out = Vec::with_capacity(csv.master.len() * row_len(cols));
-    for (i, m) in csv.master.iter().enumerate() {
-        let mc = (m * counts_per_unit * 65536.0).round();
-        anyhow::ensure!(mc.abs() < 9.0e18, "row {i}: master {m} out of range");
-        out.extend_from_slice(&(mc as i64).to_le_bytes());
-        for (a, col) in csv.columns.iter().enumerate() {
-            let um = col[i] * 1000.0 * 256.0;
-            anyhow::ensure!(
-                um.abs() < 2.1e9,
-                "row {i}: {} = {} mm is out of range",
-                csv.axes[a],
-                col[i]
-            );
-            out.extend_from_slice(&(um.round() as i32).to_le_bytes());
+    let rows = crate::tablecheck::wire_rows(csv, counts_per_unit)?;
+    let mut out = Vec::with_capacity(rows.len() * row_len(csv.axes.len()));
+    for (m, xs) in rows {
+        out.extend_from_slice(&m.to_le_bytes());
+        for x in xs {
+            out.extend_from_slice(&x.to_le_bytes());
         }
     }
     Ok(out)
