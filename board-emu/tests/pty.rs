@@ -88,13 +88,17 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
     // `table list` and a refused `table activate` (nothing committed under that id).
     let tables = |what, id| {
         host_sim::cmd::table::run(&host_sim::cmd::table::Args {
-            port: port.clone(),
+            port: Some(port.clone()),
             what,
+            file: Some(dir.path().join("two.csv")),
+            master_counts_per_unit: 1000.0,
             id,
             json: true,
         })
     };
     use host_sim::cmd::table::What as T;
+    // The table passes the rules the emulated firmware reports in Info.
+    tables(T::Check, None).expect("table check --port");
     tables(T::List, None).expect("table list");
     let e = tables(T::Activate, Some(78)).expect_err("78 was never committed");
     assert!(format!("{e}").contains("no committed table"), "{e}");
