@@ -169,3 +169,41 @@ fn estimated_contour_error_follows_the_exact_one_at_the_feed_ramps() {
         .fold(0.0, f64::max);
     assert!(worst < 2.0, "max |ε_est − ε_exact| {worst} µm");
 }
+
+/// `xy` runs through the core's runtime: its following-error rule is live — a 20 kN step
+/// on X (≈ 1.1 mm of tracking error) against a 500 µm limit latches `following_error` on
+/// X, the valves go unpowered (codes 0) from that tick on, and the run ends 0.3 s later;
+/// the same run with the default 5 mm limit has no fault.
+#[test]
+fn a_run_through_the_runtime_latches_a_following_error_and_unpowers_the_valves() {
+    let s = XyScenario {
+        disturbance: Some((20_000.0, 1.0)),
+        following_error_um: 500.0,
+        ..XyScenario::default()
+    };
+    let r = simulate(&s).unwrap();
+    assert_eq!(r.faults.len(), 1, "{:?}", r.faults);
+    let f = &r.faults[0];
+    assert_eq!((f.name, f.axis.as_deref()), ("following_error", Some("x")));
+    assert!(f.t_s > 1.0 && f.t_s < 1.2, "{f:?}");
+    assert!(f.value.is_some_and(|v| v > 500.0), "{f:?}");
+    let after: Vec<_> = r.trace.iter().filter(|p| p.t_s > f.t_s).collect();
+    assert!(!after.is_empty());
+    assert!(after.iter().all(|p| p.command_lsb == [0.0, 0.0]));
+    let end = r.trace.last().unwrap().t_s;
+    assert!(
+        (end - f.t_s - 0.3).abs() < 0.002,
+        "ends 0.3 s after the fault: {end}"
+    );
+    let ok = simulate(&XyScenario {
+        following_error_um: 5000.0,
+        ..s
+    })
+    .unwrap();
+    assert!(ok.faults.is_empty(), "{:?}", ok.faults);
+    // Every applied code is an integer DAC code within ±2047.
+    assert!(ok.trace.iter().all(|p| p
+        .command_lsb
+        .iter()
+        .all(|c| c.fract() == 0.0 && c.abs() <= 2047.0)));
+}

@@ -5,7 +5,11 @@
 //! "rms_contour_error_um", "max_tracking_error_um": {"x", "y"},
 //! "max_contour_error_at": {"t_s", "normal_deg", "normal_off_axis_deg"},
 //! "disturbance_peak_contour_error_um", "disturbance_peak_at" (same shape or null),
-//! "max_command_lsb", "contour_sign_changes_per_s"}`. `normal_off_axis_deg` is the angle
+//! "max_command_lsb", "contour_sign_changes_per_s", "faults": [{"code", "name", "axis",
+//! "tick", "t_s", "value"}]}`. The run goes through the core's runtime
+//! ([`crate::xy::law`]): a latched fault (a following error beyond 5 mm, an implausible
+//! encoder step) unpowers the valves, ends the run 0.3 s later and makes the exit code 3
+//! (`--allow-fault`: 0). `normal_off_axis_deg` is the angle
 //! between the path normal at the peak and the nearest axis: near 0° only that one axis
 //! can act on the contour error there.
 
@@ -30,7 +34,7 @@ pub struct Args {
     #[arg(long, default_value_t = 50.0)]
     pub radius_mm: f64,
     /// Step load on X, N (positive opposes extension).
-    #[arg(long, requires = "disturbance_at_s")]
+    #[arg(long, requires = "disturbance_at_s", allow_negative_numbers = true)]
     pub disturbance_n: Option<f64>,
     /// Time of the load step, s.
     #[arg(long, requires = "disturbance_n")]
@@ -55,6 +59,12 @@ pub struct Args {
     /// Print the result as one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// The runtime's following-error limit of each axis, µm.
+    #[arg(long, default_value_t = crate::xy::FOLLOWING_ERROR_LIMIT_UM)]
+    pub following_error_um: f32,
+    /// Exit 0 even when the runtime latched a fault (by default the exit code is 3).
+    #[arg(long)]
+    pub allow_fault: bool,
     /// Run the documented tuning procedure ([`crate::xy::tune`]): prints every evaluated
     /// setting and the chosen gains of each controller as TOML (`--controller C`: only
     /// C's part of the procedure).
@@ -99,6 +109,7 @@ pub fn run(args: &Args) -> Result<()> {
         feed_mm_per_s: args.feed_mm_per_s,
         radius_mm: args.radius_mm,
         disturbance: args.disturbance_n.zip(args.disturbance_at_s),
+        following_error_um: args.following_error_um,
     };
     let r = simulate(&s)?;
     if let Some(p) = &args.plot {
@@ -136,6 +147,16 @@ pub fn run(args: &Args) -> Result<()> {
             "largest valve command {:.0} LSB; contour-error sign changes {:.1} /s",
             r.max_command_lsb, r.contour_sign_changes_per_s
         );
+        for f in &r.faults {
+            println!("{}", super::run::fault_line(f));
+        }
+    }
+    if let (Some(first), false) = (r.faults.first(), args.allow_fault) {
+        return Err(super::run::FaultLatched {
+            first: super::run::fault_line(first),
+            count: r.faults.len(),
+        }
+        .into());
     }
     Ok(())
 }

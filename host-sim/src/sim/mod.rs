@@ -515,7 +515,7 @@ pub fn run(
 }
 
 /// A fault the runtime latched during a run.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct FaultEvent {
     /// Its code (`hydra_core::runtime::Fault::code`).
     pub code: u16,

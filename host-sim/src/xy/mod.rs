@@ -22,21 +22,22 @@
 //!   step.
 
 pub mod gains;
+pub mod law;
 pub mod tune;
 
 use crate::contour_truth::TruthPath;
 use crate::plant::{HydraulicAxis, Supply};
 use crate::scenario::{AxisCfg, Scenario};
+use crate::sim::FaultEvent;
 use anyhow::{bail, Result};
 use gains::Gains;
-use hydra_core::contour::{
-    curvature_per_m, ArcSpec, ContourWindow, InterpConfig, Interpolator, LineSpec, ParabolaSpec,
-    ParametricPath,
+use hydra_core::contour::{ArcSpec, LineSpec, ParabolaSpec, ParametricPath};
+use hydra_core::runtime::{
+    BootCause, Command, EncoderSample, Fault, MasterSource, Runtime, RuntimeConfig,
+    Sample as RtSample,
 };
-use hydra_core::npid::{
-    Ccc, Cnp, CrossCoupled, EstimatedXy, PathFrame, VelocityFf, XyCoeffs, XyOutput,
-};
-use hydra_core::units::{PosUm, VelUmPerS};
+use hydra_core::units::Counts;
+use law::XyLaw;
 use serde::Serialize;
 
 /// Ordinary points in the estimation window (covers (N−1)·v·Ts of lag: 3.15 mm at 50 mm/s).
@@ -47,6 +48,10 @@ pub const WINDOW_H: usize = 15;
 const ORIGIN_M: f64 = 0.25;
 /// Control period, s.
 const TS: f64 = 1e-3;
+/// Default following-error limit of each axis inside the runtime, µm (the board
+/// profile's 5 mm): an `xy` run whose reference − position exceeds it latches
+/// `following_error`.
+pub const FOLLOWING_ERROR_LIMIT_UM: f32 = 5000.0;
 /// RK4 steps per period.
 const SUBSTEPS: usize = 100;
 /// Feed ramp time, s.
@@ -116,6 +121,8 @@ pub struct XyScenario {
     pub disturbance: Option<(f64, f64)>,
     /// Gains of every controller.
     pub gains: Gains,
+    /// The runtime's following-error limit of each axis, µm (10 … 100 000).
+    pub following_error_um: f32,
 }
 
 impl Default for XyScenario {
@@ -127,6 +134,7 @@ impl Default for XyScenario {
             radius_mm: 50.0,
             disturbance: None,
             gains: Gains::default(),
+            following_error_um: FOLLOWING_ERROR_LIMIT_UM,
         }
     }
 }
@@ -146,7 +154,7 @@ pub struct Sample {
     pub controller_contour_um: f64,
     /// Direction of the path normal at the exact foot point, degrees from +X (−180 … 180].
     pub normal_deg: f64,
-    /// Valve commands, LSB.
+    /// Valve DAC codes applied, LSB (0 while the runtime has the valves unpowered).
     pub command_lsb: [f64; 2],
 }
 
@@ -208,6 +216,8 @@ pub struct XyReport {
     pub max_command_lsb: f64,
     /// Sign changes per second of the contour error after the ramp (oscillation check).
     pub contour_sign_changes_per_s: f64,
+    /// Faults the runtime latched (`[{code, name, axis, tick, t_s, value}]`; empty: none).
+    pub faults: Vec<FaultEvent>,
     /// The trace, one sample per period.
     #[serde(skip)]
     pub trace: Vec<Sample>,
@@ -278,20 +288,6 @@ pub(crate) fn axes(start_um: [f64; 2]) -> (HydraulicAxis, HydraulicAxis, Supply)
     (ax, ay, supply)
 }
 
-/// The controller of a run.
-enum Ctl {
-    Linear(Ccc, XyCoeffs<hydra_core::npid::PidCoeffs>, bool),
-    Nonlinear(Cnp, XyCoeffs<hydra_core::npid::NpidCoeffs>),
-    Estimated(
-        Box<EstimatedXy<WINDOW_N, WINDOW_H>>,
-        XyCoeffs<hydra_core::npid::NpidCoeffs>,
-    ),
-}
-
-fn um(v: f64) -> PosUm {
-    PosUm::saturating_from_num(v)
-}
-
 /// Runs one scenario.
 pub fn simulate(s: &XyScenario) -> Result<XyReport> {
     if !(s.feed_mm_per_s.is_finite() && s.feed_mm_per_s > 0.0 && s.feed_mm_per_s <= 200.0) {
@@ -299,6 +295,12 @@ pub fn simulate(s: &XyScenario) -> Result<XyReport> {
     }
     if !(s.radius_mm.is_finite() && (5.0..=200.0).contains(&s.radius_mm)) {
         bail!("--radius-mm must be in [5, 200] mm, got {}", s.radius_mm);
+    }
+    if !(s.following_error_um.is_finite() && (10.0..=100_000.0).contains(&s.following_error_um)) {
+        bail!(
+            "--following-error-um must be in [10, 100 000] µm, got {}",
+            s.following_error_um
+        );
     }
     if let Some((n, t)) = s.disturbance {
         if !(n.is_finite() && n.abs() <= 50_000.0 && t.is_finite() && t >= 0.0) {
@@ -314,62 +316,20 @@ pub fn simulate(s: &XyScenario) -> Result<XyReport> {
 }
 
 fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result<XyReport> {
-    let interp_c = InterpConfig {
-        period_us: 1000,
-        q_s: 1.0,
-        h_max: WINDOW_H as u16,
-    }
-    .build()
-    .map_err(|e| anyhow::anyhow!("interpolator: {e:?}"))?;
     let start = truth.r(truth.domain().0);
     let (mut ax, mut ay, _) = axes(start);
-    let g = &s.gains;
-    let p0 = [um(start[0]), um(start[1])];
-    let mut ctl = match s.controller {
-        ControllerKind::Independent | ControllerKind::Ccc => {
-            let c = g.linear_coeffs(s.controller == ControllerKind::Independent)?;
-            let st = CrossCoupled::at_rest(
-                Default::default(),
-                Default::default(),
-                Default::default(),
-                p0,
-            );
-            Ctl::Linear(st, c, s.controller == ControllerKind::Ccc)
-        }
-        ControllerKind::Nccc => {
-            let c = g.nonlinear_coeffs(false)?;
-            let st = CrossCoupled::at_rest(
-                Default::default(),
-                Default::default(),
-                Default::default(),
-                p0,
-            );
-            Ctl::Nonlinear(st, c)
-        }
-        ControllerKind::NcccEst => {
-            let c = g.nonlinear_coeffs(true)?;
-            let st = CrossCoupled::at_rest(
-                Default::default(),
-                Default::default(),
-                Default::default(),
-                p0,
-            );
-            Ctl::Estimated(Box::new(EstimatedXy::start(path, st)), c)
-        }
-    };
-    let ffc = g.ff_coeffs()?;
-    let mut ff = [VelocityFf::at_rest(p0[0]), VelocityFf::at_rest(p0[1])];
-    let mut window: Box<ContourWindow<WINDOW_N, WINDOW_H>> = Box::default();
-    let mut interp = Interpolator::start(path, &mut *window);
-    let total_len = truth.arc_length(truth.domain().1);
-    let feed = s.feed_mm_per_s * 1000.0;
-    let decel = feed / RAMP_S;
+    let law = XyLaw::new(s, path, truth)?;
+    let rc = runtime_config(s.following_error_um);
+    let coeffs = rc
+        .build()
+        .map_err(|e| anyhow::anyhow!("the runtime's configuration: {e:?}"))?;
+    let mut rt = Runtime::<_, 2, 0>::new(coeffs, Some(law), BootCause::Normal);
     let mut pending = [0.0f64; 2];
     let mut trace = Vec::new();
+    let mut faults: Vec<FaultEvent> = Vec::new();
     let mut finished_at: Option<f64> = None;
     let h = TS / SUBSTEPS as f64;
     let mut k: u64 = 0;
-    let mut u_path = truth.domain().0;
     loop {
         let t = k as f64 * TS;
         if let Some(tf) = finished_at {
@@ -380,79 +340,70 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
         if t > 600.0 {
             bail!("the path did not finish in 600 s");
         }
-        // Sample.
+        // Sample: 1 µm encoders on both axes (path coordinates).
         let actual = [(ax.x_m() - ORIGIN_M) * 1e6, (ay.x_m() - ORIGIN_M) * 1e6];
-        let meas = [um(actual[0].round()), um(actual[1].round())];
-        // Feed: cosine ramp up, constant deceleration to the end.
-        let ramp = if t < RAMP_S {
-            0.5 - 0.5 * (std::f64::consts::PI * t / RAMP_S).cos()
-        } else {
-            1.0
+        let enc = |v: f64| Counts(v.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32);
+        let sample = RtSample {
+            enc: EncoderSample {
+                master: Counts(0),
+                slaves: [enc(actual[0]), enc(actual[1])],
+            },
+            pressure_bar: [],
+            estop: false,
+            overrun: false,
         };
-        let remaining = (total_len - truth.arc_length(u_path)).max(0.0);
-        let f = (feed * ramp).min((2.0 * decel * remaining).sqrt().max(500.0));
-        let fq = VelUmPerS::saturating_from_num(f);
-        let (reference, out, fin, u_now): ([f64; 2], XyOutput, bool, f64) = match &mut ctl {
-            Ctl::Estimated(e, c) => {
-                let per = e.tick_with_feedforward(&interp_c, c, &ffc, path, fq, meas);
-                let r = per.reference.pos_um();
-                (
-                    [r.x.to_num(), r.y.to_num()],
-                    per.output,
-                    per.reference.finished,
-                    per.reference.point.u.to_num(),
-                )
+        let out = rt.step(&sample, (k == 0).then_some(Command::Start));
+        if let Some(Err(e)) = out.reply {
+            bail!("the runtime refused Start: {e:?}");
+        }
+        let st = rt.status();
+        if let Some(r) = st.fault {
+            if faults.last().map(|l| (l.code, l.tick)) != Some((r.fault.code(), r.tick)) {
+                faults.push(FaultEvent {
+                    code: r.fault.code(),
+                    name: r.fault.name(),
+                    axis: r
+                        .fault
+                        .slave()
+                        .map(|a| ["x", "y"][usize::from(a).min(1)].to_string()),
+                    tick: r.tick,
+                    t_s: t,
+                    value: match r.fault {
+                        Fault::FollowingError { axis } => st
+                            .error_um
+                            .get(usize::from(axis))
+                            .map(|e| e.to_num::<f64>().abs()),
+                        _ => None,
+                    },
+                });
+                // A faulted run ends 0.3 s later (the valves are at null).
+                finished_at.get_or_insert(t);
             }
-            other => {
-                let rf = interp.step(&interp_c, path, fq, &mut *window);
-                let r = rf.pos_um();
-                let pt = path.eval(rf.point.u);
-                let kappa = curvature_per_m(&pt).unwrap_or_default();
-                let frame = PathFrame::from_contour(rf.point.tangent, kappa);
-                let refp = [r.x, r.y];
-                let u_ff = [ff[0].step(&ffc[0], r.x), ff[1].step(&ffc[1], r.y)];
-                match other {
-                    Ctl::Linear(st, ..) => st.set_feedforward(u_ff),
-                    Ctl::Nonlinear(st, _) => st.set_feedforward(u_ff),
-                    Ctl::Estimated(..) => unreachable!(),
-                }
-                let out = match other {
-                    Ctl::Linear(st, c, true) => st.tick_model(c, refp, meas, &frame),
-                    Ctl::Linear(st, c, false) => st.tick_independent(c, refp, meas, &frame),
-                    Ctl::Nonlinear(st, c) => st.tick_model(c, refp, meas, &frame),
-                    Ctl::Estimated(..) => unreachable!(),
-                };
-                (
-                    [r.x.to_num(), r.y.to_num()],
-                    out,
-                    rf.finished,
-                    rf.point.u.to_num(),
-                )
-            }
-        };
-        u_path = u_now;
-        if fin && finished_at.is_none() {
+        }
+        let lt = rt.law().map(|l| l.last).unwrap_or_default();
+        if lt.finished && finished_at.is_none() {
             finished_at = Some(t);
         }
         let near = truth.nearest(actual);
-        let exact = near.eps;
         let nrm = truth.left_normal(near.u);
-        let cmd = [
-            out.command[0].to_num::<f64>(),
-            out.command[1].to_num::<f64>(),
-        ];
+        // What the valves get: the DAC codes while the runtime powers them, else 0.
+        let codes = if out.enable {
+            [f64::from(out.dac[0].get()), f64::from(out.dac[1].get())]
+        } else {
+            [0.0; 2]
+        };
         trace.push(Sample {
             t_s: t,
-            reference_um: reference,
+            reference_um: lt.reference_um,
             actual_um: actual,
-            contour_um: exact,
-            controller_contour_um: out.contour_error_um.to_num(),
+            contour_um: near.eps,
+            controller_contour_um: lt.controller_contour_um,
             normal_deg: nrm[1].atan2(nrm[0]).to_degrees(),
-            command_lsb: cmd,
+            command_lsb: codes,
         });
-        // Plant: the command computed now acts from the next period.
+        // Plant: the code written now acts from the next period.
         let applied = pending;
-        pending = [cmd[0] / 2047.0, cmd[1] / 2047.0];
+        pending = [codes[0] / 2047.0, codes[1] / 2047.0];
         if let Some((n, t0)) = s.disturbance {
             ax.cylinder.load_n = if t >= t0 { n } else { 0.0 };
         }
@@ -462,7 +413,19 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
         }
         k += 1;
     }
-    Ok(report(s, trace))
+    Ok(report(s, trace, faults))
+}
+
+/// The runtime of an `xy` run: the time master, 1 ms, both axes' 1 µm encoders and the
+/// runtime's default plausibility (1 m/s), a following-error limit of
+/// `following_error_um` per axis.
+pub fn runtime_config(following_error_um: f32) -> RuntimeConfig<2> {
+    RuntimeConfig::<2> {
+        period_us: 1000,
+        master_source: MasterSource::Time,
+        following_error_limit_um: [following_error_um; 2],
+        ..RuntimeConfig::default()
+    }
 }
 
 /// The sample with the largest |exact ε| (the first of equal ones).
@@ -473,7 +436,7 @@ fn largest_contour_error<'a>(it: impl Iterator<Item = &'a Sample>) -> Option<&'a
     })
 }
 
-fn report(s: &XyScenario, trace: Vec<Sample>) -> XyReport {
+fn report(s: &XyScenario, trace: Vec<Sample>, faults: Vec<FaultEvent>) -> XyReport {
     let n = trace.len().max(1) as f64;
     let max_at = largest_contour_error(trace.iter());
     let max_c = max_at.map_or(0.0, |p| p.contour_um.abs());
@@ -520,6 +483,7 @@ fn report(s: &XyScenario, trace: Vec<Sample>) -> XyReport {
         disturbance_peak_at: dist_at.map(PeakAt::of),
         max_command_lsb: max_cmd,
         contour_sign_changes_per_s: changes as f64 / dur,
+        faults,
         trace,
     }
 }

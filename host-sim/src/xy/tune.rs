@@ -50,6 +50,7 @@ pub fn tuning_scenario(controller: ControllerKind, gains: Gains) -> XyScenario {
         radius_mm: 50.0,
         disturbance: Some((2000.0, 3.39)),
         gains,
+        following_error_um: super::FOLLOWING_ERROR_LIMIT_UM,
     }
 }
 
