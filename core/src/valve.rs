@@ -18,8 +18,15 @@ use crate::units::{CmdLsb, DacCode};
 use fixed::types::I8F24;
 
 /// Calibration of one valve channel in engineering units (validated by [`ValveCal::build`]).
+/// With the `serde` feature it is what a scenario's `[axis.calibration]` table holds
+/// (every field optional, defaults as below; unknown keys refused).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(deny_unknown_fields, default)
+)]
 pub struct ValveCal {
     /// Code at which the spool is centred, LSB (|null| ≤ 500).
     pub null_lsb: f32,

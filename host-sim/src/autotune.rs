@@ -151,7 +151,7 @@ pub fn step_test(
         kv_neg_lsb_per_um_s: 0.0,
         ka_lsb_per_um_s2: 0.0,
         following_error_um: 1e6,
-        valve: axis.calibration.to_core(),
+        valve: axis.calibration,
         ..AxisConfig::default()
     };
     let c = cfg.build(period_us).map_err(|e| ScenarioError::Invalid {

@@ -189,64 +189,9 @@ pub struct AxisCfg {
     /// The sensors.
     pub sensors: SensorCfg,
     /// Valve output calibration in the controller (null, overlap, gains).
-    pub calibration: CalibrationCfg,
+    pub calibration: hydra_core::valve::ValveCal,
     /// The press process of a force axis (`role = "force"`).
     pub press: Option<PressCfg>,
-}
-
-/// `[axis.calibration]`: the controller's valve output stage (`hydra_core::valve`).
-/// The reference valve is critically lapped and symmetric: all defaults.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct CalibrationCfg {
-    /// DAC code at which the spool is centred, LSB.
-    pub null_lsb: f64,
-    /// Deadband compensation for positive commands, LSB.
-    pub overlap_pos_lsb: f64,
-    /// Deadband compensation for negative commands, LSB.
-    pub overlap_neg_lsb: f64,
-    /// Width of the linear zone replacing the overlap jump, LSB.
-    pub overlap_zone_lsb: f64,
-    /// Gain for positive commands.
-    pub gain_pos: f64,
-    /// Gain for negative commands.
-    pub gain_neg: f64,
-    /// Positive code retracts the axis.
-    pub invert: bool,
-    /// Largest |code| output, LSB.
-    pub clamp_lsb: u16,
-}
-
-impl Default for CalibrationCfg {
-    fn default() -> Self {
-        let c = hydra_core::valve::ValveCal::default();
-        Self {
-            null_lsb: f64::from(c.null_lsb),
-            overlap_pos_lsb: f64::from(c.overlap_pos_lsb),
-            overlap_neg_lsb: f64::from(c.overlap_neg_lsb),
-            overlap_zone_lsb: f64::from(c.overlap_zone_lsb),
-            gain_pos: f64::from(c.gain_pos),
-            gain_neg: f64::from(c.gain_neg),
-            invert: c.invert,
-            clamp_lsb: c.clamp_lsb,
-        }
-    }
-}
-
-impl CalibrationCfg {
-    /// The core's calibration.
-    pub fn to_core(&self) -> hydra_core::valve::ValveCal {
-        hydra_core::valve::ValveCal {
-            null_lsb: self.null_lsb as f32,
-            overlap_pos_lsb: self.overlap_pos_lsb as f32,
-            overlap_neg_lsb: self.overlap_neg_lsb as f32,
-            overlap_zone_lsb: self.overlap_zone_lsb as f32,
-            gain_pos: self.gain_pos as f32,
-            gain_neg: self.gain_neg as f32,
-            invert: self.invert,
-            clamp_lsb: self.clamp_lsb,
-        }
-    }
 }
 
 /// `[axis.press]`: the press process of a force axis (PLANT.md's side press).
@@ -601,7 +546,7 @@ impl Default for AxisCfg {
             cylinder: CylinderCfg::default(),
             contact: None,
             sensors: SensorCfg::default(),
-            calibration: CalibrationCfg::default(),
+            calibration: hydra_core::valve::ValveCal::default(),
             press: None,
         }
     }
@@ -1070,7 +1015,7 @@ impl AxisCfg {
             (None, Role::Follower) => {}
         }
         let cal = &self.calibration;
-        if let Err(e) = cal.to_core().build() {
+        if let Err(e) = cal.build() {
             return Err(invalid(
                 k("calibration"),
                 format!("{e:?}"),
@@ -1199,6 +1144,21 @@ mod tests {
         let f = c.natural_frequency_hz(0.25);
         assert!((f - 56.0).abs() < 0.5, "{f}");
         assert_eq!(s.steps_per_period(), 100);
+    }
+
+    #[test]
+    fn the_calibration_table_is_cores_valve_calibration() {
+        let s =
+            parse("[[axis]]\nname = \"a\"\n[axis.calibration]\nnull_lsb = 12\ngain_neg = 0.9\n")
+                .unwrap();
+        let c = s.axes[0].calibration;
+        assert_eq!((c.null_lsb, c.gain_neg), (12.0, 0.9));
+        assert_eq!(
+            c.clamp_lsb,
+            hydra_core::valve::ValveCal::default().clamp_lsb
+        );
+        let e = parse("[[axis]]\nname = \"a\"\n[axis.calibration]\nnul_lsb = 1\n").unwrap_err();
+        assert!(e.to_string().contains("unknown field `nul_lsb`"), "{e}");
     }
 
     #[test]

@@ -69,7 +69,7 @@ pub fn axis_config(axis: &AxisCfg, g: &PositionGains, controller: Controller) ->
         ka_lsb_per_um_s2: g.ka_lsb_per_um_s2 as f32,
         valve_lag_us: g.valve_lag_us as f32,
         following_error_um: g.following_error_um as f32,
-        valve: axis.calibration.to_core(),
+        valve: axis.calibration,
     }
 }
 
@@ -91,7 +91,7 @@ pub fn press_config(axis: &AxisCfg, g: &PressGains) -> Option<PressConfig> {
         force_ramp_ms: (p.force_ramp_s * 1e3) as f32,
         kp_lsb_per_n: g.kp_lsb_per_n as f32,
         ki_lsb_per_n_s: g.ki_lsb_per_n_s as f32,
-        valve: axis.calibration.to_core(),
+        valve: axis.calibration,
     })
 }
 
