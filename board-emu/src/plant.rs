@@ -12,7 +12,7 @@
 
 use crate::bus::{Environment, Inputs, Outputs, SYSCLK_HZ};
 use host_sim::camfile::{interpolate, CamCsv};
-use host_sim::plant::{valve_command, BoardPlant, BoardSlave};
+use host_sim::machine::{valve_command, BoardPlant, BoardSlave};
 use host_sim::scenario::Scenario;
 use host_sim::sim::ErrorStat;
 use std::cell::RefCell;

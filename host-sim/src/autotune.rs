@@ -42,6 +42,7 @@
 //! are the position rule's `Kp` for the `feedforward` law and `kv = 2047/v_max+`.
 
 use crate::plant::{dac_to_unit, HydraulicAxis};
+use crate::scenario::gains::filter_limit_hz;
 use crate::scenario::{
     AxisCfg, Controller, PositionGains, PredictorCfg, PressGains, Role, Scenario, ScenarioError,
     Tuning,
@@ -238,13 +239,6 @@ pub fn ultimate_gain(
 /// Master-filter bandwidth of the rule, Hz.
 pub fn master_filter_hz(period_us: u32) -> f64 {
     filter_limit_hz(period_us).min(8.0)
-}
-
-/// The master filter's bandwidth limit `0.2/T`, rounded down to 2 significant digits, Hz.
-pub fn filter_limit_hz(period_us: u32) -> f64 {
-    let max = 0.2e6 / f64::from(period_us);
-    let e = 10f64.powf(max.log10().floor() - 1.0);
-    (max / e).floor() * e
 }
 
 /// Position gains of one follower axis by the rule.

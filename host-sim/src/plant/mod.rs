@@ -14,14 +14,12 @@
 //! that couples the plant with the controller.
 
 pub mod axis;
-pub mod board;
 pub mod cylinder;
 pub mod master;
 pub mod sensors;
 pub mod valve;
 
 pub use axis::{HydraulicAxis, Supply};
-pub use board::{valve_command, BoardPlant, BoardSlave};
 pub use cylinder::{Contact, Cylinder};
 pub use master::{MasterMotion, MasterProfile};
 pub use sensors::{dac_to_unit, Encoder, PressureAdc};

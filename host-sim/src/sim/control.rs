@@ -8,8 +8,8 @@
 //! object-safe [`FollowerDyn`]. Tables hold up to [`TABLE_CAPACITY`] nodes.
 
 use crate::camfile::CamCsv;
+use crate::scenario::gains::{follower_config, press_config};
 use crate::scenario::{AxisCfg, Controller, Role, Scenario, ScenarioError, Tuning};
-use crate::tuning::{follower_config, press_config};
 use hydra_core::axis::{PressCoeffs, PressOutput, PressState};
 use hydra_core::follower::{Follower, FollowerError};
 use hydra_core::runtime::{

@@ -214,13 +214,11 @@ pub fn run(
     progress: &mut dyn FnMut(f64),
 ) -> Result<RunReport, ScenarioError> {
     let wall = Instant::now();
-    let (tuning, _) =
-        crate::tuning::select(s, spec.controller, spec.period_us).ok_or_else(|| {
-            ScenarioError::Invalid {
-                key: "tuning".into(),
-                value: spec.controller.name().into(),
-                reason: "the scenario has no [[tuning]] set for this controller".into(),
-            }
+    let (tuning, _) = crate::scenario::gains::select(s, spec.controller, spec.period_us)
+        .ok_or_else(|| ScenarioError::Invalid {
+            key: "tuning".into(),
+            value: spec.controller.name().into(),
+            reason: "the scenario has no [[tuning]] set for this controller".into(),
         })?;
     let mut sc = s.clone();
     sc.sim.period_us = spec.period_us;

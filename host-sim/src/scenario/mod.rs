@@ -11,14 +11,22 @@
 //! (litres), `_l_per_min`, `_n` (newtons), `_kg`, SI elsewhere (`bulk_modulus_pa`,
 //! `leakage_m3_per_s_pa`, `viscous_n_s_per_m`, `stiffness_n_per_m`).
 
+//!
+//! Layout: this file is the schema (the structs a file deserialises into) and loading;
+//! [`defaults`] the reference values, [`validate`] the checks, [`physics`] the plant and
+//! sensors the data describe, [`gains`] the core configurations the gain sets become.
+//! Nothing here runs the simulator or the tuning procedure.
+
+mod defaults;
+pub mod gains;
+mod physics;
+mod validate;
+
+pub use defaults::reference_tuning;
+
 use crate::camfile::{CamCsv, TableError};
 use crate::die::DieTable;
-use crate::plant::{
-    Contact, Cylinder, Encoder, HydraulicAxis, MasterMotion, MasterProfile, PressureAdc, Supply,
-    Valve,
-};
 use serde::Deserialize;
-use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 /// A problem with a scenario file.
@@ -55,7 +63,7 @@ pub enum ScenarioError {
     Table(#[from] TableError),
 }
 
-fn invalid(
+pub(crate) fn invalid(
     key: impl Into<String>,
     value: impl ToString,
     reason: impl Into<String>,
@@ -210,18 +218,6 @@ pub struct PressCfg {
     pub force_ramp_s: f64,
 }
 
-impl Default for PressCfg {
-    fn default() -> Self {
-        Self {
-            approach_end_mm: 60.0,
-            approach_speed_mm_per_s: 20.0,
-            contact_force_n: 2000.0,
-            force_set_n: 20_000.0,
-            force_ramp_s: 1.0,
-        }
-    }
-}
-
 /// The follower law (`--controller`).
 #[derive(
     Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum,
@@ -330,24 +326,6 @@ pub struct PositionGains {
     pub following_error_um: f64,
 }
 
-impl Default for PositionGains {
-    fn default() -> Self {
-        let c = hydra_core::axis::AxisConfig::default();
-        Self {
-            kp_lsb_per_um: f64::from(c.kp_lsb_per_um),
-            ki_lsb_per_um_s: f64::from(c.ki_lsb_per_um_s),
-            kd_lsb_s_per_um: f64::from(c.kd_lsb_s_per_um),
-            i_zone_um: f64::from(c.i_zone_um),
-            i_limit_lsb: f64::from(c.i_limit_lsb),
-            kv_pos_lsb_per_um_s: f64::from(c.kv_pos_lsb_per_um_s),
-            kv_neg_lsb_per_um_s: f64::from(c.kv_neg_lsb_per_um_s),
-            ka_lsb_per_um_s2: f64::from(c.ka_lsb_per_um_s2),
-            valve_lag_us: f64::from(c.valve_lag_us),
-            following_error_um: f64::from(c.following_error_um),
-        }
-    }
-}
-
 /// Gains of one force axis (`hydra_core::axis::PressConfig`).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
@@ -360,17 +338,6 @@ pub struct PressGains {
     pub kp_lsb_per_n: f64,
     /// Force integral gain, LSB/(N·s).
     pub ki_lsb_per_n_s: f64,
-}
-
-impl Default for PressGains {
-    fn default() -> Self {
-        Self {
-            kp_lsb_per_um: 0.2,
-            kv_lsb_per_um_s: 0.0,
-            kp_lsb_per_n: 0.005,
-            ki_lsb_per_n_s: 0.1,
-        }
-    }
 }
 
 /// `[axis.valve]`.
@@ -445,171 +412,6 @@ pub struct SensorCfg {
     pub pressure_adc_bits: u32,
 }
 
-impl Default for SimCfg {
-    fn default() -> Self {
-        Self {
-            step_us: 10.0,
-            period_us: 1000,
-            error_skip_s: 1.5,
-            duration_s: None,
-            controller: Controller::Feedforward,
-        }
-    }
-}
-
-impl Default for SupplyCfg {
-    fn default() -> Self {
-        Self {
-            supply_bar: 160.0,
-            tank_bar: 0.0,
-            clamp_factor: 1.1,
-        }
-    }
-}
-
-impl Default for MasterCfg {
-    fn default() -> Self {
-        Self {
-            start_deg: 0.0,
-            end_deg: 90.0,
-            speed_deg_per_s: 3.0,
-            ramp_s: 1.0,
-            ripple: 0.03,
-            ripple_hz: 0.4,
-            ripple_phase_deg: 0.0,
-            start_s: 0.0,
-            hold_s: 1.0,
-            resolution_deg: 0.001,
-        }
-    }
-}
-
-impl Default for ValveCfg {
-    fn default() -> Self {
-        Self {
-            bandwidth_hz: 60.0,
-            damping: 0.8,
-            rated_flow_l_per_min: 24.0,
-            rated_dp_bar: 35.0,
-            leakage_m3_per_s_pa: 1e-13,
-            transition_bar: 0.01,
-        }
-    }
-}
-
-impl Default for CylinderCfg {
-    fn default() -> Self {
-        Self {
-            bore_mm: 80.0,
-            rod_mm: 45.0,
-            stroke_mm: 500.0,
-            dead_volume_a_l: 0.3,
-            dead_volume_b_l: 0.3,
-            bulk_modulus_pa: 1.4e9,
-            mass_kg: 300.0,
-            viscous_n_s_per_m: 3000.0,
-            coulomb_n: 400.0,
-            coulomb_smoothing_mm_per_s: 1.0,
-            load_n: 0.0,
-            stop_stiffness_n_per_m: 1e10,
-            stop_damping_ratio: 1.0,
-        }
-    }
-}
-
-impl Default for ContactCfg {
-    fn default() -> Self {
-        Self {
-            position_mm: 50.0,
-            stiffness_n_per_m: 5e6,
-        }
-    }
-}
-
-impl Default for SensorCfg {
-    fn default() -> Self {
-        Self {
-            encoder_um: 1.0,
-            pressure_full_scale_bar: 250.0,
-            pressure_adc_bits: 12,
-        }
-    }
-}
-
-impl Default for AxisCfg {
-    fn default() -> Self {
-        Self {
-            name: String::new(),
-            role: Role::Follower,
-            x0_mm: None,
-            valve: ValveCfg::default(),
-            cylinder: CylinderCfg::default(),
-            contact: None,
-            sensors: SensorCfg::default(),
-            calibration: hydra_core::valve::ValveCal::default(),
-            press: None,
-        }
-    }
-}
-
-impl AxisCfg {
-    /// PLANT.md's tangent cylinder.
-    pub fn reference_tangent() -> Self {
-        Self {
-            name: "tangent".into(),
-            ..Self::default()
-        }
-    }
-
-    /// PLANT.md's side press: same valve and bore, 100 mm stroke, a 5e6 N/m workpiece
-    /// beyond 50 mm.
-    pub fn reference_side_press() -> Self {
-        Self {
-            name: "side_press".into(),
-            role: Role::Force,
-            cylinder: CylinderCfg {
-                stroke_mm: 100.0,
-                ..CylinderCfg::default()
-            },
-            contact: Some(ContactCfg::default()),
-            x0_mm: Some(10.0),
-            press: Some(PressCfg::default()),
-            ..Self::default()
-        }
-    }
-}
-
-impl Default for Scenario {
-    fn default() -> Self {
-        Self {
-            name: String::new(),
-            sim: SimCfg::default(),
-            supply: SupplyCfg::default(),
-            master: MasterCfg::default(),
-            table: TableCfg::default(),
-            axes: vec![
-                AxisCfg::reference_tangent(),
-                AxisCfg::reference_side_press(),
-            ],
-            tuning: crate::tuning::reference_tuning(),
-            base_dir: PathBuf::from("."),
-        }
-    }
-}
-
-/// Checks `lo < x` (or `lo ≤ x`) and `x ≤ hi`, finite.
-fn check(key: &str, x: f64, lo: f64, lo_inclusive: bool, hi: f64) -> Result<(), ScenarioError> {
-    if !x.is_finite() {
-        return Err(invalid(key, x, "must be a finite number"));
-    }
-    let above = if lo_inclusive { x >= lo } else { x > lo };
-    if !above || x > hi {
-        let l = if lo_inclusive { "[" } else { "(" };
-        return Err(invalid(key, x, format!("must be in {l}{lo}, {hi}]")));
-    }
-    Ok(())
-}
-
 impl Scenario {
     /// Reads, parses and validates a scenario file.
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
@@ -639,7 +441,7 @@ impl Scenario {
             source: Box::new(e),
         })?;
         if s.tuning.is_empty() {
-            s.tuning = crate::tuning::reference_tuning();
+            s.tuning = reference_tuning();
             let has =
                 |name: &str, role: Role| s.axes.iter().any(|a| a.name == name && a.role == role);
             let keep: Vec<Tuning> = s
@@ -681,50 +483,11 @@ impl Scenario {
         (f64::from(self.sim.period_us) / self.sim.step_us).round() as u32
     }
 
-    /// The master motion.
-    pub fn master_motion(&self) -> MasterMotion {
-        let m = &self.master;
-        MasterMotion {
-            start_deg: m.start_deg,
-            end_deg: m.end_deg,
-            speed_deg_per_s: m.speed_deg_per_s,
-            ramp_s: m.ramp_s,
-            ripple: m.ripple,
-            ripple_hz: m.ripple_hz,
-            ripple_phase_rad: m.ripple_phase_deg.to_radians(),
-            start_s: m.start_s,
-            hold_s: m.hold_s,
-        }
-    }
-
-    /// The master profile (validated).
-    pub fn master_profile(&self) -> Result<MasterProfile, ScenarioError> {
-        MasterProfile::new(self.master_motion())
-            .map_err(|e| invalid("master.end_deg", self.master.end_deg, e.to_string()))
-    }
-
-    /// The master encoder.
-    pub fn master_encoder(&self) -> Encoder {
-        Encoder {
-            resolution: self.master.resolution_deg,
-        }
-    }
-
     /// Simulated time, s.
     pub fn duration_s(&self) -> Result<f64, ScenarioError> {
         match self.sim.duration_s {
             Some(d) => Ok(d),
             None => Ok(self.master_profile()?.duration_s()),
-        }
-    }
-
-    /// The supply in SI units.
-    pub fn supply(&self) -> Supply {
-        let s = &self.supply;
-        Supply {
-            supply_pa: s.supply_bar * 1e5,
-            tank_pa: s.tank_bar * 1e5,
-            max_pa: s.clamp_factor * s.supply_bar * 1e5,
         }
     }
 
@@ -750,378 +513,6 @@ impl Scenario {
             }
         }
         Ok(table)
-    }
-
-    /// Checks the RK4 step and the control period (a whole number of steps).
-    pub fn validate_timing(&self) -> Result<(), ScenarioError> {
-        let sim = &self.sim;
-        check("sim.step_us", sim.step_us, 0.0, false, 1000.0)?;
-        if sim.period_us == 0 {
-            return Err(invalid("sim.period_us", 0, "must be at least 1 µs"));
-        }
-        let ratio = f64::from(sim.period_us) / sim.step_us;
-        if (ratio - ratio.round()).abs() > 1e-9 * ratio || ratio.round() < 1.0 {
-            return Err(invalid(
-                "sim.period_us",
-                sim.period_us,
-                format!(
-                    "must be a whole number of RK4 steps (sim.step_us = {})",
-                    sim.step_us
-                ),
-            ));
-        }
-        Ok(())
-    }
-
-    /// Checks every value; the error names the first impossible key.
-    pub fn validate(&self) -> Result<(), ScenarioError> {
-        self.validate_timing()?;
-        let sim = &self.sim;
-        check("sim.error_skip_s", sim.error_skip_s, 0.0, true, 1e6)?;
-        if let Some(d) = sim.duration_s {
-            check("sim.duration_s", d, 0.0, false, 1e6)?;
-        }
-        let s = &self.supply;
-        check("supply.supply_bar", s.supply_bar, 0.0, false, 1000.0)?;
-        check("supply.tank_bar", s.tank_bar, 0.0, true, s.supply_bar)?;
-        if s.tank_bar >= s.supply_bar {
-            return Err(invalid(
-                "supply.tank_bar",
-                s.tank_bar,
-                "must be below supply.supply_bar",
-            ));
-        }
-        check("supply.clamp_factor", s.clamp_factor, 1.0, true, 10.0)?;
-        let m = &self.master;
-        check("master.start_deg", m.start_deg, -1e6, true, 1e6)?;
-        check("master.end_deg", m.end_deg, -1e6, true, 1e6)?;
-        if m.end_deg == m.start_deg {
-            return Err(invalid(
-                "master.end_deg",
-                m.end_deg,
-                "must differ from master.start_deg",
-            ));
-        }
-        check("master.speed_deg_per_s", m.speed_deg_per_s, 0.0, false, 1e5)?;
-        check("master.ramp_s", m.ramp_s, 0.0, false, 1e4)?;
-        check("master.ripple", m.ripple, 0.0, true, 0.99)?;
-        check("master.ripple_hz", m.ripple_hz, 0.0, true, 1e4)?;
-        check(
-            "master.ripple_phase_deg",
-            m.ripple_phase_deg,
-            -1e6,
-            true,
-            1e6,
-        )?;
-        check("master.start_s", m.start_s, 0.0, true, 1e5)?;
-        check("master.hold_s", m.hold_s, 0.0, true, 1e5)?;
-        check("master.resolution_deg", m.resolution_deg, 0.0, false, 10.0)?;
-        self.master_profile()?;
-        if self.axes.is_empty() {
-            return Err(invalid("axis", "[]", "at least one [[axis]] is needed"));
-        }
-        for (i, a) in self.axes.iter().enumerate() {
-            if a.name.is_empty()
-                || !a
-                    .name
-                    .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
-            {
-                return Err(invalid(
-                    format!("axis[{i}].name"),
-                    format!("{:?}", a.name),
-                    "must be a non-empty name of letters, digits, `_` or `-`",
-                ));
-            }
-            if self.axes[..i].iter().any(|b| b.name == a.name) {
-                return Err(invalid(
-                    format!("axis[{i}].name"),
-                    &a.name,
-                    "two axes have this name",
-                ));
-            }
-            a.validate(self.step_s())?;
-        }
-        crate::tuning::validate(self)
-    }
-}
-
-impl AxisCfg {
-    fn validate(&self, step_s: f64) -> Result<(), ScenarioError> {
-        let k = |s: &str| format!("axis.{}.{s}", self.name);
-        let v = &self.valve;
-        check(&k("valve.bandwidth_hz"), v.bandwidth_hz, 0.0, false, 1e4)?;
-        check(&k("valve.damping"), v.damping, 0.0, false, 10.0)?;
-        check(
-            &k("valve.rated_flow_l_per_min"),
-            v.rated_flow_l_per_min,
-            0.0,
-            false,
-            1e5,
-        )?;
-        check(&k("valve.rated_dp_bar"), v.rated_dp_bar, 0.0, false, 1000.0)?;
-        check(
-            &k("valve.leakage_m3_per_s_pa"),
-            v.leakage_m3_per_s_pa,
-            0.0,
-            true,
-            1e-9,
-        )?;
-        check(
-            &k("valve.transition_bar"),
-            v.transition_bar,
-            0.0,
-            false,
-            10.0,
-        )?;
-        let c = &self.cylinder;
-        check(&k("cylinder.bore_mm"), c.bore_mm, 0.0, false, 2000.0)?;
-        check(&k("cylinder.rod_mm"), c.rod_mm, 0.0, true, 2000.0)?;
-        if c.rod_mm >= c.bore_mm {
-            return Err(invalid(
-                k("cylinder.rod_mm"),
-                c.rod_mm,
-                format!("must be smaller than cylinder.bore_mm ({})", c.bore_mm),
-            ));
-        }
-        check(&k("cylinder.stroke_mm"), c.stroke_mm, 0.0, false, 8000.0)?;
-        check(
-            &k("cylinder.dead_volume_a_l"),
-            c.dead_volume_a_l,
-            0.0,
-            false,
-            1e4,
-        )?;
-        check(
-            &k("cylinder.dead_volume_b_l"),
-            c.dead_volume_b_l,
-            0.0,
-            false,
-            1e4,
-        )?;
-        check(
-            &k("cylinder.bulk_modulus_pa"),
-            c.bulk_modulus_pa,
-            0.0,
-            false,
-            1e11,
-        )?;
-        check(&k("cylinder.mass_kg"), c.mass_kg, 0.0, false, 1e7)?;
-        check(
-            &k("cylinder.viscous_n_s_per_m"),
-            c.viscous_n_s_per_m,
-            0.0,
-            true,
-            1e9,
-        )?;
-        check(&k("cylinder.coulomb_n"), c.coulomb_n, 0.0, true, 1e8)?;
-        check(
-            &k("cylinder.coulomb_smoothing_mm_per_s"),
-            c.coulomb_smoothing_mm_per_s,
-            0.0,
-            false,
-            1e4,
-        )?;
-        check(&k("cylinder.load_n"), c.load_n, -1e9, true, 1e9)?;
-        check(
-            &k("cylinder.stop_stiffness_n_per_m"),
-            c.stop_stiffness_n_per_m,
-            0.0,
-            false,
-            1e14,
-        )?;
-        check(
-            &k("cylinder.stop_damping_ratio"),
-            c.stop_damping_ratio,
-            0.0,
-            true,
-            100.0,
-        )?;
-        if let Some(ct) = &self.contact {
-            check(
-                &k("contact.position_mm"),
-                ct.position_mm,
-                0.0,
-                true,
-                c.stroke_mm,
-            )?;
-            check(
-                &k("contact.stiffness_n_per_m"),
-                ct.stiffness_n_per_m,
-                0.0,
-                false,
-                1e12,
-            )?;
-        }
-        let s = &self.sensors;
-        check(&k("sensors.encoder_um"), s.encoder_um, 0.0, false, 1e4)?;
-        check(
-            &k("sensors.pressure_full_scale_bar"),
-            s.pressure_full_scale_bar,
-            0.0,
-            false,
-            5000.0,
-        )?;
-        if !(8..=24).contains(&s.pressure_adc_bits) {
-            return Err(invalid(
-                k("sensors.pressure_adc_bits"),
-                s.pressure_adc_bits,
-                "must be in [8, 24]",
-            ));
-        }
-        if let Some(x0) = self.x0_mm {
-            check(&k("x0_mm"), x0, 0.0, true, c.stroke_mm)?;
-        }
-        match (&self.press, self.role) {
-            (None, Role::Force) => {
-                return Err(invalid(
-                    k("press"),
-                    "missing",
-                    "a force axis needs an [axis.press] section",
-                ));
-            }
-            (Some(_), Role::Follower) => {
-                return Err(invalid(
-                    k("press"),
-                    "given",
-                    "only a `role = \"force\"` axis has a press process",
-                ));
-            }
-            (Some(p), Role::Force) => {
-                check(
-                    &k("press.approach_end_mm"),
-                    p.approach_end_mm,
-                    0.0,
-                    true,
-                    c.stroke_mm,
-                )?;
-                check(
-                    &k("press.approach_speed_mm_per_s"),
-                    p.approach_speed_mm_per_s,
-                    0.0,
-                    false,
-                    1000.0,
-                )?;
-                check(
-                    &k("press.contact_force_n"),
-                    p.contact_force_n,
-                    0.0,
-                    false,
-                    1e6,
-                )?;
-                check(&k("press.force_set_n"), p.force_set_n, 0.0, false, 1e6)?;
-                check(&k("press.force_ramp_s"), p.force_ramp_s, 1e-3, true, 60.0)?;
-            }
-            (None, Role::Follower) => {}
-        }
-        let cal = &self.calibration;
-        if let Err(e) = cal.build() {
-            return Err(invalid(
-                k("calibration"),
-                format!("{e:?}"),
-                "out of its range (see hydra_core::valve::ValveCal)",
-            ));
-        }
-        // Fixed-step RK4 is stable for h·|λ| below about 2.8; ask for a margin of 2 on the
-        // fastest modes (spool, oil column at the stiffer end of the stroke, end stops).
-        let cyl = self.cylinder_si();
-        let w_valve = 2.0 * PI * v.bandwidth_hz;
-        let w_oil = 2.0
-            * PI
-            * cyl
-                .natural_frequency_hz(0.0)
-                .max(cyl.natural_frequency_hz(cyl.stroke_m));
-        let w_stop = (cyl.stop_stiffness_n_per_m / cyl.mass_kg).sqrt();
-        let w_contact = self
-            .contact
-            .as_ref()
-            .map_or(0.0, |ct| (ct.stiffness_n_per_m / cyl.mass_kg).sqrt());
-        // A chamber behind an open land below the transition pressure: ṗ = −E/V·K_v/√p_tr·Δp.
-        let valve = self.valve_si();
-        let w_land = cyl.bulk_modulus_pa / cyl.dead_volume_a_m3.min(cyl.dead_volume_b_m3)
-            * valve.kv
-            / valve.dp_transition_pa.sqrt();
-        for (what, w) in [
-            ("valve.bandwidth_hz", w_valve),
-            ("valve.transition_bar", w_land),
-            ("the oil-column frequency", w_oil),
-            ("cylinder.stop_stiffness_n_per_m", w_stop),
-            ("contact.stiffness_n_per_m", w_contact),
-        ] {
-            if w * step_s > 1.4 {
-                return Err(invalid(
-                    "sim.step_us",
-                    step_s * 1e6,
-                    format!(
-                        "too long for axis `{}`: {what} gives a mode of {:.0} rad/s, RK4 needs step < {:.2} µs",
-                        self.name,
-                        w,
-                        1.4 / w * 1e6
-                    ),
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// The valve in SI units.
-    pub fn valve_si(&self) -> Valve {
-        let v = &self.valve;
-        Valve {
-            omega_rad_s: 2.0 * PI * v.bandwidth_hz,
-            zeta: v.damping,
-            kv: Valve::kv_from_rating(v.rated_flow_l_per_min * 1e-3 / 60.0, v.rated_dp_bar * 1e5),
-            leak_m3_per_s_pa: v.leakage_m3_per_s_pa,
-            dp_transition_pa: v.transition_bar * 1e5,
-        }
-    }
-
-    /// The cylinder in SI units.
-    pub fn cylinder_si(&self) -> Cylinder {
-        let c = &self.cylinder;
-        let area_a = PI / 4.0 * (c.bore_mm * 1e-3).powi(2);
-        let area_rod = PI / 4.0 * (c.rod_mm * 1e-3).powi(2);
-        Cylinder {
-            area_a_m2: area_a,
-            area_b_m2: area_a - area_rod,
-            stroke_m: c.stroke_mm * 1e-3,
-            dead_volume_a_m3: c.dead_volume_a_l * 1e-3,
-            dead_volume_b_m3: c.dead_volume_b_l * 1e-3,
-            bulk_modulus_pa: c.bulk_modulus_pa,
-            mass_kg: c.mass_kg,
-            viscous_n_s_per_m: c.viscous_n_s_per_m,
-            coulomb_n: c.coulomb_n,
-            coulomb_smoothing_m_per_s: c.coulomb_smoothing_mm_per_s * 1e-3,
-            load_n: c.load_n,
-            stop_stiffness_n_per_m: c.stop_stiffness_n_per_m,
-            stop_damping_n_s_per_m: 2.0
-                * c.stop_damping_ratio
-                * (c.stop_stiffness_n_per_m * c.mass_kg).sqrt(),
-            contact: self.contact.as_ref().map(|ct| Contact {
-                position_m: ct.position_mm * 1e-3,
-                stiffness_n_per_m: ct.stiffness_n_per_m,
-            }),
-        }
-    }
-
-    /// The position encoder (resolution in m).
-    pub fn encoder(&self) -> Encoder {
-        Encoder {
-            resolution: self.sensors.encoder_um * 1e-6,
-        }
-    }
-
-    /// The pressure transducers.
-    pub fn pressure_adc(&self) -> PressureAdc {
-        PressureAdc {
-            full_scale_pa: self.sensors.pressure_full_scale_bar * 1e5,
-            bits: self.sensors.pressure_adc_bits,
-        }
-    }
-
-    /// The plant of this axis at rest at `x0_m`.
-    pub fn plant(&self, supply: Supply, x0_m: f64) -> HydraulicAxis {
-        HydraulicAxis::at_rest(self.valve_si(), self.cylinder_si(), supply, x0_m)
     }
 }
 

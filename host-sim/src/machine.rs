@@ -10,9 +10,8 @@
 //! machine); valve command u ∈ [−1, 1] (full opening), 0 while the valve power is off
 //! (an unpowered servo valve's spool centres).
 
-use super::sensors::{Encoder, PressureAdc};
-use super::{HydraulicAxis, MasterProfile};
 use crate::camfile::CamCsv;
+use crate::plant::{Encoder, HydraulicAxis, MasterProfile, PressureAdc};
 use crate::scenario::{Role, Scenario, ScenarioError};
 
 /// Where a slave starts when neither the scenario (`x0_mm`) nor its table column says, mm.
