@@ -20,6 +20,7 @@
 mod clock;
 mod contour;
 mod follower;
+mod fx;
 mod harness;
 mod install;
 mod npid;
@@ -221,6 +222,7 @@ fn main() -> ! {
     r.run("xy_contour_part", xy::XyContourPart::new());
     r.run("runtime_install_law", install::InstallLaw::new());
     r.run("runtime_step_2axes", runtime::RuntimeStep::new());
+    r.run("fx_sqrt_u64", fx::Sqrt::new());
 
     let ok = r.ok;
     let _ = writeln!(r.o, "DONE ok={ok}");

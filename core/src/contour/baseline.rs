@@ -11,10 +11,10 @@
 //! Cost: tangent 4 products; chord N − 1 segment distances (a normalisation each).
 
 use super::estimate::{finish, u_at_foot, ContourEstimate};
-use super::fx::{clamp_to_i32, mul_shr_i32};
 use super::geom::{rel, rel_sat};
 use super::window::{ContourWindow, OrdinaryPoint};
 use super::{PosFine, RelUm, UnitQ30, Xy};
+use crate::fx::{clamp_to_i32, mul_shr_i32};
 use crate::units::PosUm;
 
 fn fine(p: Xy<PosUm>) -> Xy<i64> {

@@ -4,8 +4,8 @@
 //! Inputs are saturated to ±2^30 LSB (±262 mm, [`super::window`]), so every product of
 //! two components fits an `i64` exactly and sums of two products saturate harmlessly.
 
-use super::fx::{clamp_rel, clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, sqrt_u64};
 use super::Xy;
+use crate::fx::{clamp_rel, clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, sqrt_round_u64};
 
 /// `a − b`, saturated to ±`REL_LIMIT` (2^30 LSB).
 #[inline(always)]
@@ -137,9 +137,9 @@ pub(crate) fn chord_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>, ends: Ends) 
             ),
         )
     } else if len == 0 || along <= 0 {
-        (sqrt_u64(norm2(w)) as i64, Xy::new(0, 0))
+        (sqrt_round_u64(norm2(w)) as i64, Xy::new(0, 0))
     } else {
-        (sqrt_u64(norm2(sub(w, d))) as i64, d)
+        (sqrt_round_u64(norm2(sub(w, d))) as i64, d)
     };
     let along = if beyond { along } else { along_t };
     // t = along·(1/len) = along·rsq·2^(s−60) (s the normalisation shift); in Q30:
@@ -208,9 +208,9 @@ mod tests {
                 ),
             )
         } else if len == 0 || along <= 0 {
-            (sqrt_u64(norm2(w)) as i64, Xy::new(0, 0))
+            (sqrt_round_u64(norm2(w)) as i64, Xy::new(0, 0))
         } else if along >= len {
-            (sqrt_u64(norm2(sub(w, d))) as i64, d)
+            (sqrt_round_u64(norm2(sub(w, d))) as i64, d)
         } else {
             // 0 < along < |d| ≤ 2^31: û·along fits.
             let along32 = clamp_to_i32(along, i32::MAX);

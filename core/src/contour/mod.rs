@@ -86,7 +86,6 @@
 mod arc;
 mod baseline;
 mod estimate;
-mod fx;
 mod geom;
 mod interp;
 mod nearest;

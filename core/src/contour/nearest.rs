@@ -32,9 +32,9 @@
 //! the servo has been following — the branch continuity a contouring controller wants —
 //! while the full scan may jump to the other branch.
 
-use super::fx::clamp_rel;
 use super::window::{ContourWindow, NO_HINT};
 use super::Xy;
+use crate::fx::clamp_rel;
 
 /// |p − s|², each component saturated to ±`REL_LIMIT` (2^30) (Q24 µm², < 2^61).
 #[inline(always)]

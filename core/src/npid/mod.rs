@@ -2,7 +2,6 @@
 //!
 //! | file | what |
 //! |---|---|
-//! | [`fxmath`] (private) | bounded 64-bit products (no `i128`), √ by table + one Newton step (≤ 2·10⁻⁸ relative), `|x|^α` by base-2 log/exp tables (≤ 1.3·10⁻⁴ relative), their 32-bit forms |
 //! | [`fhan`] | Han's time-optimal synthesis function on 32-bit words (a0 within 5·10⁻⁶ relative) |
 //! | [`td`] | the discrete tracking differentiator |
 //! | [`fal`] | the power law with a linear zone |
@@ -43,7 +42,6 @@ pub mod contour_model;
 pub mod fal;
 pub mod feedforward;
 pub mod fhan;
-mod fxmath;
 #[allow(clippy::module_inception)]
 pub mod npid;
 pub mod pid;

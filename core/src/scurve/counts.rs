@@ -98,7 +98,7 @@ impl CountsOut {
         let n = self.count_of(pos);
         let out = n.wrapping_sub(self.total);
         self.total = n;
-        Counts(crate::q::sat_i32(out))
+        Counts(crate::fx::sat_i32(out))
     }
 
     /// Counts emitted since the origin.

@@ -28,7 +28,7 @@ use super::plan::{Limits, Plan};
 use super::profile::Profile;
 use super::wide::mulhi;
 use super::ScurveError;
-use crate::q::sat_i32;
+use crate::fx::sat_i32;
 use crate::units::PosUm;
 
 /// LSB of `PosUm` per µm (I24F8).

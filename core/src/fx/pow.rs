@@ -28,7 +28,7 @@
 //! **Products on a 32-bit CPU.** An `i128` product is a library routine on the
 //! Cortex-M4 (≈ 40 instructions plus the saturation); an `i64 × i64` product that is
 //! known not to overflow is three instructions (`umull`, 2 × `mla`), an `i32 × i32 →
-//! i64` product one (`smull`). [`mul_shr`] takes the `smull` path whenever both
+//! i64` product one (`smull`). [`crate::fx::mul64_shr`] takes the `smull` path whenever both
 //! operands fit 32 bits and keeps the exact `i128` path (with saturation) otherwise; the
 //! hot paths of the TD, `fhan` and the NPID use [`mul_bounded_shr`] where the ranges
 //! documented at each call site bound the product below 2⁶³.
@@ -60,28 +60,11 @@ const EXP2_TAB: [u32; 65] = [
     2147483648,
 ];
 
-pub(crate) use crate::q::sat_i64;
-
-/// `(a · b) >> s` for two `i64`, exact (arithmetic shift: rounds toward −∞) and
-/// saturated to `i64`; `s` ≤ 62. Same result as [`crate::q::mul64_shr`] for every input,
-/// but when both operands fit an `i32` (the common case: gains and sines in Q30/Q24,
-/// commands in LSB Q16) the product is a single `smull`, with no `i128` routine.
-#[inline(always)]
-pub(crate) fn mul_shr(a: i64, b: i64, s: u32) -> i64 {
-    let (a32, b32) = (a as i32, b as i32);
-    if i64::from(a32) == a && i64::from(b32) == b {
-        // |a·b| ≤ 2^62: exact in an i64, and the shifted value cannot leave the range.
-        i64::from(a32).wrapping_mul(i64::from(b32)).wrapping_shr(s)
-    } else {
-        crate::q::mul64_shr(a, b, s)
-    }
-}
-
 /// `(a · b) >> s` for a product the caller has bounded: `|a · b| < 2⁶³` (each call
 /// site states why). Three multiply instructions on a Cortex-M4; wrapping, so an
 /// unproven bound would give a wrong value, never a panic.
 #[inline(always)]
-pub(crate) const fn mul_bounded_shr(a: i64, b: i64, s: u32) -> i64 {
+pub const fn mul_bounded_shr(a: i64, b: i64, s: u32) -> i64 {
     a.wrapping_mul(b).wrapping_shr(s)
 }
 
@@ -104,7 +87,7 @@ const SQRT_TAB: [u32; 49] = {
 /// normalised argument, Q31) and `k` ∈ 0…31 (half the even normalising shift).
 /// Relative error ≤ 2·10⁻⁸ (measured 0.9·10⁻⁸, module docs). `x = 0` gives `s = 0`.
 #[inline]
-pub(crate) fn sqrt_u64(x: u64) -> (u32, u32) {
+pub fn sqrt_u64(x: u64) -> (u32, u32) {
     let k = x.leading_zeros() / 2;
     // m ∈ [2^62, 2^64): leading one at bit 63 or 62.
     let m = x.wrapping_shl(k.wrapping_mul(2));
@@ -131,9 +114,27 @@ pub(crate) fn sqrt_u64(x: u64) -> (u32, u32) {
     (s0.wrapping_add_signed(delta), k)
 }
 
+/// √x rounded to the nearest integer (e.g. a length in LSB from a squared length), from
+/// [`sqrt_u64`]: √x = s·2^(1−k), error ≤ ½ + 2·10⁻⁸·√x (≤ 1 LSB below 2^50, test
+/// `sqrt_round_matches_f64`). The crate's one square root: bench-m4 chose it (61
+/// instructions) over the reciprocal-square-root form (three Newton steps of 1/√x, no
+/// division: 99 instructions; docs/bench.md).
+#[inline]
+pub fn sqrt_round_u64(x: u64) -> u64 {
+    let (s, k) = sqrt_u64(x);
+    // √x·2^k = 2s ≤ 2^32.
+    let v = u64::from(s).wrapping_shl(1);
+    if k == 0 {
+        v
+    } else {
+        v.wrapping_add(1u64.wrapping_shl(k.wrapping_sub(1)))
+            .wrapping_shr(k)
+    }
+}
+
 /// `sign(x)` with `sign(0) = 0`, as −1, 0, +1.
 #[inline(always)]
-pub(crate) const fn sign(x: i64) -> i64 {
+pub const fn sign(x: i64) -> i64 {
     x.signum()
 }
 
@@ -156,7 +157,7 @@ fn interp(tab: &[u32; 65], idx: usize, w: u32, wbits: u32) -> u32 {
 /// Range: `[−frac, 64 − frac)` (within ±2³⁰ in Q24), absolute error ≤ 4.5·10⁻⁵. The
 /// interpolation runs on the top 32 bits of the normalised argument: one `umull`.
 #[inline]
-pub(crate) fn log2_q24(x: u64, frac: u32) -> i32 {
+pub fn log2_q24(x: u64, frac: u32) -> i32 {
     if x == 0 {
         return i32::MIN / 4;
     }
@@ -177,7 +178,7 @@ pub(crate) fn log2_q24(x: u64, frac: u32) -> i32 {
 ///
 /// Relative error ≤ 3·10⁻⁵ (plus one LSB of the output format).
 #[inline]
-pub(crate) fn exp2_q24(l: i32, out_frac: u32) -> i64 {
+pub fn exp2_q24(l: i32, out_frac: u32) -> i64 {
     let n = l.wrapping_shr(24); // floor, −128 … 127
     let f = (l & 0xFF_FFFF) as u32; // Q24 in [0, 1)
     let idx = f.wrapping_shr(18) as usize;
@@ -200,7 +201,7 @@ pub(crate) fn exp2_q24(l: i32, out_frac: u32) -> i64 {
 /// 32-bit form of [`log2_q24`] (one `clz`, one `umull`). Range `[0, 32)`, absolute error
 /// ≤ 4.5·10⁻⁵.
 #[inline(always)]
-pub(crate) fn log2_q24_u32(x: u32) -> i32 {
+pub fn log2_q24_u32(x: u32) -> i32 {
     if x == 0 {
         return i32::MIN / 4;
     }
@@ -218,7 +219,7 @@ pub(crate) fn log2_q24_u32(x: u32) -> i32 {
 /// `2^(l / 2^24)` as an integer, saturated to `[0, i32::MAX]`: the 32-bit form of
 /// [`exp2_q24`] with `out_frac = 0`. Relative error ≤ 3·10⁻⁵ (plus one LSB).
 #[inline(always)]
-pub(crate) fn exp2_q24_sat_i32(l: i32) -> i32 {
+pub fn exp2_q24_sat_i32(l: i32) -> i32 {
     let n = l.wrapping_shr(24); // floor, −128 … 127
     let f = (l & 0xFF_FFFF) as u32;
     let v = interp(&EXP2_TAB, f.wrapping_shr(18) as usize, f & 0x3_FFFF, 18); // [2^30, 2^31]
@@ -241,7 +242,7 @@ pub(crate) fn exp2_q24_sat_i32(l: i32) -> i32 {
 ///
 /// Relative error ≤ 1.3·10⁻⁴ (see the module docs).
 #[inline]
-pub(crate) fn pow_q16(x: u64, alpha_q16: u32) -> i64 {
+pub fn pow_q16(x: u64, alpha_q16: u32) -> i64 {
     if x == 0 {
         return 0;
     }
@@ -311,6 +312,29 @@ mod tests {
     }
 
     #[test]
+    fn sqrt_round_small_values_and_extremes() {
+        assert_eq!(sqrt_round_u64(0), 0);
+        assert_eq!(sqrt_round_u64(1), 1);
+        assert_eq!(sqrt_round_u64(8), 3);
+        assert_eq!(sqrt_round_u64(6), 2);
+        assert_eq!(sqrt_round_u64(25 << 40), 5 << 20);
+        assert!(sqrt_round_u64(u64::MAX).abs_diff(1 << 32) <= 90);
+        for v in 0..100_000u64 {
+            let e = (v as f64).sqrt();
+            assert!((sqrt_round_u64(v) as f64 - e).abs() <= 0.5 + 1e-9, "{v}");
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn sqrt_round_matches_f64(v: u64) {
+            let r = sqrt_round_u64(v) as f64;
+            let e = (v as f64).sqrt();
+            proptest::prop_assert!((r - e).abs() <= 0.5 + e * 2e-8, "{v}: {r} vs {e}");
+        }
+    }
+
+    #[test]
     fn sqrt_relative_error() {
         let mut worst: f64 = 0.0;
         let mut x: f64 = 1024.0;
@@ -350,8 +374,8 @@ mod tests {
             for &b in &vals {
                 for s in [0, 1, 16, 24, 30, 40, 62] {
                     assert_eq!(
-                        mul_shr(a, b, s),
-                        crate::q::mul64_shr(a, b, s),
+                        crate::fx::mul64_shr(a, b, s),
+                        crate::fx::mul64_shr_wide(a, b, s),
                         "{a} {b} {s}"
                     );
                 }
@@ -377,8 +401,8 @@ mod tests {
         assert_eq!(pow_q16(0, 32768), 0);
         assert_eq!(pow_q16(u64::MAX, 2 << 16), i64::MAX);
         assert_eq!(exp2_q24(i32::MIN / 4, 16), 0);
-        assert_eq!(sat_i64(i128::MAX), i64::MAX);
-        assert_eq!(mul_shr(i64::MAX, i64::MAX, 0), i64::MAX);
-        assert_eq!(mul_shr(-3, 5, 1), -8);
+        assert_eq!(crate::fx::sat_i64(i128::MAX), i64::MAX);
+        assert_eq!(crate::fx::mul64_shr(i64::MAX, i64::MAX, 0), i64::MAX);
+        assert_eq!(crate::fx::mul64_shr(-3, 5, 1), -8);
     }
 }

@@ -41,11 +41,25 @@ pub const fn sat_i64(x: i128) -> i64 {
     }
 }
 
-/// `(a · b) >> s` for two `i64`, formed exactly in an `i128` (arithmetic shift: rounds
-/// toward −∞) and saturated to `i64`; `s` ≤ 126. On a Cortex-M4 the `i128` product is a
-/// library routine: keep it out of per-axis hot paths where a 32-bit form exists.
+/// `(a · b) >> s` for two `i64`, exact (arithmetic shift: rounds toward −∞) and
+/// saturated to `i64`; `s` ≤ 126. When both operands fit an `i32` (the common case:
+/// gains and sines in Q30/Q24, commands in LSB Q16) and `s` < 64 the product is a single
+/// `smull`; otherwise it is formed in an `i128` — a library routine on a Cortex-M4, so
+/// keep operands that need it out of per-axis hot paths.
 #[inline(always)]
 pub const fn mul64_shr(a: i64, b: i64, s: u32) -> i64 {
+    let (a32, b32) = (a as i32, b as i32);
+    if s < 64 && a32 as i64 == a && b32 as i64 == b {
+        // |a·b| ≤ 2^62: exact in an i64, and the shifted value cannot leave the range.
+        (a32 as i64).wrapping_mul(b32 as i64).wrapping_shr(s)
+    } else {
+        mul64_shr_wide(a, b, s)
+    }
+}
+
+/// [`mul64_shr`] always through the `i128` product (its reference).
+#[inline(always)]
+pub const fn mul64_shr_wide(a: i64, b: i64, s: u32) -> i64 {
     sat_i64((a as i128).wrapping_mul(b as i128).wrapping_shr(s))
 }
 

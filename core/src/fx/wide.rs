@@ -1,5 +1,4 @@
-//! Fixed-point helpers of the contour module: wide products, rounding shifts, square
-//! roots and the normalisation of a vector to a unit vector and a length.
+//! Wide products, rounding shifts, the reciprocal square root and the normalisation of a vector to a unit vector and a length.
 //!
 //! Every helper saturates instead of overflowing and never panics. Products of two
 //! `i64` are formed in an `i128` (exact: |a·b| ≤ 2^126); products of two `i32` in an
@@ -17,13 +16,13 @@
 //! | unit vector (`normalize`) | `i32` Q2.30 | ±2^30, < 8·10⁻⁹ |
 //! | 1/|d| (`UnitLen::rsq`, `exp`) | `u32` Q2.30 × 2^exp | (2^29.5, 2^31] |
 
-pub(crate) use crate::q::sat_i64;
+use super::sat::sat_i64;
 
 /// `x >> s` rounded to nearest (ties toward +∞), for `0 ≤ s ≤ 126` and |x| ≤ 2^126
 /// (every caller passes a product of two `i64`: then adding the rounding half cannot
 /// overflow, so it is a plain add, not a saturating one).
 #[inline(always)]
-pub(crate) const fn shr_round_i128(x: i128, s: u32) -> i128 {
+pub const fn shr_round_i128(x: i128, s: u32) -> i128 {
     if s == 0 {
         return x;
     }
@@ -33,7 +32,7 @@ pub(crate) const fn shr_round_i128(x: i128, s: u32) -> i128 {
 
 /// `x >> s` rounded to nearest (ties toward +∞), for `0 ≤ s ≤ 62`.
 #[inline(always)]
-pub(crate) const fn shr_round_i64(x: i64, s: u32) -> i64 {
+pub const fn shr_round_i64(x: i64, s: u32) -> i64 {
     if s == 0 {
         return x;
     }
@@ -43,7 +42,7 @@ pub(crate) const fn shr_round_i64(x: i64, s: u32) -> i64 {
 
 /// `(a · b) >> s` rounded to nearest, formed in an `i128`, saturated to `i64`.
 #[inline(always)]
-pub(crate) const fn mul_shr_i64(a: i64, b: i64, s: u32) -> i64 {
+pub const fn mul_shr_i64(a: i64, b: i64, s: u32) -> i64 {
     sat_i64(shr_round_i128((a as i128).wrapping_mul(b as i128), s))
 }
 
@@ -57,7 +56,7 @@ pub(crate) const fn mul_shr_i64(a: i64, b: i64, s: u32) -> i64 {
 /// (`smull` for a·b_h, `umull` + `mla` for a·b_l); falls back to the `i128` form when
 /// 4·a·b_h could leave the `i64` range.
 #[inline(always)]
-pub(crate) const fn mul_shr30_i32_i64(a: i32, b: i64) -> i64 {
+pub const fn mul_shr30_i32_i64(a: i32, b: i64) -> i64 {
     if b as i32 as i64 == b {
         // b fits an i32 (a path's r″ in Q32 is usually far below 2^31): one `smull`,
         // |a·b| ≤ 2^62, the rounding add cannot wrap; the exact value, as below.
@@ -83,7 +82,7 @@ pub(crate) const fn mul_shr30_i32_i64(a: i32, b: i64) -> i64 {
 /// (exact; a_h·b is an `i32×u32` product, a_l·b a `umull`), else — or when the first
 /// term could leave the `i64` range — by the `i128` form.
 #[inline(always)]
-pub(crate) const fn mul_shr_i64_by_u32(a: i64, b: i64, s: u32) -> i64 {
+pub const fn mul_shr_i64_by_u32(a: i64, b: i64, s: u32) -> i64 {
     if b < 0 || b > u32::MAX as i64 || s < 2 || s > 32 {
         return mul_shr_i64(a, b, s);
     }
@@ -117,7 +116,7 @@ pub(crate) const fn mul_shr_i64_by_u32(a: i64, b: i64, s: u32) -> i64 {
 /// (|a_h·b| ≤ 2^62, an `smull`; |a_l·b| < 2^63 − 2^31, a `umull` and a sign correction;
 /// the sum below 2^62 + 2^31: no saturation is reachable), else by the `i128` form.
 #[inline(always)]
-pub(crate) const fn mul_shr32_i64_i32(a: i64, b: i64) -> i64 {
+pub const fn mul_shr32_i64_i32(a: i64, b: i64) -> i64 {
     if b < i32::MIN as i64 || b > i32::MAX as i64 {
         return mul_shr_i64(a, b, 32);
     }
@@ -139,7 +138,7 @@ pub(crate) const fn mul_shr32_i64_i32(a: i64, b: i64) -> i64 {
 /// a_l·b_l + 2^31 < 2^64: the sum is below 2^58, no saturation is reachable), else by
 /// the `i128` form.
 #[inline(always)]
-pub(crate) const fn mul_shr32_i64_small(a: i64, b: i64) -> i64 {
+pub const fn mul_shr32_i64_small(a: i64, b: i64) -> i64 {
     if (a.unsigned_abs() >> 40) | (b.unsigned_abs() >> 49) != 0 {
         return mul_shr_i64(a, b, 32);
     }
@@ -159,7 +158,7 @@ pub(crate) const fn mul_shr32_i64_small(a: i64, b: i64) -> i64 {
 /// handling in the 128-bit part); a negative k rounds the magnitude with ties toward 0
 /// (floor(−X/2^68 + 1/2) = −⌊(X + 2^67 − 1)/2^68⌋). Otherwise the `i128` form.
 #[inline(always)]
-pub(crate) fn sq_mul_shr68(u: i64, k: i64) -> i64 {
+pub fn sq_mul_shr68(u: i64, k: i64) -> i64 {
     let ua = u.unsigned_abs();
     if ua >> 32 != 0 {
         let sq = i128::from(u).wrapping_mul(i128::from(u));
@@ -181,7 +180,7 @@ pub(crate) fn sq_mul_shr68(u: i64, k: i64) -> i64 {
 /// (the remainder r < n), each quotient digit < 2^16. Equal to `a / n`; `None` outside
 /// the domain.
 #[inline(always)]
-pub(crate) fn div_small(a: i64, n: u32) -> Option<i64> {
+pub fn div_small(a: i64, n: u32) -> Option<i64> {
     if a < 0 || n == 0 || n > 1 << 16 {
         return None;
     }
@@ -202,7 +201,7 @@ pub(crate) fn div_small(a: i64, n: u32) -> Option<i64> {
 
 /// `(a · b) >> s` rounded to nearest for `i32` operands (exact `i64` product).
 #[inline(always)]
-pub(crate) const fn mul_shr_i32(a: i32, b: i32, s: u32) -> i64 {
+pub const fn mul_shr_i32(a: i32, b: i32, s: u32) -> i64 {
     shr_round_i64((a as i64).wrapping_mul(b as i64), s)
 }
 
@@ -259,7 +258,7 @@ const RSQRT_SEED: [u32; 32] = [
 /// y·t < 2^63 and y·t/2 < 2^32. Each u64 → u32 cast below keeps a value that fits.
 /// No division.
 #[inline(always)]
-pub(crate) fn rsqrt_q30(x: u32) -> u32 {
+pub fn rsqrt_q30(x: u32) -> u32 {
     let mut y = RSQRT_SEED
         .get((x >> 26) as usize)
         .copied()
@@ -274,40 +273,9 @@ pub(crate) fn rsqrt_q30(x: u32) -> u32 {
     y
 }
 
-/// √v, rounded, for any `u64` (relative error < 4·10⁻⁹, so exact to 1 LSB below
-/// 2^28): v is shifted by an even amount into [2^59, 2^61), then √v = v·(1/√v) with
-/// [`rsqrt_q30`]. No division.
-#[inline]
-pub(crate) fn sqrt_u64(v: u64) -> u64 {
-    if v == 0 {
-        return 0;
-    }
-    // Even shift putting the top bit at 59 or 60.
-    let lz = v.leading_zeros() as i32;
-    let mut sh = lz.wrapping_sub(3);
-    if sh & 1 != 0 {
-        sh = sh.wrapping_sub(1);
-    }
-    let vn = if sh >= 0 {
-        v.wrapping_shl(sh as u32)
-    } else {
-        v.wrapping_shr(sh.unsigned_abs())
-    };
-    let x = (vn >> 30) as u32;
-    let y = rsqrt_q30(x);
-    // √vn = x·y / 2^30 (≤ 2^31); undo the shift by sh/2, rounding.
-    let r = u64::from(x).wrapping_mul(u64::from(y)) >> 30;
-    let half = sh / 2;
-    if half >= 0 {
-        shr_round_i64(r as i64, half as u32) as u64
-    } else {
-        r.wrapping_shl(half.unsigned_abs())
-    }
-}
-
 /// Saturates an `i64` to `[-lim, lim]` and returns it as `i32` (`0 ≤ lim ≤ i32::MAX`).
 #[inline(always)]
-pub(crate) const fn clamp_to_i32(x: i64, lim: i32) -> i32 {
+pub const fn clamp_to_i32(x: i64, lim: i32) -> i32 {
     let l = lim as i64;
     if x > l {
         lim
@@ -325,7 +293,7 @@ pub(crate) const fn clamp_to_i32(x: i64, lim: i32) -> i32 {
 /// compiler keeps the single test instead of turning the whole into a branch-free
 /// 64-bit min/max (four 64-bit compares, 11 instructions per component).
 #[inline(always)]
-pub(crate) const fn clamp_rel(x: i64) -> i32 {
+pub const fn clamp_rel(x: i64) -> i32 {
     if (x.wrapping_add(1 << 30) as u64) >> 31 == 0 {
         x as i32
     } else {
@@ -347,7 +315,7 @@ const fn clamp_rel_out_of_range(x: i64) -> i32 {
 /// A unit vector in Q2.30 (`I2F30`: 2^30 = 1.0, resolution 9.3·10⁻¹⁰), the length of
 /// the vector it was made from in the input's own format, and its reciprocal.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct UnitLen {
+pub struct UnitLen {
     /// x component, Q2.30.
     pub ux: i32,
     /// y component, Q2.30.
@@ -436,7 +404,7 @@ fn unit_of(nx: i32, ny: i32) -> (i32, i32, u32) {
 /// (three Newton steps) and `i32×i32` products. Relative error of u and len below
 /// 2^-27 (7·10⁻⁹). `None` for the zero vector.
 #[inline(always)]
-pub(crate) fn normalize(dx: i64, dy: i64) -> Option<UnitLen> {
+pub fn normalize(dx: i64, dy: i64) -> Option<UnitLen> {
     let (nx, ny, s) = scale(dx, dy)?;
     let (ux, uy, y) = unit_of(nx, ny);
     // |n| = n·u (Q30 → shift 30): |n·u| ≤ 2^30·2^30 each, the sum < 2^61, so the
@@ -473,7 +441,7 @@ pub(crate) fn normalize(dx: i64, dy: i64) -> Option<UnitLen> {
 /// The unit vector and 1/|d| of [`normalize`] without the length (bit for bit the same
 /// `ux`, `uy`, `rsq`, `exp`; `len` is 0).
 #[inline(always)]
-pub(crate) fn normalize_no_len(dx: i64, dy: i64) -> Option<UnitLen> {
+pub fn normalize_no_len(dx: i64, dy: i64) -> Option<UnitLen> {
     let (nx, ny, s) = scale(dx, dy)?;
     let (ux, uy, y) = unit_of(nx, ny);
     Some(UnitLen {
@@ -602,12 +570,6 @@ mod tests {
         assert_eq!(shr_round_i64(7, 0), 7);
         assert_eq!(mul_shr_i64(3, 5, 1), 8);
         assert_eq!(mul_shr_i64(i64::MAX, i64::MAX, 0), i64::MAX);
-        assert_eq!(sqrt_u64(0), 0);
-        assert_eq!(sqrt_u64(1), 1);
-        assert_eq!(sqrt_u64(8), 3);
-        assert_eq!(sqrt_u64(6), 2);
-        assert_eq!(sqrt_u64(25 << 40), 5 << 20);
-        assert!(sqrt_u64(u64::MAX).abs_diff(1 << 32) <= 8);
         assert_eq!(clamp_to_i32(1 << 40, 100), 100);
         assert_eq!(clamp_to_i32(-(1 << 40), 100), -100);
         for x in [
@@ -739,13 +701,6 @@ mod tests {
             let r = normalize_ref(dx, dy);
             prop_assert_eq!(normalize(dx, dy), r);
             prop_assert_eq!(normalize_no_len(dx, dy), r.map(|u| UnitLen { len: 0, ..u }));
-        }
-
-        #[test]
-        fn sqrt_matches_f64(v: u64) {
-            let r = sqrt_u64(v) as f64;
-            let e = (v as f64).sqrt();
-            prop_assert!((r - e).abs() <= 1.0 + e * 4e-9, "{v}: {r} vs {e}");
         }
 
         #[test]
