@@ -1,4 +1,4 @@
-//! The crate's one square root, `hydra_core::fx::sqrt_u64` (table + one Newton step,
+//! The crate's one square root, `hydra_core::fixed_point::sqrt_u64` (table + one Newton step,
 //! one 32-bit division), on a 64-bit LCG shifted right by 0…15 bits (magnitudes 2^48 …
 //! 2^64: the fhan and contour ranges). The same inputs chose it (eighth session): 61
 //! instructions against 99 for the reciprocal-square-root form (three Newton steps of
@@ -18,10 +18,10 @@ fn input(k: u32) -> u64 {
 /// Not inlined, so the profile run attributes the square root to the figure.
 #[inline(never)]
 fn sqrt(x: u64) -> (u32, u32) {
-    hydra_core::fx::sqrt_u64(x)
+    hydra_core::fixed_point::sqrt_u64(x)
 }
 
-/// `fx::sqrt_u64`.
+/// `fixed_point::sqrt_u64`.
 pub struct Sqrt {
     x: u64,
     out: (u32, u32),

@@ -1,9 +1,9 @@
 //! Table activation as the firmware's critical section pays it (docs/firmware.md):
 //! [`Runtime::install`] of the board's law type, `Follower<2, 256>`
-//! (`firmware/src/program.rs`), at a safe point (Idle). The tick waits for this once per
+//! (`firmware/src/boot_config.rs`), at a safe point (Idle). The tick waits for this once per
 //! activation.
 //!
-//! The firmware runs its law from one of two static buffers (`firmware/src/laws.rs`), so
+//! The firmware runs its law from one of two static buffers (`firmware/src/law_buffers.rs`), so
 //! the runtime holds a `&'static mut Law` and the install swaps references; the law was
 //! written into the spare buffer before, outside the section. Each call here swaps the
 //! two buffers back and forth. (By value — the law moved into the runtime and the old

@@ -1,6 +1,6 @@
 //! The firmware's whole control step without its drivers: [`Runtime::step`] of
 //! `Runtime<&'static mut Follower<2, 256>, 2, 4>` with the firmware's runtime
-//! configuration (`firmware/src/program.rs`: `RuntimeConfig::default()` at 1 ms — 1 µm per
+//! configuration (`firmware/src/boot_config.rs`: `RuntimeConfig::default()` at 1 ms — 1 µm per
 //! slave count, master counts of 0.001°) — encoder scaling and plausibility, the stall
 //! monitor, the fault rules, the follower with two Feedforward slaves, the status.
 //!
@@ -20,11 +20,11 @@ use hydra_core::runtime::{
 use hydra_core::units::{Counts, Master, PressureBar};
 use static_cell::StaticCell;
 
-/// The firmware's law: two slave axes, 256 table nodes (`firmware/src/program.rs`).
+/// The firmware's law: two slave axes, 256 table nodes (`firmware/src/boot_config.rs`).
 pub(crate) type Law = Follower<2, NODES>;
 /// The firmware's pressure channels (`firmware/src/board.rs`).
 pub(crate) const PRESSURES: usize = 4;
-/// The firmware's runtime: the law in a static buffer (`firmware/src/laws.rs`).
+/// The firmware's runtime: the law in a static buffer (`firmware/src/law_buffers.rs`).
 pub(crate) type BoardRuntime = Runtime<&'static mut Law, 2, PRESSURES>;
 
 /// The firmware's law on the reference table (both slaves Feedforward, the follower

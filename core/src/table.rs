@@ -19,7 +19,7 @@
 //! `u32` of raw bits); slave values within the axis' range; each slave's slope within
 //! its axis' speed limit at the stated master speed: |Δx_j|·θ̇_max ≤ v_max·len_j.
 
-use crate::fx::sat_i32;
+use crate::fixed_point::sat_i32;
 use crate::units::{Master, MasterRate, PosUm, VelUmPerS};
 use heapless::Vec;
 

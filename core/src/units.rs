@@ -29,7 +29,7 @@
 //! | force gains `kp_f`, `ki_f·T` | `I8F24` | LSB/N, LSB/(N·tick) | 6e-8 | ±128 | validated |
 //!
 //! Every product of two 32-bit raw values is formed in an `i64` (exact: |a·b| ≤ 2^62),
-//! shifted back to the result's format and saturated to 32 bits ([`crate::fx`]).
+//! shifted back to the result's format and saturated to 32 bits ([`crate::fixed_point`]).
 //! Rounding: the worst-case rounding of one tick is below 0.01 µm and 0.001 LSB, two
 //! orders of magnitude under the encoder's 1 µm resolution, so it does not enter the
 //! error budget of SPEC §A eq. 17.

@@ -13,7 +13,7 @@
 //! offset at which the spool is really centred. A critically lapped valve (the reference
 //! machine) has zero overlap, unit gains and zero null.
 
-use crate::fx::{clamp_sym, mul_shr};
+use crate::fixed_point::{clamp_sym, mul_shr};
 use crate::units::{CmdLsb, DacCode};
 use fixed::types::I8F24;
 

@@ -119,7 +119,7 @@ pub const ENABLE_PIN: usize = 7;
 /// analog supply VDDA = 3.0 V, as on the STM32F4-Discovery — the valve amplifiers' null
 /// must be set to VDDA/2 = 1.500 V — less the buffered output's 0.2 V swing margin at
 /// each rail): ±1774 LSB around mid-scale (273 codes lost at each end). Every code written is clamped to it (`crate::valves`), and the
-/// valve calibration's clamp is set to it (`crate::program`).
+/// valve calibration's clamp is set to it (`crate::boot_config`).
 pub const DAC_RANGE: DacRange = match hydra_core::profile::dac_range() {
     Some(r) => r,
     None => panic!("hydra_core::profile::VDDA_MV / DAC_SWING_MARGIN_MV"),

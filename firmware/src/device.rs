@@ -9,7 +9,7 @@
 //! ([`LinkIo::command_wait`]), so a command never races the tick. A law installed
 //! publishes its valve nulls for the panic handler ([`ValveBank::publish_safe_codes`]).
 //!
-//! The law buffers are the two statics of `crate::laws`, the copy of the active table a
+//! The law buffers are the two statics of `crate::law_buffers`, the copy of the active table a
 //! third static ([`ACTIVE`]): no law or table is moved by value, every frame of this
 //! module is small (the CI's stack check, `scripts/stack-check.py`).
 
@@ -19,9 +19,9 @@ use hydra_core::table::CamTable;
 use hydra_core::units::DacCode;
 
 use crate::board::{PRESSURES, SLAVES, SYSCLK_HZ};
-use crate::laws::{self, LawRef};
+use crate::boot_config::TABLE_NODES;
+use crate::law_buffers::{self, LawRef};
 use crate::link::LinkIo;
-use crate::program::TABLE_NODES;
 use crate::tick::{self, BoardRuntime};
 use crate::valves::ValveBank;
 use static_cell::ConstStaticCell;
@@ -61,13 +61,13 @@ pub type DeviceState = LawDevice<LawRef, &'static mut Table, SLAVES, TABLE_NODES
 pub type Dev<'a, 'b> =
     BoardDevice<'a, LawRef, &'static mut Table, FwGlue<'a, 'b>, SLAVES, TABLE_NODES, PRESSURES>;
 
-/// The boot configuration (`crate::program`), no table, both law buffers free. `None` if
+/// The boot configuration (`crate::boot_config`), no table, both law buffers free. `None` if
 /// called twice (the static buffers are taken once).
 pub fn device_state() -> Option<DeviceState> {
-    let laws = laws::take()?;
+    let laws = law_buffers::take()?;
     Some(LawDevice::new(
-        crate::program::follower_config(),
-        crate::program::table_limits(),
+        crate::boot_config::follower_config(),
+        crate::boot_config::table_limits(),
         ACTIVE.try_take()?,
         laws,
         FIRMWARE,

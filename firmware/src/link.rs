@@ -15,7 +15,7 @@
 //!    ([`LinkProtocol::on_sample`]) to the protocol;
 //! 5. writes what the protocol queued for the host.
 //!
-//! The protocol is a trait: the framed protocol ([`crate::framed::Framed`], default) and
+//! The protocol is a trait: the framed protocol ([`crate::host_protocol::Framed`], default) and
 //! the bring-up text console ([`crate::console::Console`], `--features console`) plug
 //! into the same task.
 
@@ -35,7 +35,7 @@ use crate::tick::{BoardStatus, Reply, TickCommand, TickSample};
 
 /// The protocol the link task runs.
 #[cfg(not(feature = "console"))]
-pub type Proto = &'static mut crate::framed::Framed;
+pub type Proto = &'static mut crate::host_protocol::Framed;
 /// The protocol the link task runs.
 #[cfg(feature = "console")]
 pub type Proto = crate::console::Console;

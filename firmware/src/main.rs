@@ -16,6 +16,7 @@
 #![no_main]
 
 mod board;
+mod boot_config;
 #[cfg(feature = "console")]
 mod console;
 #[cfg(not(feature = "console"))]
@@ -25,12 +26,11 @@ mod encoders;
 mod flash;
 mod flash_acr;
 #[cfg(not(feature = "console"))]
-mod framed;
-mod laws;
+mod host_protocol;
+mod law_buffers;
 mod link;
 mod panic;
 mod pressure;
-mod program;
 mod safety;
 mod tick;
 mod valves;
@@ -53,7 +53,7 @@ static STATUS_Q: StaticCell<Queue<BoardStatus, 4>> = StaticCell::new();
 /// Per-tick samples: 32 ticks of slack for the link task (it wakes at least every 10 ms).
 static SAMPLE_Q: StaticCell<Queue<TickSample, 32>> = StaticCell::new();
 #[cfg(not(feature = "console"))]
-static FRAMED: StaticCell<framed::Framed> = StaticCell::new();
+static FRAMED: StaticCell<host_protocol::Framed> = StaticCell::new();
 static RX_RING: StaticCell<[u8; link::RX_RING_LEN]> = StaticCell::new();
 
 #[embassy_executor::main]
@@ -66,7 +66,7 @@ async fn main(spawner: Spawner) {
     flash_acr::enable_accelerator();
     let mut board = Board::new(p);
 
-    let coeffs = match program::runtime_coeffs() {
+    let coeffs = match boot_config::runtime_coeffs() {
         Ok(c) => c,
         Err(e) => defmt::panic!("runtime configuration rejected: {}", e),
     };
@@ -76,7 +76,7 @@ async fn main(spawner: Spawner) {
     let (proto, rt) = {
         let flash = flash::SlotFlash::new(board.flash);
         // `Framed` itself is small (its tables are statics): moved once into its cell.
-        let fr = match framed::Framed::new(flash) {
+        let fr = match host_protocol::Framed::new(flash) {
             Ok(f) => FRAMED.init(f),
             Err(e) => defmt::panic!("table slots: {}", e),
         };
@@ -97,7 +97,7 @@ async fn main(spawner: Spawner) {
         (fr, rt)
     };
     #[cfg(feature = "console")]
-    let (proto, rt) = match program::boot_law() {
+    let (proto, rt) = match boot_config::boot_law() {
         Ok(l) => (
             console::Console::default(),
             Runtime::new(coeffs, Some(l), boot),

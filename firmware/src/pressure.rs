@@ -32,7 +32,7 @@ pub const ADC_BUF_LEN: usize = PRESSURES * 64;
 pub const STALE_US: u32 = 2000;
 /// [`STALE_US`] in ticks (at least 1).
 const STALE_TICKS: u32 = {
-    let t = STALE_US / crate::program::PERIOD_US;
+    let t = STALE_US / crate::boot_config::PERIOD_US;
     if t == 0 {
         1
     } else {

@@ -25,13 +25,13 @@ use hydra_core::runtime::{Runtime, Status, TickHost, TickLoop};
 use static_cell::StaticCell;
 
 use crate::board::{BoardIo, PRESSURES, SLAVES, SYSCLK_HZ};
-use crate::laws::LawRef;
+use crate::law_buffers::LawRef;
 use crate::watchdog::{self, Timeout};
 
 pub use hydra_core::runtime::{Reply, TickCommand};
 
 /// The runtime as this board runs it: the law in one of the two static law buffers
-/// (`crate::laws`), so installing one swaps a reference.
+/// (`crate::law_buffers`), so installing one swaps a reference.
 pub type BoardRuntime = Runtime<LawRef, SLAVES, PRESSURES>;
 /// The status snapshot of this board.
 pub type BoardStatus = Status<SLAVES, PRESSURES>;
@@ -41,7 +41,8 @@ pub type TickSample = hydra_core::runtime::TickSample<SLAVES>;
 /// Age beyond which a queued command is dropped unapplied, µs: the link's wait for an
 /// answer (`crate::link::COMMAND_WAIT_MS`) less one period, so a command whose wait
 /// timed out can never take effect later (e.g. a Start after a flash erase).
-pub const COMMAND_MAX_AGE_US: u32 = crate::link::COMMAND_WAIT_MS * 1000 - crate::program::PERIOD_US;
+pub const COMMAND_MAX_AGE_US: u32 =
+    crate::link::COMMAND_WAIT_MS * 1000 - crate::boot_config::PERIOD_US;
 
 /// The tick's glue: clock, period timer, queues, watchdog.
 pub struct FwHost {

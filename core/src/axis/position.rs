@@ -16,12 +16,12 @@
 //! U  = clamp(U + ΔU, ±clamp)
 //! ```
 //!
-//! Every product is a 32×32→64-bit multiply and a shift ([`crate::fx::mul_shr`]); every
+//! Every product is a 32×32→64-bit multiply and a shift ([`crate::fixed_point::mul_shr`]); every
 //! sum saturates. The command then goes through the valve output stage
 //! ([`crate::valve::ValveCoeffs::output`]).
 
 use super::config::{AxisCoeffs, ControlMode};
-use crate::fx::{clamp_sym, mul_shr, sat_i32};
+use crate::fixed_point::{clamp_sym, mul_shr, sat_i32};
 use crate::units::{AccUmPerS2, CmdLsb, DacCode, PosUm, VelUmPerS};
 
 /// What the follower computed for one axis this tick.

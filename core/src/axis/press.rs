@@ -14,7 +14,7 @@
 //! Formats: pressure `I16F16` bar, force `I24F8` N, chamber force gain A/10 N/bar
 //! `I16F16` (A in mm²), force gains `I8F24` LSB/N and LSB/(N·tick).
 
-use crate::fx::{clamp_sym, mul_shr};
+use crate::fixed_point::{clamp_sym, mul_shr};
 use crate::units::{CmdLsb, DacCode, ForceN, PosUm, PressureBar, VelUmPerS};
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
 use fixed::types::{I16F16, I8F24};

@@ -47,7 +47,7 @@
 use super::geom::{chord_dist, dot, rel, seg_dist, sub, Ends, SegDist};
 use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
-use crate::fx::clamp_to_i32;
+use crate::fixed_point::clamp_to_i32;
 use crate::units::PosUm;
 
 /// The result of one estimate.
@@ -85,7 +85,9 @@ pub struct ContourEstimate {
 impl ContourEstimate {
     /// ε in the controller's position format (`PosUm`, rounded to 3.9 nm).
     pub fn eps_pos_um(&self) -> PosUm {
-        PosUm::from_bits(crate::fx::shr_round_i64(i64::from(self.eps_um.to_bits()), 4) as i32)
+        PosUm::from_bits(
+            crate::fixed_point::shr_round_i64(i64::from(self.eps_um.to_bits()), 4) as i32,
+        )
     }
 }
 

@@ -20,7 +20,7 @@
 //! accuracy can be no better than the points it is given.
 
 use super::{Deriv, Param, PosFine, Xy};
-use crate::fx::{mul_shr30_i32_i64, mul_shr_i64_by_u32, normalize_no_len, shr_round_i128};
+use crate::fixed_point::{mul_shr30_i32_i64, mul_shr_i64_by_u32, normalize_no_len, shr_round_i128};
 use fixed::types::I32F32;
 
 /// Largest |coordinate| of any point of a built-in path, µm (the range of `PosUm`).
@@ -209,16 +209,17 @@ impl ParametricPath for Line {
     /// r = o + u·a (u Q32 · a Q62 → Q94 → Q12), r′ = a, r″ = 0.
     fn eval(&self, u: Param) -> PathPoint {
         let u = u.to_bits();
-        let along =
-            |a: i64| crate::fx::sat_i64(shr_round_i128((u as i128).wrapping_mul(a as i128), 82));
+        let along = |a: i64| {
+            crate::fixed_point::sat_i64(shr_round_i128((u as i128).wrapping_mul(a as i128), 82))
+        };
         PathPoint {
             pos: Xy::new(
                 PosFine::from_bits(self.origin.x.saturating_add(along(self.dir_q62.x))),
                 PosFine::from_bits(self.origin.y.saturating_add(along(self.dir_q62.y))),
             ),
             d1: Xy::new(
-                Deriv::from_bits(crate::fx::shr_round_i64(self.dir_q62.x, 30)),
-                Deriv::from_bits(crate::fx::shr_round_i64(self.dir_q62.y, 30)),
+                Deriv::from_bits(crate::fixed_point::shr_round_i64(self.dir_q62.x, 30)),
+                Deriv::from_bits(crate::fixed_point::shr_round_i64(self.dir_q62.y, 30)),
             ),
             d2: Xy::new(Deriv::ZERO, Deriv::ZERO),
         }

@@ -33,7 +33,7 @@
 //! below 2^63; the shifted result is saturated to `i32` (Q16 LSB, ±32 768 LSB).
 
 use crate::axis::AxisCoeffs;
-use crate::fx::sat_i32_words;
+use crate::fixed_point::sat_i32_words;
 
 /// The feed-forward of one axis: its gains for the follower's period, and its constants
 /// for one segment.

@@ -25,7 +25,7 @@
 //! residual is saturated to ±2^15 counts (±2^31 raw, an `i32`) before the gain products,
 //! so every product is below 2^62; a saturated residual is reported as a master jump.
 
-use crate::fx::{mul_shr, sat_i32};
+use crate::fixed_point::{mul_shr, sat_i32};
 use crate::units::{Master, MasterRate};
 
 /// Filter configuration in engineering units.

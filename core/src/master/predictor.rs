@@ -14,7 +14,7 @@
 //! an error ≤ 2^-17 count).
 
 use super::MasterEstimate;
-use crate::fx::mul64_shr;
+use crate::fixed_point::mul64_shr;
 use crate::units::{Master, MasterRate};
 
 /// Which 3-point extrapolation the predictor uses.

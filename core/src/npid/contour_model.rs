@@ -25,7 +25,7 @@
 //! are formed in `i128` and saturated.
 
 use crate::contour::{UnitQ30, Xy};
-use crate::fx::{mul64_shr, sat_i64};
+use crate::fixed_point::{mul64_shr, sat_i64};
 use fixed::types::I32F32;
 
 /// Path geometry at the reference point: unit tangent and signed curvature.

@@ -22,7 +22,7 @@
 //! rounding of `y` — ≤ ½ LSB = 2·10⁻³ µm — moves fhan's linear zone by ≤ 10⁻³·r).
 //!
 //! **Square root.** `a0 = √(d² + 8·r·|y|)` is formed from the argument in Q6 (µm/s)²
-//! (`u64`: `64·d² + 2·r·|y_q8|` < 2⁶³ for the validated ranges) by [`crate::fx`]'s
+//! (`u64`: `64·d² + 2·r·|y_q8|` < 2⁶³ for the validated ranges) by [`crate::fixed_point`]'s
 //! table + one Newton step: relative error ≤ 2·10⁻⁸ (measured 0.9·10⁻⁸). `a0` is kept
 //! in Q8 as a `u32` saturated at 2³² − 1 (16.8 m/s): where it saturates, `(a0 − d)/2 ≥
 //! 1.75·2³⁰ − 1` exceeds `|x2| + d ≤ 1.5·2³⁰`, so `a` keeps the sign of `y` and `|a| > d`
@@ -34,7 +34,7 @@
 //! addition, the root a table lookup, a `umull` residual and one 32-bit `sdiv`.
 
 use super::TdError;
-use crate::fx::sqrt_u64;
+use crate::fixed_point::sqrt_u64;
 
 /// Largest |velocity| the TD state and `fhan` accept, µm/s (2²² µm/s ≈ 4.2 m/s: twice
 /// the fastest hydraulic axis this controller is meant for).

@@ -40,13 +40,13 @@
 pub mod ccc;
 pub mod contour_model;
 pub mod fal;
+mod fal_term;
 pub mod feedforward;
 pub mod fhan;
 #[allow(clippy::module_inception)]
 pub mod npid;
 pub mod pid;
 pub mod td;
-mod term;
 pub mod xy_loop;
 
 pub use ccc::{Ccc, Cnp, CrossCoupled, XyCoeffs, XyOutput};

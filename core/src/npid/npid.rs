@@ -26,15 +26,15 @@
 //! **Cost.** Every product is one 32 × 32 → 64-bit `smull`, every sum a saturating
 //! 32-bit `qadd`: `e0 += e1·h` rounded to nearest (no drift from a floored increment;
 //! increments below ½ LSB, |e1| < 2 nm at 1 ms, are lost), each term fused with its gain
-//! (`term.rs`: one log/exp for a power law with β in the exponent, one `smull` by
+//! (`fal_term.rs`: one log/exp for a power law with β in the exponent, one `smull` by
 //! the small-signal slope in the linear zone and for α = 1). The build decides per term:
 //! β = 0 skips it, α = 1 skips the power law. Each term saturates at ±2¹⁵ LSB (16 × the
-//! DAC range) before the sum (see `term.rs`).
+//! DAC range) before the sum (see `fal_term.rs`).
 
 use super::fal::FalConfig;
+use super::fal_term::TermCoeffs;
 use super::fhan::FhanConfig;
 use super::td::{Td, TdCoeffs, TdConfig};
-use super::term::TermCoeffs;
 use super::{ErrorLaw, NpidError};
 use crate::units::{CmdLsb, PosUm};
 
@@ -186,7 +186,7 @@ impl Npid {
         if !push {
             // Q8·Q32 = Q40, rounded to Q16 (`smlal` on 2^23): |e1·h| < 2^31·2^26, the sum
             // below 2^58; saturated to 32 bits (only |e1|·h > 32 767 µm·s does).
-            let de0 = crate::fx::sat_i32(
+            let de0 = crate::fixed_point::sat_i32(
                 i64::from(e1_q8)
                     .wrapping_mul(i64::from(c.td_ref.h_q32()))
                     .wrapping_add(1 << 23)

@@ -38,7 +38,7 @@ use super::io::{Board, EncoderSample};
 use super::reference::{RefState, References};
 use super::stall::StallMonitor;
 use super::timing::TickTiming;
-use crate::fx::sat_i32;
+use crate::fixed_point::sat_i32;
 use crate::units::{Counts, DacCode, Master, PosUm, PressureBar};
 
 /// Why the runtime is holding.

@@ -9,7 +9,7 @@
 //! [`PressureBar`] (`I16F16`). The reference transducers read 0–250 bar over the
 //! 12-bit ADC's full scale (0 … 4095).
 
-use crate::fx::mul_shr;
+use crate::fixed_point::mul_shr;
 use crate::units::PressureBar;
 use fixed::types::I8F24;
 

@@ -16,9 +16,9 @@
 //!
 //! Format: counts per `PosUm` LSB (1/256 µm) as `u64` Q16.48 (resolution 3.6e-15 count
 //! per LSB: over ±8.39 m the product is exact to 2^-15 count). The product is formed
-//! with [`super::wide::mulhi`] in Q.14 counts and rounded once.
+//! with [`crate::fixed_point::mulhi`] in Q.14 counts and rounded once.
 
-use super::wide::mulhi;
+use crate::fixed_point::mulhi;
 use crate::units::{Counts, PosUm};
 
 /// Smallest and largest encoder resolution accepted, µm per count.
@@ -98,7 +98,7 @@ impl CountsOut {
         let n = self.count_of(pos);
         let out = n.wrapping_sub(self.total);
         self.total = n;
-        Counts(crate::fx::sat_i32(out))
+        Counts(crate::fixed_point::sat_i32(out))
     }
 
     /// Counts emitted since the origin.

@@ -11,7 +11,7 @@
 //! ```
 //!
 //! `g_i` is stored in Q1.62 (`i64`, rounded to nearest: error ≤ 2^-63), the product is
-//! formed with [`super::wide::mulhi`] in Q.22 LSB and rounded once. So for every tick:
+//! formed with [`crate::fixed_point::mulhi`] in Q.22 LSB and rounded once. So for every tick:
 //!
 //! * the leader is exactly `from_L ± s(k)` (g_L = ±2^62 exactly);
 //! * every other axis is within ½ LSB + 2^-21 LSB of the line through the leader's
@@ -26,9 +26,9 @@
 use super::cursor::Cursor;
 use super::plan::{Limits, Plan};
 use super::profile::Profile;
-use super::wide::mulhi;
 use super::ScurveError;
-use crate::fx::sat_i32;
+use crate::fixed_point::mulhi;
+use crate::fixed_point::sat_i32;
 use crate::units::PosUm;
 
 /// LSB of `PosUm` per µm (I24F8).

@@ -29,7 +29,6 @@ mod plan;
 mod profile;
 #[cfg(test)]
 mod proptests;
-pub mod wide;
 
 pub use counts::{CountsError, CountsOut, CountsScale};
 pub use cursor::Cursor;

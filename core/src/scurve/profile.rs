@@ -17,7 +17,7 @@
 //! Every phase polynomial is `c0 + c1·τn + c2·τn² + c3·τn³` with τn ∈ [0, 1); because
 //! the normaliser is within a factor of 4 of the phase duration, every coefficient is
 //! bounded by 64·D (D ≤ [`super::MAX_DISTANCE_LSB`] = 2^40 LSB) and a Q.14 value stays
-//! below 2^60: the Horner steps ([`super::wide::mulhi`]) cannot overflow.
+//! below 2^60: the Horner steps ([`crate::fixed_point::mulhi`]) cannot overflow.
 //!
 //! ## Structure and exactness
 //!
@@ -44,8 +44,8 @@
 //! each) and adds. No division, no float, no loop, no table.
 
 use super::plan::Plan;
-use super::wide::{bitlen, mulhi, shl_signed_sat};
 use super::ScurveError;
+use crate::fixed_point::{bitlen, mulhi, shl_signed_sat};
 
 /// Fraction bits of a position inside the evaluator (Q.14 LSB: 6.1e-5 LSB).
 pub const POS_FRAC_BITS: u32 = 14;

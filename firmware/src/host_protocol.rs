@@ -19,10 +19,10 @@ use hydra_core::protocol::{Handler, SlotHeader, Store, StoreError};
 use static_cell::ConstStaticCell;
 
 use crate::board::SLAVES;
+use crate::boot_config::TABLE_NODES;
 use crate::device::{device_state, Dev, DeviceState, FwGlue};
 use crate::flash::{SlotFlash, SLOT0_OFFSET, SLOT_BYTES};
 use crate::link::{LinkIo, LinkProtocol};
-use crate::program::TABLE_NODES;
 use crate::tick::{BoardStatus, Reply, TickSample};
 use hydra_core::protocol::BoardDevice;
 

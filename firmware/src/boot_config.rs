@@ -104,8 +104,8 @@ fn reference_nodes() -> Vec<Node<SLAVES>, 181> {
 /// The follower with the reference table and gains for the reference valve/cylinder,
 /// built in place in the first law buffer.
 #[cfg(feature = "console")]
-pub fn boot_law() -> Result<crate::laws::LawRef, ProgramError> {
-    let [law, _spare] = crate::laws::take().ok_or(ProgramError::Taken)?;
+pub fn boot_law() -> Result<crate::law_buffers::LawRef, ProgramError> {
+    let [law, _spare] = crate::law_buffers::take().ok_or(ProgramError::Taken)?;
     law.configure(&follower_config())
         .map_err(ProgramError::Follower)?;
     law.rebuild_table_from_nodes(&reference_nodes(), &table_limits())
