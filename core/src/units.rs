@@ -7,7 +7,7 @@
 //! | quantity | type | unit | resolution | range | why it cannot overflow |
 //! |---|---|---|---|---|---|
 //! | slave position, target, error | [`PosUm`] = `I24F8` | µm | 3.9 nm | ±8.39 m | strokes ≤ 8 m validated in the table and axis scale; differences saturate |
-//! | slave velocity (feed-forward) | [`VelUmPerS`] = `I24F8` | µm/s | 3.9 nm/s | ±8.39 m/s | product saturates to the range |
+//! | slave velocity (feed-forward) | [`VelUmPerS`] (newtype over `I24F8`) | µm/s | 3.9 nm/s | ±8.39 m/s | product saturates to the range |
 //! | slave acceleration | [`AccUmPerS2`] = `I32F0` | µm/s² | 1 µm/s² | ±2147 m/s² | product saturates |
 //! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; the filter, predictor and in-segment test work modulo 2^64 raw (`wrapping_*`: a wrapping counter is followed through the wrap) |
 //! | master speed | [`MasterRate`] = `I48F16` | counts/s | 1.5e-5 counts/s | ±1.4e14 | derived from the filter state by one shift |
@@ -20,7 +20,7 @@
 //! | valve DAC code | [`DacCode`] | LSB of the 12-bit DAC, 0 = null | 1 LSB | [−2047, 2047] | clamped |
 //! | encoder count | [`Counts`] | count | 1 | ±2^31 | 16-bit timers extended with wrapping differences |
 //! | chamber pressure | [`PressureBar`] = `I16F16` | bar | 1.5e-5 bar | ±32768 bar | ADC 0–250 bar |
-//! | cylinder force | [`ForceN`] = `I24F8` | N | 3.9 mN | ±8.39 MN | p · A ≤ 250 bar · 0.05 m² = 1.25 MN |
+//! | cylinder force | [`ForceN`] (newtype over `I24F8`) | N | 3.9 mN | ±8.39 MN | p · A ≤ 250 bar · 0.05 m² = 1.25 MN |
 //! | proportional gain `kp` | `I16F16` | LSB/µm | 1.5e-5 | ±32768 | validated |
 //! | integral gain per tick `ki·T` | `I8F24` | LSB/(µm·tick) | 6e-8 | ±128 | validated |
 //! | derivative gain per tick `kd/T` | `I16F16` | LSB/(µm/tick) | 1.5e-5 | ±32768 | validated |
@@ -38,8 +38,7 @@ use fixed::types::{I16F16, I24F8, I32F0, I48F16};
 
 /// Slave position, target or error in µm (`I24F8`: 3.9 nm resolution, ±8.39 m).
 pub type PosUm = I24F8;
-/// Slave velocity in µm/s (`I24F8`: 3.9 nm/s resolution, ±8.39 m/s).
-pub type VelUmPerS = I24F8;
+
 /// Slave acceleration in µm/s² (`I32F0`).
 pub type AccUmPerS2 = I32F0;
 /// Master position in master counts (`I48F16`). For the rotary table one count is
@@ -51,8 +50,110 @@ pub type MasterRate = I48F16;
 pub type CmdLsb = I16F16;
 /// Chamber pressure in bar (`I16F16`).
 pub type PressureBar = I16F16;
-/// Force in N (`I24F8`).
-pub type ForceN = I24F8;
+
+/// A quantity with its own type over a fixed-point format: it converts like the format
+/// (`from_num`, `from_bits`, `to_num`, …) but is never mixed with another quantity of the
+/// same format by accident (a velocity where a position is expected does not compile).
+/// [`Self::get`] / the public field give the format for arithmetic inside a kernel.
+macro_rules! quantity {
+    ($(#[$m:meta])* $name:ident($inner:ty, $bits:ty)) => {
+        $(#[$m])*
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        #[repr(transparent)]
+        pub struct $name(pub $inner);
+
+        impl $name {
+            /// Zero.
+            pub const ZERO: Self = Self(<$inner>::ZERO);
+            /// The largest value.
+            pub const MAX: Self = Self(<$inner>::MAX);
+            /// The smallest value.
+            pub const MIN: Self = Self(<$inner>::MIN);
+
+            /// From the raw bits of the format.
+            #[inline(always)]
+            pub const fn from_bits(b: $bits) -> Self {
+                Self(<$inner>::from_bits(b))
+            }
+            /// The raw bits of the format.
+            #[inline(always)]
+            pub const fn to_bits(self) -> $bits {
+                self.0.to_bits()
+            }
+            /// The value in the format.
+            #[inline(always)]
+            pub const fn get(self) -> $inner {
+                self.0
+            }
+            /// From a number (the format's `from_num`: the value must be in range).
+            #[inline]
+            pub fn from_num<T: fixed::traits::ToFixed>(v: T) -> Self {
+                Self(<$inner>::from_num(v))
+            }
+            /// From a number, saturated to the range (NaN gives 0).
+            #[inline]
+            pub fn saturating_from_num<T: fixed::traits::ToFixed>(v: T) -> Self {
+                Self(<$inner>::saturating_from_num(v))
+            }
+            /// From a number, `None` if out of range.
+            #[inline]
+            pub fn checked_from_num<T: fixed::traits::ToFixed>(v: T) -> Option<Self> {
+                <$inner>::checked_from_num(v).map(Self)
+            }
+            /// To a number.
+            #[inline]
+            pub fn to_num<T: fixed::traits::FromFixed>(self) -> T {
+                self.0.to_num()
+            }
+            /// |self|, saturated.
+            #[inline(always)]
+            pub fn saturating_abs(self) -> Self {
+                Self(self.0.saturating_abs())
+            }
+            /// `self + o`, saturated.
+            #[inline(always)]
+            pub fn saturating_add(self, o: Self) -> Self {
+                Self(self.0.saturating_add(o.0))
+            }
+            /// `self − o`, saturated.
+            #[inline(always)]
+            pub fn saturating_sub(self, o: Self) -> Self {
+                Self(self.0.saturating_sub(o.0))
+            }
+        }
+
+        impl core::fmt::Display for $name {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                core::fmt::Display::fmt(&self.0, f)
+            }
+        }
+    };
+}
+
+quantity!(
+    /// Slave velocity in µm/s (`I24F8`: 3.9 nm/s resolution, ±8.39 m/s): its own type,
+    /// not a [`PosUm`] — this does not compile:
+    ///
+    /// ```compile_fail
+    /// use hydra_core::units::{PosUm, VelUmPerS};
+    /// let v = VelUmPerS::from_num(5);
+    /// let p: PosUm = v;
+    /// ```
+    VelUmPerS(I24F8, i32)
+);
+
+quantity!(
+    /// Force in N (`I24F8`: 3.9 mN resolution, ±8.39 MN): its own type, not a [`PosUm`]
+    /// nor a [`VelUmPerS`] — this does not compile:
+    ///
+    /// ```compile_fail
+    /// use hydra_core::units::{ForceN, VelUmPerS};
+    /// fn speed(v: VelUmPerS) {}
+    /// speed(ForceN::from_num(20_000));
+    /// ```
+    ForceN(I24F8, i32)
+);
 
 /// A count of a quadrature encoder, extended to 32 bits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
@@ -115,6 +216,21 @@ impl DacCode {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quantities_convert_like_their_format() {
+        let v = VelUmPerS::from_num(1.5);
+        assert_eq!(v.to_bits(), 384);
+        assert_eq!(v.get(), I24F8::from_num(1.5));
+        assert_eq!(VelUmPerS::from_bits(384), v);
+        assert_eq!(v.to_num::<f64>(), 1.5);
+        assert_eq!(VelUmPerS::saturating_from_num(1e12), VelUmPerS::MAX);
+        assert_eq!(VelUmPerS::checked_from_num(1e12), None);
+        assert_eq!(ForceN::from_num(-3).saturating_abs(), ForceN::from_num(3));
+        assert_eq!(ForceN::MAX.saturating_add(ForceN::from_num(1)), ForceN::MAX);
+        assert!(VelUmPerS::ZERO < v);
+        assert_eq!(std::format!("{v}"), "1.5");
+    }
 
     #[test]
     fn dac_code_clamps_and_maps() {

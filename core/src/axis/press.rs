@@ -114,6 +114,11 @@ fn bits<F: fixed::traits::Fixed<Bits = i32>>(
     F::checked_from_num(x).map(F::to_bits).ok_or(e)
 }
 
+/// `x` N as [`ForceN`] raw bits, or `e` if out of range.
+fn force_bits(x: f64, e: PressConfigError) -> Result<i32, PressConfigError> {
+    ForceN::checked_from_num(x).map(ForceN::to_bits).ok_or(e)
+}
+
 impl PressConfig {
     /// Validates the configuration for a control period and converts it.
     pub fn build(&self, period_us: u32) -> Result<PressCoeffs, PressConfigError> {
@@ -139,13 +144,15 @@ impl PressConfig {
             kb: bits::<I16F16>(ab / 10.0, E::Area)?,
             x_end: bits::<PosUm>(x_end, E::ApproachEnd)?,
             step_um: bits::<PosUm>(v * t, E::ApproachSpeed)?,
-            v_app: bits::<VelUmPerS>(v, E::ApproachSpeed)?,
+            v_app: VelUmPerS::checked_from_num(v)
+                .map(VelUmPerS::to_bits)
+                .ok_or(E::ApproachSpeed)?,
             kp: bits::<I16F16>(kp, E::PositionGain)?,
             kv: bits::<I8F24>(kv, E::PositionGain)?,
-            f_contact: bits::<ForceN>(fc, E::ContactForce)?,
+            f_contact: force_bits(fc, E::ContactForce)?,
             arm_ticks: (arm * 1e-3 / t) as u32,
-            f_set: bits::<ForceN>(fs, E::ForceSet)?,
-            f_step: bits::<ForceN>(fs * t / (ramp * 1e-3), E::ForceRamp)?.max(1),
+            f_set: force_bits(fs, E::ForceSet)?,
+            f_step: force_bits(fs * t / (ramp * 1e-3), E::ForceRamp)?.max(1),
             kp_f: bits::<I8F24>(kpf, E::ForceGain)?,
             ki_f: bits::<I8F24>(kif * t, E::ForceGain)?,
             valve: self.valve.build().map_err(E::Valve)?,

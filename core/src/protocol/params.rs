@@ -7,7 +7,7 @@
 use super::msg::{Nak, NakCode, ParamId};
 use crate::follower::FollowerConfig;
 use crate::table::{CamTable, TableLimits};
-use crate::units::{MasterRate, PosUm};
+use crate::units::{MasterRate, PosUm, VelUmPerS};
 
 /// Sets `param` of slave `axis` to `value` (engineering units, see [`ParamId`]) in `cfg`
 /// and `lim`, then validates the whole configuration ([`validate_params`]): every axis
@@ -119,7 +119,7 @@ fn assign_param<const S: usize>(
         ParamId::MinUm => l.min_um = PosUm::checked_from_num(value).ok_or(range)?,
         ParamId::MaxUm => l.max_um = PosUm::checked_from_num(value).ok_or(range)?,
         ParamId::MaxSpeedUmPerS => {
-            l.max_speed_um_per_s = PosUm::checked_from_num(value).ok_or(range)?
+            l.max_speed_um_per_s = VelUmPerS::checked_from_num(value).ok_or(range)?
         }
         // Not follower parameters: the handler (link timeout) and the device (reference
         // offset) take them before this function.
@@ -151,7 +151,7 @@ pub fn validate_params<const S: usize, const N: usize>(
         if l.min_um >= l.max_um {
             return Err(nak(i, ParamId::MinUm));
         }
-        if l.max_speed_um_per_s <= 0 {
+        if l.max_speed_um_per_s <= VelUmPerS::ZERO {
             return Err(nak(i, ParamId::MaxSpeedUmPerS));
         }
         if a.build(cfg.period_us).is_err() {
@@ -179,7 +179,7 @@ mod tests {
             axes: [AxisLimits {
                 min_um: PosUm::ZERO,
                 max_um: PosUm::from_num(500_000),
-                max_speed_um_per_s: PosUm::from_num(100_000),
+                max_speed_um_per_s: VelUmPerS::from_num(100_000),
             }],
         };
         (FollowerConfig::default(), lim)
