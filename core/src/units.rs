@@ -2,11 +2,14 @@
 //!
 //! `IaFb` is a two's-complement fixed-point number with `a` integer and `b` fractional
 //! bits (the `fixed` crate's types): resolution 2^-b, range [−2^(a−1), 2^(a−1) − 2^-b].
+//! Position, velocity and force share the format `I24F8` but are three types
+//! ([`PosUm`], [`VelUmPerS`], [`ForceN`]: `repr(transparent)` newtypes, free at run
+//! time), so one is never passed where another is expected.
 //! Names carry units (`_um`, `_mdeg`, `_per_s`, `_lsb`, `_n`, `_bar`).
 //!
 //! | quantity | type | unit | resolution | range | why it cannot overflow |
 //! |---|---|---|---|---|---|
-//! | slave position, target, error | [`PosUm`] = `I24F8` | µm | 3.9 nm | ±8.39 m | strokes ≤ 8 m validated in the table and axis scale; differences saturate |
+//! | slave position, target, error | [`PosUm`] (newtype over `I24F8`) | µm | 3.9 nm | ±8.39 m | strokes ≤ 8 m validated in the table and axis scale; differences saturate |
 //! | slave velocity (feed-forward) | [`VelUmPerS`] (newtype over `I24F8`) | µm/s | 3.9 nm/s | ±8.39 m/s | product saturates to the range |
 //! | slave acceleration | [`AccUmPerS2`] = `I32F0` | µm/s² | 1 µm/s² | ±2147 m/s² | product saturates |
 //! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; the filter, predictor and in-segment test work modulo 2^64 raw (`wrapping_*`: a wrapping counter is followed through the wrap) |
@@ -36,9 +39,6 @@
 
 use fixed::types::{I16F16, I24F8, I32F0, I48F16};
 
-/// Slave position, target or error in µm (`I24F8`: 3.9 nm resolution, ±8.39 m).
-pub type PosUm = I24F8;
-
 /// Slave acceleration in µm/s² (`I32F0`).
 pub type AccUmPerS2 = I32F0;
 /// Master position in master counts (`I48F16`). For the rotary table one count is
@@ -56,7 +56,7 @@ pub type PressureBar = I16F16;
 /// same format by accident (a velocity where a position is expected does not compile).
 /// [`Self::get`] / the public field give the format for arithmetic inside a kernel.
 macro_rules! quantity {
-    ($(#[$m:meta])* $name:ident($inner:ty, $bits:ty)) => {
+    ($(#[$m:meta])* $name:ident($inner:ty, $bits:ty, $unsigned:ty)) => {
         $(#[$m])*
         #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
         #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -106,6 +106,26 @@ macro_rules! quantity {
             pub fn to_num<T: fixed::traits::FromFixed>(self) -> T {
                 self.0.to_num()
             }
+            /// |self| in the unsigned format (exact: no saturation needed).
+            #[inline(always)]
+            pub fn unsigned_abs(self) -> $unsigned {
+                self.0.unsigned_abs()
+            }
+            /// −self, saturated.
+            #[inline(always)]
+            pub fn saturating_neg(self) -> Self {
+                Self(self.0.saturating_neg())
+            }
+            /// `self + o`, wrapping.
+            #[inline(always)]
+            pub fn wrapping_add(self, o: Self) -> Self {
+                Self(self.0.wrapping_add(o.0))
+            }
+            /// `self − o`, wrapping.
+            #[inline(always)]
+            pub fn wrapping_sub(self, o: Self) -> Self {
+                Self(self.0.wrapping_sub(o.0))
+            }
             /// |self|, saturated.
             #[inline(always)]
             pub fn saturating_abs(self) -> Self {
@@ -123,6 +143,33 @@ macro_rules! quantity {
             }
         }
 
+        /// Saturating, as [`Self::saturating_add`].
+        impl core::ops::Add for $name {
+            type Output = Self;
+            #[inline(always)]
+            fn add(self, o: Self) -> Self {
+                self.saturating_add(o)
+            }
+        }
+
+        /// Saturating, as [`Self::saturating_sub`].
+        impl core::ops::Sub for $name {
+            type Output = Self;
+            #[inline(always)]
+            fn sub(self, o: Self) -> Self {
+                self.saturating_sub(o)
+            }
+        }
+
+        /// Saturating, as [`Self::saturating_neg`].
+        impl core::ops::Neg for $name {
+            type Output = Self;
+            #[inline(always)]
+            fn neg(self) -> Self {
+                self.saturating_neg()
+            }
+        }
+
         impl core::fmt::Display for $name {
             fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
                 core::fmt::Display::fmt(&self.0, f)
@@ -130,6 +177,11 @@ macro_rules! quantity {
         }
     };
 }
+
+quantity!(
+    /// Slave position, target or error in µm (`I24F8`: 3.9 nm resolution, ±8.39 m).
+    PosUm(I24F8, i32, fixed::types::U24F8)
+);
 
 quantity!(
     /// Slave velocity in µm/s (`I24F8`: 3.9 nm/s resolution, ±8.39 m/s): its own type,
@@ -140,7 +192,7 @@ quantity!(
     /// let v = VelUmPerS::from_num(5);
     /// let p: PosUm = v;
     /// ```
-    VelUmPerS(I24F8, i32)
+    VelUmPerS(I24F8, i32, fixed::types::U24F8)
 );
 
 quantity!(
@@ -152,7 +204,7 @@ quantity!(
     /// fn speed(v: VelUmPerS) {}
     /// speed(ForceN::from_num(20_000));
     /// ```
-    ForceN(I24F8, i32)
+    ForceN(I24F8, i32, fixed::types::U24F8)
 );
 
 /// A count of a quadrature encoder, extended to 32 bits.

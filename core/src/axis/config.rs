@@ -5,9 +5,9 @@
 //! [`crate::units`] for a given control period T. The per-tick law
 //! ([`super::position`]) then never fails.
 
-use crate::units::{CmdLsb, PosUm};
+use crate::units::CmdLsb;
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
-use fixed::types::{I0F32, I16F16, I8F24};
+use fixed::types::{I0F32, I16F16, I24F8, I8F24};
 
 /// Which control law drives the axis.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -179,7 +179,7 @@ impl AxisConfig {
             return Err(E::ValveLag);
         }
         let ki_tick = fit::<I8F24>(ki * t, E::Ki)?.to_bits();
-        let i_zone = fit::<PosUm>(zone, E::IZone)?.to_bits();
+        let i_zone = fit::<I24F8>(zone, E::IZone)?.to_bits();
         // The largest integrator step, Ki·T·m, must stay below 2^15 LSB per tick
         // (e·Ki·T < 2^47 in Q32), so the laws form it without a saturation. 32 768 LSB
         // per tick is 16 times the whole valve range: no working tuning comes near it.
@@ -197,7 +197,7 @@ impl AxisConfig {
             kv_neg: fit::<I8F24>(kvn, E::Kv)?.to_bits(),
             ka: fit::<I0F32>(ka, E::Ka)?.to_bits(),
             lead_q16: (lead_ticks * 65536.0) as i32,
-            fe_limit: fit::<PosUm>(fe, E::FollowingError)?.to_bits(),
+            fe_limit: fit::<I24F8>(fe, E::FollowingError)?.to_bits(),
             valve,
         })
     }

@@ -142,8 +142,8 @@ impl PressConfig {
         Ok(PressCoeffs {
             ka: bits::<I16F16>(aa / 10.0, E::Area)?,
             kb: bits::<I16F16>(ab / 10.0, E::Area)?,
-            x_end: bits::<PosUm>(x_end, E::ApproachEnd)?,
-            step_um: bits::<PosUm>(v * t, E::ApproachSpeed)?,
+            x_end: bits::<fixed::types::I24F8>(x_end, E::ApproachEnd)?,
+            step_um: bits::<fixed::types::I24F8>(v * t, E::ApproachSpeed)?,
             v_app: VelUmPerS::checked_from_num(v)
                 .map(VelUmPerS::to_bits)
                 .ok_or(E::ApproachSpeed)?,

@@ -10,7 +10,8 @@
 //! 1 kHz, master 0.001°/count on an encoder, slaves 1 µm/count.
 
 use super::reference::ReferenceMode;
-use fixed::types::{I24F8, I32F32};
+use crate::units::PosUm;
+use fixed::types::I32F32;
 
 /// Where the master position comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -151,11 +152,11 @@ pub struct RuntimeCoeffs<const S: usize> {
     /// Slave scale, µm/count in Q31.32 (`i64` raw, resolution 2.3e-10 µm/count).
     pub slave_scale_q32: [i64; S],
     /// Slave offset, µm (`I24F8`).
-    pub slave_offset_um: [I24F8; S],
+    pub slave_offset_um: [PosUm; S],
     /// Slave plausibility limits, counts per tick.
     pub slave_step_limit: [u32; S],
     /// Following-error limits, µm (`I24F8`).
-    pub following_error_limit_um: [I24F8; S],
+    pub following_error_limit_um: [PosUm; S],
     /// Stall timeout, ticks (≥ 1).
     pub stall_timeout_ticks: u32,
     /// Stall movement threshold, master counts.
@@ -167,7 +168,7 @@ pub struct RuntimeCoeffs<const S: usize> {
     /// Reference mode per slave.
     pub slave_reference: [ReferenceMode; S],
     /// Home position per slave, µm (`I24F8`).
-    pub home_position_um: [I24F8; S],
+    pub home_position_um: [PosUm; S],
     /// Pressure inputs required (see [`RuntimeConfig::pressure_required`]).
     pub pressure_required: bool,
 }
@@ -221,15 +222,15 @@ impl<const S: usize> RuntimeConfig<S> {
             master_invert: self.master_invert,
             master_step_limit,
             slave_scale_q32: [0; S],
-            slave_offset_um: [I24F8::ZERO; S],
+            slave_offset_um: [PosUm::ZERO; S],
             slave_step_limit: [0; S],
-            following_error_limit_um: [I24F8::ZERO; S],
+            following_error_limit_um: [PosUm::ZERO; S],
             stall_timeout_ticks: 0,
             stall_min_move_counts: self.stall_min_move_counts,
             stall_end_window_counts: self.stall_end_window_counts,
             resume_window_counts: self.resume_window_counts,
             slave_reference: self.slave_reference,
-            home_position_um: [I24F8::ZERO; S],
+            home_position_um: [PosUm::ZERO; S],
             pressure_required: self.pressure_required,
         };
         for (i, (o, &h)) in c
@@ -242,7 +243,7 @@ impl<const S: usize> RuntimeConfig<S> {
                 let axis = u8::try_from(i).unwrap_or(u8::MAX);
                 return Err(RuntimeConfigError::Home { axis });
             }
-            *o = I24F8::saturating_from_num(h);
+            *o = PosUm::saturating_from_num(h);
         }
         let axes = self
             .slave_um_per_count
@@ -274,8 +275,8 @@ impl<const S: usize> RuntimeConfig<S> {
             }
             // |scale| ≤ 1000 ⇒ |scale·2^32| < 2^42: in range; rounded to nearest.
             *o_scale = I32F32::saturating_from_num(scale).to_bits();
-            *o_off = I24F8::saturating_from_num(offset);
-            *o_fe = I24F8::saturating_from_num(fe);
+            *o_off = PosUm::saturating_from_num(offset);
+            *o_fe = PosUm::saturating_from_num(fe);
         }
         if !finite_in(self.stall_timeout_s, 0.01, 600.0) || self.stall_min_move_counts == 0 {
             return Err(RuntimeConfigError::Stall);
@@ -298,7 +299,7 @@ mod tests {
         assert_eq!(c.slave_step_limit, [1000, 1000]);
         assert_eq!(c.slave_scale_q32, [1i64 << 32; 2]);
         assert_eq!(c.stall_timeout_ticks, 1000);
-        assert_eq!(c.following_error_limit_um[0], I24F8::from_num(2000));
+        assert_eq!(c.following_error_limit_um[0], PosUm::from_num(2000));
     }
 
     #[test]
