@@ -12,7 +12,7 @@
 
 use crate::bus::{Environment, Inputs, Outputs, SYSCLK_HZ};
 use host_sim::camfile::{interpolate, CamCsv};
-use host_sim::machine::{valve_command, BoardPlant, BoardSlave};
+use host_sim::machine::{valve_command, MachineAxis, MachinePlant};
 use host_sim::scenario::Scenario;
 use host_sim::sim::ErrorStat;
 use std::cell::RefCell;
@@ -40,7 +40,7 @@ pub struct Shared {
 
 /// The plant environment.
 pub struct PlantEnv {
-    plant: BoardPlant,
+    plant: MachinePlant,
     table_master: Vec<f64>,
     step_cycles: u64,
     error_skip_s: f64,
@@ -58,7 +58,7 @@ impl PlantEnv {
     pub fn new(scn: &Scenario, table: &CamCsv) -> anyhow::Result<Self> {
         let step_s = scn.step_s();
         // The machine as host-sim assembles it for a board (slave k = scenario axis k).
-        let plant = BoardPlant::new(scn, Some(table), 2)?;
+        let plant = MachinePlant::new(scn, Some(table), 2)?;
         let n = plant.slaves.len();
         let step_cycles = (step_s * SYSCLK_HZ as f64).round() as u64;
         Ok(Self {
@@ -83,7 +83,7 @@ impl PlantEnv {
     }
 
     /// The slaves.
-    pub fn slaves(&self) -> &[BoardSlave] {
+    pub fn slaves(&self) -> &[MachineAxis] {
         &self.plant.slaves
     }
 

@@ -1,7 +1,7 @@
 //! The virtual board: the firmware's board (`hydra_core::profile`: two slaves, 256-row
 //! tables, the reference gains, the runtime limits) against the simulated reference
 //! machine — the tangent axis on slave 0 and the side press on slave 1
-//! ([`crate::machine::BoardPlant`]). It runs core's code exactly as the firmware does:
+//! ([`crate::machine::MachinePlant`]). It runs core's code exactly as the firmware does:
 //! the tick is core's [`TickLoop::run`] (the firmware's TIM7 handler calls the same), the
 //! protocol's device is core's [`BoardDevice`] (the firmware's `device.rs` is only glue
 //! too), the handler and the store are core's.
@@ -24,7 +24,7 @@
 //! likewise waits for the tick's reply; that tick is the next period of the simulated
 //! timeline, not an extra one (`serve` paces on [`VBoard::ticks`]).
 
-use crate::machine::{valve_command, BoardPlant};
+use crate::machine::{valve_command, MachinePlant};
 use crate::scenario::Scenario;
 use hydra_core::dac::DacRange;
 use hydra_core::follower::Follower;
@@ -63,7 +63,7 @@ type DeviceState = LawDevice<Law, Box<Table>, AXES, CAPACITY>;
 /// The board's inputs and outputs over the plant: core's board traits.
 pub struct VirtualIo {
     /// The machine.
-    pub plant: BoardPlant,
+    pub plant: MachinePlant,
     /// The E-stop chain open (stop requested).
     pub estop: bool,
     /// Master time, s (advances once started).
@@ -202,7 +202,7 @@ impl Machine {
         Ok(Self {
             tl: None,
             io: VirtualIo {
-                plant: BoardPlant::new(scn, None, AXES)?,
+                plant: MachinePlant::new(scn, None, AXES)?,
                 estop: false,
                 t_master: 0.0,
                 started: false,

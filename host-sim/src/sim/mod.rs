@@ -232,7 +232,6 @@ pub fn run(
     let n_periods = (duration / period_s).ceil() as u64;
     let metric_steps = ((100e-6 / h).round() as u64).max(1);
     let trace_steps = spec.trace_every_s.map(|d| ((d / h).round() as u64).max(1));
-    let supply = sc.supply();
 
     let follower_cfgs = control::followers(&sc);
     let columns: Vec<&[f64]> = follower_cfgs
@@ -242,21 +241,16 @@ pub fn run(
     let mut follower = build_follower(&sc, table, tuning, spec.controller, spec.period_us)?;
     let nf = follower_cfgs.len();
 
-    // Plants, in scenario order; followers start on the table at the master's start.
-    let mut plants: Vec<HydraulicAxis> = Vec::with_capacity(sc.axes.len());
+    // Plants and sensors, in scenario order (crate::machine: followers start on the table
+    // at the master's start).
+    let machine = crate::machine::MachinePlant::new(&sc, Some(table), sc.axes.len())?;
+    let mut plants: Vec<HydraulicAxis> = machine.slaves.iter().map(|m| m.plant.clone()).collect();
+    let encoders: Vec<_> = machine.slaves.iter().map(|m| m.enc).collect();
+    let adcs: Vec<_> = machine.slaves.iter().map(|m| m.adc).collect();
     let mut follower_idx = Vec::new();
     let mut press_idx = Vec::new();
     let mut presses: Vec<PressRt> = Vec::new();
     for (i, a) in sc.axes.iter().enumerate() {
-        let x0_mm = match (a.x0_mm, a.role) {
-            (Some(x), _) => x,
-            (None, Role::Follower) => {
-                let c = table.column(&a.name).unwrap_or(&[]);
-                interpolate(&table.master, c, sc.master.start_deg, &mut 0)
-            }
-            (None, Role::Force) => 0.0,
-        };
-        plants.push(a.plant(supply, x0_mm * 1e-3));
         match a.role {
             Role::Follower => follower_idx.push(i),
             Role::Force => {
@@ -273,8 +267,6 @@ pub fn run(
             }
         }
     }
-    let encoders: Vec<_> = sc.axes.iter().map(|a| a.encoder()).collect();
-    let adcs: Vec<_> = sc.axes.iter().map(|a| a.pressure_adc()).collect();
     let n_axes = plants.len();
 
     let mut trace = trace_steps.map(|_| {

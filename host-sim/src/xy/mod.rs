@@ -27,7 +27,6 @@ pub mod tune;
 
 use crate::contour_truth::TruthPath;
 use crate::plant::{HydraulicAxis, Supply};
-use crate::scenario::{AxisCfg, Scenario};
 use crate::sim::FaultEvent;
 use anyhow::{bail, Result};
 use gains::Gains;
@@ -266,26 +265,9 @@ fn build_path(s: &XyScenario) -> Result<(CorePath, TruthPath)> {
     })
 }
 
-/// The two axes: X per PLANT.md, Y with 1.5× mass and 30 % less valve flow.
+/// The two axes ([`crate::machine::xy_axes`]) at rest at `start_um`.
 pub(crate) fn axes(start_um: [f64; 2]) -> (HydraulicAxis, HydraulicAxis, Supply) {
-    let supply = Scenario::default().supply();
-    let x = AxisCfg::default();
-    let mut y = AxisCfg::default();
-    y.cylinder.mass_kg *= 1.5;
-    y.valve.rated_flow_l_per_min *= 0.7;
-    let ax = HydraulicAxis::at_rest(
-        x.valve_si(),
-        x.cylinder_si(),
-        supply,
-        ORIGIN_M + start_um[0] * 1e-6,
-    );
-    let ay = HydraulicAxis::at_rest(
-        y.valve_si(),
-        y.cylinder_si(),
-        supply,
-        ORIGIN_M + start_um[1] * 1e-6,
-    );
-    (ax, ay, supply)
+    crate::machine::xy_axes(ORIGIN_M, start_um)
 }
 
 /// Runs one scenario.
