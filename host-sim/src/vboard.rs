@@ -287,7 +287,9 @@ impl DeviceGlue<Law, AXES, PRESSURES> for Machine {
         self.tl.as_mut().map(|t| f(t.runtime_mut()))
     }
     fn command(&mut self, cmd: Command) -> Option<Result<(), CommandError>> {
-        let queued_at = self.host.now_cycles();
+        // Queued at the simulated time of the tick that takes it (the host's compute time
+        // since the last tick is not simulated time): never stale.
+        let queued_at = self.host.sim_ns as u32;
         self.host.cmd = Some(TickCommand {
             cmd,
             token: 0,
@@ -408,13 +410,9 @@ impl VBoard {
         Ok(())
     }
 
-    /// The runtime.
-    pub fn runtime(&self) -> &VRuntime {
-        // Set at the end of `with_flash`: always present on a built board.
-        match self.machine.runtime() {
-            Some(rt) => rt,
-            None => unreachable!("the runtime is built at boot"),
-        }
+    /// The runtime (built at the end of boot: always `Some` on a built board).
+    pub fn runtime(&self) -> Option<&VRuntime> {
+        self.machine.runtime()
     }
 
     /// Ticks run since boot (one per simulated period, commands' ticks included).
