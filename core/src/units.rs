@@ -91,7 +91,7 @@ macro_rules! quantity {
             pub fn from_num<T: fixed::traits::ToFixed>(v: T) -> Self {
                 Self(<$inner>::from_num(v))
             }
-            /// From a number, saturated to the range (NaN gives 0).
+            /// From a number, saturated to the range (the number must not be NaN).
             #[inline]
             pub fn saturating_from_num<T: fixed::traits::ToFixed>(v: T) -> Self {
                 Self(<$inner>::saturating_from_num(v))

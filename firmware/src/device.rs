@@ -95,7 +95,7 @@ impl DeviceGlue<LawRef, SLAVES, PRESSURES> for FwGlue<'_, '_> {
         }
         r
     }
-    fn publish_nulls(&mut self, nulls: &[DacCode; SLAVES]) {
+    fn publish_nulls(nulls: &[DacCode; SLAVES]) {
         ValveBank::publish_safe_codes(nulls);
     }
     fn cycles_to_ns(&self, c: u32) -> u32 {

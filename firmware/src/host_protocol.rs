@@ -14,7 +14,7 @@
 //! retries with the same seq, which the handler answers `Duplicate` if it was done).
 
 use heapless::Vec;
-use hydra_core::protocol::msg::{AxisSample, Telemetry};
+use hydra_core::protocol::msg::Telemetry;
 use hydra_core::protocol::{Handler, SlotHeader, Store, StoreError};
 use static_cell::ConstStaticCell;
 
@@ -95,23 +95,6 @@ fn push_frame(tx: &mut Vec<u8, TX_LEN>, frame: &[u8]) {
     }
 }
 
-fn telemetry(s: &TickSample) -> Telemetry {
-    let mut t = Telemetry {
-        tick: s.tick,
-        master: s.master,
-        axes: Vec::new(),
-    };
-    for ((&target_um, &actual_um), &dac) in s.target_um.iter().zip(&s.actual_um).zip(&s.dac) {
-        // SLAVES ≤ MAX_AXES: cannot fail.
-        let _ = t.axes.push(AxisSample {
-            target_um,
-            actual_um,
-            dac,
-        });
-    }
-    t
-}
-
 impl LinkProtocol for Framed {
     fn on_rx(&mut self, bytes: &[u8], io: &mut LinkIo<'_>) {
         let mut glue = FwGlue { io: Some(&mut *io) };
@@ -153,7 +136,7 @@ impl LinkProtocol for Framed {
     fn on_sample(&mut self, sample: &TickSample, io: &mut LinkIo<'_>) {
         let tx = &mut self.tx;
         self.handler
-            .on_tick(&mut |f| push_frame(tx, f), || telemetry(sample));
+            .on_tick(&mut |f| push_frame(tx, f), || Telemetry::of_sample(sample));
         self.flush(io);
     }
 }

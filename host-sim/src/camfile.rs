@@ -58,6 +58,8 @@ pub struct CamCsv {
     pub columns: Vec<Vec<f64>>,
     /// 1-based line number of each node (for messages about a node).
     pub lines: Vec<usize>,
+    /// 1-based line number of the header (for messages about the columns).
+    pub header_line: usize,
 }
 
 /// The data lines of a CSV text with their 1-based line numbers (blank lines and `#`
@@ -183,6 +185,7 @@ impl CamCsv {
             master,
             columns,
             lines,
+            header_line: hline,
         })
     }
 

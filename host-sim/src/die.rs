@@ -91,6 +91,7 @@ impl DieTable {
             path: PathBuf::from("<elliptical die>"),
             axes: vec![self.axis.clone()],
             lines: (2..n + 2).collect(),
+            header_line: 1,
             master,
             columns: vec![x],
         }

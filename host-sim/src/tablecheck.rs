@@ -117,10 +117,17 @@ pub fn wire_rows(csv: &CamCsv, counts_per_unit: f64) -> Result<Vec<(i64, Vec<i32
 /// Checks `csv` against `rules` (`counts_per_unit`: master counts per CSV master unit).
 pub fn check(csv: &CamCsv, rules: &BoardRules, counts_per_unit: f64) -> Result<(), CheckError> {
     let file = csv.path.display().to_string();
+    if !(counts_per_unit.is_finite() && counts_per_unit > 0.0) {
+        return Err(CheckError {
+            file,
+            line: None,
+            reason: format!("master counts per unit {counts_per_unit}: must be a positive number"),
+        });
+    }
     if csv.axes.len() != rules.axes {
         return Err(CheckError {
             file,
-            line: csv.lines.first().map(|l| l.saturating_sub(1)),
+            line: Some(csv.header_line),
             reason: format!(
                 "{} slave column{} ({}); the board has {} slaves, one column each",
                 csv.axes.len(),
@@ -131,6 +138,21 @@ pub fn check(csv: &CamCsv, rules: &BoardRules, counts_per_unit: f64) -> Result<(
         });
     }
     let rows = wire_rows(csv, counts_per_unit)?;
+    // A board may report a shorter longest segment than the core's rule (Info).
+    for (k, w) in rows.windows(2).enumerate() {
+        let len_counts = w[1].0.abs_diff(w[0].0) >> 16;
+        if len_counts > u64::from(rules.max_segment_counts) {
+            return Err(CheckError {
+                file,
+                line: csv.lines.get(k + 1).copied(),
+                reason: format!(
+                    "the segment from line {} is {len_counts} master counts; the board allows {} counts between rows",
+                    csv.lines.get(k).copied().unwrap_or(0),
+                    rules.max_segment_counts
+                ),
+            });
+        }
+    }
     let r = match rules.axes {
         1 => check_s::<1>(&rows, rules),
         2 => check_s::<2>(&rows, rules),
@@ -286,6 +308,12 @@ mod tests {
             assert!(e.to_string().contains(needle), "{e}");
             assert!(e.to_string().starts_with("t.csv:"), "{e}");
         }
+        // The header's own line, also with a comment before the first row.
+        let e = check(&csv("# cam\nmaster,a\n# units mm\n0,1\n1,2\n"), &r, 1000.0).unwrap_err();
+        assert_eq!(e.line, Some(2), "{e}");
+        // A master scale that is not positive is refused, not misread.
+        let e = check(&csv("master,a,b\n0,10,10\n1,10,10\n"), &r, -1000.0).unwrap_err();
+        assert!(e.reason.contains("must be a positive number"), "{e}");
         // Too many rows for the board: the table as a whole.
         let mut big = String::from("master,a,b\n");
         for i in 0..300 {
@@ -311,5 +339,11 @@ mod tests {
         // … accepted by a board whose axis 0 may move 5 m/s.
         i.limits.axes[0].max_speed_um_per_s = 5_000_000 << 8;
         assert_eq!(check(&t, &BoardRules::of_info(&i), 1000.0), Ok(()));
+        // A board with shorter segments (1 000 counts = 1°) refuses a 2° one, on its line.
+        i.max_segment_counts = 1000;
+        let t2 = csv("master,a,b\n0,10,10\n1,10,10\n3,10,10\n");
+        let e = check(&t2, &BoardRules::of_info(&i), 1000.0).unwrap_err();
+        assert_eq!(e.line, Some(4), "{e}");
+        assert!(e.reason.contains("2000 master counts"), "{e}");
     }
 }

@@ -73,3 +73,53 @@ fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
         assert!((x - want).abs() < 100.0, "slave {k} at {x} µm");
     }
 }
+
+/// The tick that answers a command sends its telemetry too (the firmware's link task
+/// takes every queued sample): no gap in the telemetry's tick numbers at a command.
+#[test]
+fn a_commands_tick_has_its_telemetry() {
+    use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
+    use hydra_core::protocol::handler::encode_request;
+    let mut b = VBoard::new(&Scenario::default()).unwrap();
+    let frames = |b: &mut VBoard, seq: u16, q: &Request<'_>| {
+        let mut f = [0u8; MAX_WIRE + 1];
+        let n = encode_request(seq, q, &mut f).unwrap();
+        let mut out = Vec::new();
+        b.on_bytes(&f[..n], &mut |x| out.extend_from_slice(x));
+        let mut d = FrameDecoder::new();
+        let mut rs = Vec::new();
+        for &x in &out {
+            if let Some(fr) = d.push(x) {
+                let fr = fr.unwrap();
+                rs.push(Response::decode(fr.ty, fr.payload).unwrap());
+            }
+        }
+        rs
+    };
+    assert!(matches!(
+        frames(&mut b, 7, &Request::Hello)[0],
+        Response::Info(_)
+    ));
+    let r = frames(&mut b, 8, &Request::SetTelemetry { decimation: 1 });
+    assert!(matches!(r[0], Response::Ack { .. }), "{r:?}");
+    let mut ticks = Vec::new();
+    let mut tx = |x: &[u8]| ticks.extend_from_slice(x);
+    b.tick(&mut tx);
+    let r = frames(
+        &mut b,
+        9,
+        &Request::SetPosition {
+            axis: 0,
+            pos_um: 250_000 << 8,
+        },
+    );
+    assert!(matches!(r[0], Response::Ack { .. }), "{r:?}");
+    let tel: Vec<u32> = r
+        .iter()
+        .filter_map(|x| match x {
+            Response::Telemetry(t) => Some(t.tick),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(tel, vec![b.runtime().unwrap().status().tick], "{r:?}");
+}

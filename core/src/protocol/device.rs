@@ -52,9 +52,10 @@ pub trait DeviceGlue<L, const S: usize, const P: usize> {
     /// Has the tick apply `cmd` and waits for its answer; `None` if there is no answer
     /// (no tick yet, a full queue, or the wait timed out: the tick then drops it unapplied).
     fn command(&mut self, cmd: Command) -> Option<Result<(), CommandError>>;
-    /// The valve null codes of a law just installed (the board's panic handler writes
-    /// them). Default: nothing to publish.
-    fn publish_nulls(&mut self, _nulls: &[DacCode; S]) {}
+    /// The valve null codes of a law being installed (the board's panic handler writes
+    /// them): called inside the same [`DeviceGlue::write`] that swaps the law in, so the
+    /// nulls published always belong to the law that runs. Default: nothing to publish.
+    fn publish_nulls(_nulls: &[DacCode; S]) {}
     /// Tick timing in the runtime's status (host clock cycles) → ns.
     fn cycles_to_ns(&self, cycles: u32) -> u32;
 }
@@ -176,7 +177,7 @@ impl<L> LawPool<L> {
         }
         let nulls = Controller::null_codes(&*law);
         if glue.read(|_| ()).is_none() {
-            glue.publish_nulls(&nulls);
+            G::publish_nulls(&nulls);
             if let Some(old) = self.boot_law.replace(law) {
                 self.give_back(old);
             }
@@ -189,12 +190,13 @@ impl<L> LawPool<L> {
                     return None;
                 }
                 // At a safe point (checked in this call): `install` cannot refuse.
-                rt.install(new.take()?).ok()
+                let old = rt.install(new.take()?).ok()?;
+                G::publish_nulls(&nulls);
+                Some(old)
             })
             .flatten();
         match swapped {
             Some(old) => {
-                glue.publish_nulls(&nulls);
                 // `None` at the first activation after an empty boot.
                 if let Some(o) = old {
                     self.give_back(o);
@@ -365,10 +367,18 @@ mod tests {
     type Law = Box<Follower<1, 8>>;
     type Rt = Runtime<Law, 1, 0>;
 
+    std::thread_local! {
+        /// Null publications of this test's thread.
+        static PUBLISHED: core::cell::Cell<u32> = const { core::cell::Cell::new(0) };
+    }
+
+    fn published() -> u32 {
+        PUBLISHED.with(|p| p.get())
+    }
+
     /// The glue of a board whose runtime is a plain value (`None` until boot ends).
     struct Direct {
         rt: Option<Rt>,
-        published: u32,
     }
 
     impl DeviceGlue<Law, 1, 0> for Direct {
@@ -390,8 +400,8 @@ mod tests {
             };
             self.rt.as_mut()?.step(&s, Some(cmd)).reply
         }
-        fn publish_nulls(&mut self, _nulls: &[DacCode; 1]) {
-            self.published += 1;
+        fn publish_nulls(_nulls: &[DacCode; 1]) {
+            PUBLISHED.with(|p| p.set(p.get() + 1));
         }
         fn cycles_to_ns(&self, c: u32) -> u32 {
             c
@@ -439,10 +449,7 @@ mod tests {
     #[test]
     fn boot_builds_the_law_before_the_runtime_exists_then_hands_it_over() {
         let mut st = device();
-        let mut g = Direct {
-            rt: None,
-            published: 0,
-        };
+        let mut g = Direct { rt: None };
         let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
             st: &mut st,
             glue: &mut g,
@@ -457,7 +464,7 @@ mod tests {
         );
         d.install_table(&table(100_000)).unwrap();
         d.set_param(0, ParamId::SlaveOffsetUm, 2500.0).unwrap();
-        assert_eq!(g.published, 1);
+        assert_eq!(published(), 1);
         let (rt, refused) = st.start::<0>(coeffs(), BootCause::Normal);
         assert_eq!(refused, 0);
         assert!(rt.law().is_some_and(|l| l.is_ready()));
@@ -468,10 +475,7 @@ mod tests {
     #[test]
     fn a_running_law_is_swapped_only_at_a_safe_point_and_rebuilt_by_set_param() {
         let mut st = device();
-        let mut g = Direct {
-            rt: None,
-            published: 0,
-        };
+        let mut g = Direct { rt: None };
         let (rt, _) = st.start::<0>(coeffs(), BootCause::Normal);
         g.rt = Some(rt);
         let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
@@ -504,11 +508,11 @@ mod tests {
         // Idle: a gain change rebuilds the running law (same table, new parameters) …
         d.set_param(0, ParamId::KpLsbPerUm, 2.0).unwrap();
         assert_eq!(d.st.follower_config().axes[0].kp_lsb_per_um, 2.0);
-        let published = d.glue.published;
+        let before = published();
         d.set_param(0, ParamId::ValveNullLsb, 50.0).unwrap();
         let nulls = d.glue.rt.as_ref().map(|r| r.null_codes()[0].get());
         assert_eq!(nulls, Some(50), "the running law has the new valve null");
-        assert_eq!(d.glue.published, published + 1);
+        assert_eq!(published(), before + 1);
         // … an impossible one is refused with the parameter named, nothing changed.
         assert_eq!(
             d.set_param(0, ParamId::KpLsbPerUm, -1.0).unwrap_err(),

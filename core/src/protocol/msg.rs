@@ -668,6 +668,26 @@ pub struct Telemetry {
     pub axes: Vec<AxisSample, MAX_AXES>,
 }
 
+impl Telemetry {
+    /// The telemetry of one tick's sample (the first [`MAX_AXES`] slaves).
+    pub fn of_sample<const S: usize>(s: &crate::runtime::TickSample<S>) -> Self {
+        let mut t = Self {
+            tick: s.tick,
+            master: s.master,
+            axes: Vec::new(),
+        };
+        for ((&target_um, &actual_um), &dac) in s.target_um.iter().zip(&s.actual_um).zip(&s.dac) {
+            // Beyond MAX_AXES slaves the rest is not reported (a board has at most 8).
+            let _ = t.axes.push(AxisSample {
+                target_um,
+                actual_um,
+                dac,
+            });
+        }
+        t
+    }
+}
+
 /// A decoded response.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Response {
@@ -791,8 +811,18 @@ impl Response {
                 },
             },
             ty::INFO => {
+                let protocol = r.u8()?;
+                if protocol != PROTOCOL_VERSION {
+                    // Another version: its first fields (the layout every version keeps),
+                    // so the host can say which version the board speaks.
+                    return Some(Response::Info(Info {
+                        protocol,
+                        firmware: r.bytes(3)?.try_into().ok()?,
+                        ..Info::default()
+                    }));
+                }
                 let mut i = Info {
-                    protocol: r.u8()?,
+                    protocol,
                     firmware: r.bytes(3)?.try_into().ok()?,
                     axes: r.u8()?,
                     capacity_rows: r.u16()?,
@@ -999,6 +1029,18 @@ mod tests {
             Response::Status(st),
             Response::Telemetry(tm),
         ];
+        // A version-1 board's Info (19 bytes): the version and firmware are read, so the
+        // host can say which version the board speaks.
+        let v1 = [
+            1u8, 0, 3, 7, 1, 0, 4, 20, 0xE8, 3, 0, 0, 0xFF, 0xFF, 0xFF, 0xFF,
+        ];
+        match Response::decode(ty::INFO, &v1) {
+            Some(Response::Info(i)) => {
+                assert_eq!((i.protocol, i.firmware), (1, [0, 3, 7]));
+                assert_eq!(i.axes, 0, "nothing else is taken from another version");
+            }
+            r => panic!("{r:?}"),
+        }
         for r in rs {
             let mut b = [0u8; 256];
             let n = r.encode(&mut b).unwrap();

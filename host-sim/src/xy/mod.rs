@@ -143,7 +143,7 @@ impl Default for XyScenario {
 pub struct Sample {
     /// Time, s.
     pub t_s: f64,
-    /// Reference (path coordinates), µm.
+    /// Reference (path coordinates), µm (after a fault: the last one the law produced).
     pub reference_um: [f64; 2],
     /// Actual position (path coordinates), µm.
     pub actual_um: [f64; 2],
