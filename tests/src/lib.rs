@@ -38,16 +38,7 @@ impl VbHost {
         };
         let mut f = [0u8; MAX_WIRE + 1];
         let n = encode_request(s, q, &mut f).expect("request fits one frame");
-        let mut out = Vec::new();
-        b.on_bytes(&f[..n], &mut |x| out.extend_from_slice(x));
-        let mut d = FrameDecoder::new();
-        let mut rs = Vec::new();
-        for &x in &out {
-            if let Some(fr) = d.push(x) {
-                let fr = fr.expect("a valid frame from the board");
-                rs.push(Response::decode(fr.ty, fr.payload).expect("a known response"));
-            }
-        }
+        let mut rs = exchange(b, &f[..n]);
         assert_eq!(rs.len(), 1, "one answer to {q:?}");
         let r = rs.remove(0);
         if !matches!(r, Response::Nak { .. }) {
@@ -90,6 +81,22 @@ impl VbHost {
         }
         self.req(b, &Request::TableCommit { crc: crc32(&all) })
     }
+}
+
+/// Sends the wire bytes `frame` to `b` and returns every response it sends back
+/// (answers and telemetry), in order.
+pub fn exchange(b: &mut VBoard, frame: &[u8]) -> Vec<Response> {
+    let mut out = Vec::new();
+    b.on_bytes(frame, &mut |x| out.extend_from_slice(x));
+    let mut d = FrameDecoder::new();
+    let mut rs = Vec::new();
+    for &x in &out {
+        if let Some(fr) = d.push(x) {
+            let fr = fr.expect("a valid frame from the board");
+            rs.push(Response::decode(fr.ty, fr.payload).expect("a known response"));
+        }
+    }
+    rs
 }
 
 /// Rows as on the wire.

@@ -78,23 +78,13 @@ fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
 /// takes every queued sample): no gap in the telemetry's tick numbers at a command.
 #[test]
 fn a_commands_tick_has_its_telemetry() {
-    use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
+    use hydra_core::protocol::frame::MAX_WIRE;
     use hydra_core::protocol::handler::encode_request;
     let mut b = VBoard::new(&Scenario::default()).unwrap();
     let frames = |b: &mut VBoard, seq: u16, q: &Request<'_>| {
         let mut f = [0u8; MAX_WIRE + 1];
         let n = encode_request(seq, q, &mut f).unwrap();
-        let mut out = Vec::new();
-        b.on_bytes(&f[..n], &mut |x| out.extend_from_slice(x));
-        let mut d = FrameDecoder::new();
-        let mut rs = Vec::new();
-        for &x in &out {
-            if let Some(fr) = d.push(x) {
-                let fr = fr.unwrap();
-                rs.push(Response::decode(fr.ty, fr.payload).unwrap());
-            }
-        }
-        rs
+        hydra_tests::exchange(b, &f[..n])
     };
     assert!(matches!(
         frames(&mut b, 7, &Request::Hello)[0],
