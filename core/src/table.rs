@@ -204,21 +204,24 @@ pub struct CamTable<const S: usize, const N: usize> {
     last: Node<S>,
 }
 
-/// Largest segment length, raw bits (65 535 counts · 2^16 < 2^32).
-const MAX_LEN_BITS: i64 = (1 << 32) - (1 << 16);
 /// Longest segment between two nodes, master counts (the table's rule; Info reports it).
 pub const MAX_SEGMENT_COUNTS: u32 = 65_535;
+/// Largest segment length, raw bits (65 535 counts · 2^16 < 2^32).
+const MAX_LEN_BITS: i64 = (MAX_SEGMENT_COUNTS as i64) << 16;
 
 /// Checks `nodes` against every rule a table of `capacity` rows obeys (the rules of
 /// [`CamTable::rebuild_from_nodes`], which a board applies at commit), building nothing:
-/// a host checks a table before uploading it with the limits and capacity the board
-/// reported. Rows in the errors are indices into `nodes`.
+/// a host checks a table before uploading it with the limits, capacity and longest
+/// segment (at most [`MAX_SEGMENT_COUNTS`]) the board reported. Rows in the errors are
+/// indices into `nodes`.
 pub fn check_nodes<const S: usize>(
     nodes: &[Node<S>],
     limits: &TableLimits<S>,
     capacity: usize,
+    max_segment_counts: u32,
 ) -> Result<(), TableError> {
-    build_segments(nodes, limits, capacity, |_| Ok(())).map(|_| ())
+    let max_len = (i64::from(max_segment_counts) << 16).min(MAX_LEN_BITS);
+    build_segments(nodes, limits, capacity, max_len, |_| Ok(())).map(|_| ())
 }
 
 impl<const S: usize, const N: usize> CamTable<S, N> {
@@ -261,12 +264,12 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
         limits: &TableLimits<S>,
     ) -> Result<(), TableError> {
         // Pass 1: every rule, nothing written.
-        let last = build_segments(nodes, limits, N, |_| Ok(()))?;
+        let last = build_segments(nodes, limits, N, MAX_LEN_BITS, |_| Ok(()))?;
         // Pass 2: the same walk, writing (the rules held, so it cannot fail here; the
         // capacity was checked in pass 1).
         self.segs.clear();
         let segs = &mut self.segs;
-        let r = build_segments(nodes, limits, N, |seg| {
+        let r = build_segments(nodes, limits, N, MAX_LEN_BITS, |seg| {
             segs.push(seg)
                 .map_err(|_| TableError::TooManyNodes { capacity: N })
         });
@@ -599,6 +602,7 @@ fn build_segments<const S: usize>(
     nodes: &[Node<S>],
     limits: &TableLimits<S>,
     capacity: usize,
+    max_len_bits: i64,
     mut put: impl FnMut(Segment<S>) -> Result<(), TableError>,
 ) -> Result<Node<S>, TableError> {
     if nodes.len() < 2 {
@@ -632,7 +636,7 @@ fn build_segments<const S: usize>(
                 Some(l) if l > 0 => l,
                 _ => return Err(TableError::NotMonotonic { row }),
             };
-            if !(2..=MAX_LEN_BITS).contains(&len) {
+            if !(2..=max_len_bits).contains(&len) {
                 return Err(TableError::SegmentLength { row });
             }
             let mut dx = [0i32; S];

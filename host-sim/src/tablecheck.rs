@@ -138,21 +138,6 @@ pub fn check(csv: &CamCsv, rules: &BoardRules, counts_per_unit: f64) -> Result<(
         });
     }
     let rows = wire_rows(csv, counts_per_unit)?;
-    // A board may report a shorter longest segment than the core's rule (Info).
-    for (k, w) in rows.windows(2).enumerate() {
-        let len_counts = w[1].0.abs_diff(w[0].0) >> 16;
-        if len_counts > u64::from(rules.max_segment_counts) {
-            return Err(CheckError {
-                file,
-                line: csv.lines.get(k + 1).copied(),
-                reason: format!(
-                    "the segment from line {} is {len_counts} master counts; the board allows {} counts between rows",
-                    csv.lines.get(k).copied().unwrap_or(0),
-                    rules.max_segment_counts
-                ),
-            });
-        }
-    }
     let r = match rules.axes {
         1 => check_s::<1>(&rows, rules),
         2 => check_s::<2>(&rows, rules),
@@ -181,7 +166,12 @@ fn check_s<const S: usize>(rows: &[(i64, Vec<i32>)], rules: &BoardRules) -> Resu
             slave_um: core::array::from_fn(|k| PosUm::from_bits(xs.get(k).copied().unwrap_or(0))),
         })
         .collect();
-    check_nodes(&nodes, &rules.table_limits::<S>(), rules.capacity_rows)
+    check_nodes(
+        &nodes,
+        &rules.table_limits::<S>(),
+        rules.capacity_rows,
+        rules.max_segment_counts,
+    )
 }
 
 /// The board's rule broken, in engineering units.
