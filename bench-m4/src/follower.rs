@@ -16,7 +16,7 @@
 
 use crate::harness::Figure;
 use core::hint::black_box;
-use hydra_core::axis::{AxisConfig, ControlMode};
+use hydra_core::axis::{AxisConfig, ControlMode, PositionGains};
 use hydra_core::follower::{Follower, FollowerConfig, FollowerInputs, FollowerOutputs};
 use hydra_core::table::{AxisLimits, CamTable, Node, TableLimits};
 use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
@@ -127,17 +127,19 @@ fn table_for<const S: usize>(motion: Motion) -> Option<CamTable<S, NODES>> {
 /// Gains of the reference tangent cylinder (every term of the law non-zero).
 pub(crate) fn axis(mode: ControlMode) -> AxisConfig {
     AxisConfig {
+        gains: PositionGains {
+            kp_lsb_per_um: 0.4,
+            ki_lsb_per_um_s: 5.0,
+            kd_lsb_s_per_um: 0.0005,
+            i_zone_um: 200.0,
+            i_limit_lsb: 100.0,
+            kv_pos_lsb_per_um_s: 0.017,
+            kv_neg_lsb_per_um_s: 0.025,
+            ka_lsb_per_um_s2: 0.0001,
+            valve_lag_us: 4200.0,
+            following_error_um: 5000.0,
+        },
         mode,
-        kp_lsb_per_um: 0.4,
-        ki_lsb_per_um_s: 5.0,
-        kd_lsb_s_per_um: 0.0005,
-        i_zone_um: 200.0,
-        i_limit_lsb: 100.0,
-        kv_pos_lsb_per_um_s: 0.017,
-        kv_neg_lsb_per_um_s: 0.025,
-        ka_lsb_per_um_s2: 0.0001,
-        valve_lag_us: 4200.0,
-        following_error_um: 5000.0,
         ..AxisConfig::default()
     }
 }

@@ -11,7 +11,7 @@
 //! | gains | the reference machine's feed-forward set at 1 ms ([`follower_config`]) |
 //! | limits | slaves 0 … 500 mm at ≤ 200 mm/s, master ≤ 10 °/s ([`table_limits`]) |
 
-use crate::axis::{AxisConfig, ControlMode};
+use crate::axis::{AxisConfig, ControlMode, PositionGains};
 use crate::dac::DacRange;
 use crate::follower::FollowerConfig;
 use crate::runtime::{ReferenceMode, RuntimeConfig};
@@ -80,17 +80,19 @@ pub fn table_limits() -> TableLimits<SLAVES> {
 /// (`DacRange::max_code`), so it never commands a code the pin cannot follow.
 pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {
     let axis = AxisConfig {
+        gains: PositionGains {
+            kp_lsb_per_um: 1.1,
+            ki_lsb_per_um_s: 18.0,
+            kd_lsb_s_per_um: 0.0,
+            i_zone_um: 10_000.0,
+            i_limit_lsb: 200.0,
+            kv_pos_lsb_per_um_s: 0.01389,
+            kv_neg_lsb_per_um_s: 0.01683,
+            ka_lsb_per_um_s2: 0.0,
+            valve_lag_us: 4244.0,
+            following_error_um: 5000.0,
+        },
         mode: ControlMode::Feedforward,
-        kp_lsb_per_um: 1.1,
-        ki_lsb_per_um_s: 18.0,
-        kd_lsb_s_per_um: 0.0,
-        i_zone_um: 10_000.0,
-        i_limit_lsb: 200.0,
-        kv_pos_lsb_per_um_s: 0.01389,
-        kv_neg_lsb_per_um_s: 0.01683,
-        ka_lsb_per_um_s2: 0.0,
-        valve_lag_us: 4244.0,
-        following_error_um: 5000.0,
         valve: ValveCal {
             clamp_lsb,
             ..ValveCal::default()

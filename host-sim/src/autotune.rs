@@ -142,18 +142,20 @@ pub fn step_test(
     kp: f64,
 ) -> Result<StepTest, ScenarioError> {
     let cfg = AxisConfig {
+        gains: PositionGains {
+            kp_lsb_per_um: kp as f32,
+            ki_lsb_per_um_s: 0.0,
+            kd_lsb_s_per_um: 0.0,
+            i_zone_um: 1e6,
+            i_limit_lsb: 2047.0,
+            kv_pos_lsb_per_um_s: 0.0,
+            kv_neg_lsb_per_um_s: 0.0,
+            ka_lsb_per_um_s2: 0.0,
+            following_error_um: 1e6,
+            ..PositionGains::default()
+        },
         mode,
-        kp_lsb_per_um: kp as f32,
-        ki_lsb_per_um_s: 0.0,
-        kd_lsb_s_per_um: 0.0,
-        i_zone_um: 1e6,
-        i_limit_lsb: 2047.0,
-        kv_pos_lsb_per_um_s: 0.0,
-        kv_neg_lsb_per_um_s: 0.0,
-        ka_lsb_per_um_s2: 0.0,
-        following_error_um: 1e6,
         valve: axis.calibration,
-        ..AxisConfig::default()
     };
     let c = cfg.build(period_us).map_err(|e| ScenarioError::Invalid {
         key: format!("axis.{}", axis.name),
@@ -258,23 +260,23 @@ pub fn position_gains(
         2.0 * axis.valve.damping / (2.0 * std::f64::consts::PI * axis.valve.bandwidth_hz) * 1e6;
     Ok((
         PositionGains {
-            kp_lsb_per_um: kp,
-            ki_lsb_per_um_s: ki,
+            kp_lsb_per_um: kp as f32,
+            ki_lsb_per_um_s: ki as f32,
             kd_lsb_s_per_um: 0.0,
             i_zone_um: 10_000.0,
             i_limit_lsb: if ff { 200.0 } else { 2047.0 },
             kv_pos_lsb_per_um_s: if ff {
-                round4(2047.0 / (p.no_load_speed_m_per_s(true) * 1e6))
+                round4(2047.0 / (p.no_load_speed_m_per_s(true) * 1e6)) as f32
             } else {
                 0.0
             },
             kv_neg_lsb_per_um_s: if ff {
-                round4(2047.0 / (p.no_load_speed_m_per_s(false) * 1e6))
+                round4(2047.0 / (p.no_load_speed_m_per_s(false) * 1e6)) as f32
             } else {
                 0.0
             },
             ka_lsb_per_um_s2: 0.0,
-            valve_lag_us: lag_us.round(),
+            valve_lag_us: lag_us.round() as f32,
             following_error_um: 20_000.0,
         },
         ku,
@@ -291,7 +293,7 @@ fn press_only(s: &Scenario, axis: &AxisCfg, period_us: u32, g: &PressGains) -> S
         master_filter_hz: master_filter_hz(period_us),
         predictor: PredictorCfg::Eq4,
         axes: BTreeMap::new(),
-        press: BTreeMap::from([(axis.name.clone(), g.clone())]),
+        press: BTreeMap::from([(axis.name.clone(), *g)]),
     }];
     p
 }
@@ -356,11 +358,12 @@ pub fn press_gains(
         kp_lsb_per_n: 1e-4,
         ki_lsb_per_n_s: 0.0,
     };
-    let (mut lo, mut hi) = (0.0, 1e-4);
+    // The bisection runs in f64; each trial gain is the f32 the press law is given.
+    let (mut lo, mut hi) = (0.0f64, 1e-4f64);
     while press_stable(s, axis, period_us, &g)? {
         lo = hi;
         hi *= 2.0;
-        g.kp_lsb_per_n = hi;
+        g.kp_lsb_per_n = hi as f32;
         if hi > 100.0 {
             break;
         }
@@ -368,7 +371,7 @@ pub fn press_gains(
     if lo > 0.0 {
         for _ in 0..6 {
             let mid = (lo * hi).sqrt();
-            g.kp_lsb_per_n = mid;
+            g.kp_lsb_per_n = mid as f32;
             if press_stable(s, axis, period_us, &g)? {
                 lo = mid;
             } else {
@@ -380,8 +383,8 @@ pub fn press_gains(
     let kc = axis.contact.as_ref().map_or(0.0, |c| c.stiffness_n_per_m);
     let kvel_m = velocity_gain(axis, s) * 1e-6; // m/s per LSB
     let kp = round2(ku / 2.0);
-    g.kp_lsb_per_n = kp;
-    g.ki_lsb_per_n_s = round2(kp * kp * kc * kvel_m / 4.0);
+    g.kp_lsb_per_n = kp as f32;
+    g.ki_lsb_per_n_s = round2(kp * kp * kc * kvel_m / 4.0) as f32;
     Ok((g, ku))
 }
 
@@ -433,6 +436,11 @@ fn num(x: f64) -> String {
     }
 }
 
+/// The TOML body of one gain set: flat structs of numbers always serialise.
+fn gains_toml<T: serde::Serialize>(g: &T) -> String {
+    toml::to_string(g).unwrap_or_else(|e| format!("# not serialisable: {e}\n"))
+}
+
 /// The TOML text of a gain set (what `--tune` prints).
 pub fn to_toml(t: &Tuning) -> String {
     let mut s = format!(
@@ -441,18 +449,13 @@ pub fn to_toml(t: &Tuning) -> String {
         t.period_us,
         num(t.master_filter_hz)
     );
+    // Each gain set as core's struct serialises it (f32 in its shortest decimal form,
+    // which parses back to exactly the same f32).
     for (name, g) in &t.axes {
-        s.push_str(&format!(
-            "[tuning.axes.{name}]\nkp_lsb_per_um = {}\nki_lsb_per_um_s = {}\nkd_lsb_s_per_um = {}\ni_zone_um = {}\ni_limit_lsb = {}\nkv_pos_lsb_per_um_s = {}\nkv_neg_lsb_per_um_s = {}\nka_lsb_per_um_s2 = {}\nvalve_lag_us = {}\nfollowing_error_um = {}\n",
-            num(g.kp_lsb_per_um), num(g.ki_lsb_per_um_s), num(g.kd_lsb_s_per_um), num(g.i_zone_um), num(g.i_limit_lsb),
-            num(g.kv_pos_lsb_per_um_s), num(g.kv_neg_lsb_per_um_s), num(g.ka_lsb_per_um_s2), num(g.valve_lag_us), num(g.following_error_um)
-        ));
+        s.push_str(&format!("[tuning.axes.{name}]\n{}", gains_toml(g)));
     }
     for (name, g) in &t.press {
-        s.push_str(&format!(
-            "[tuning.press.{name}]\nkp_lsb_per_um = {}\nkv_lsb_per_um_s = {}\nkp_lsb_per_n = {}\nki_lsb_per_n_s = {}\n",
-            num(g.kp_lsb_per_um), num(g.kv_lsb_per_um_s), num(g.kp_lsb_per_n), num(g.ki_lsb_per_n_s)
-        ));
+        s.push_str(&format!("[tuning.press.{name}]\n{}", gains_toml(g)));
     }
     s
 }

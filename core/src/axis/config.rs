@@ -26,12 +26,18 @@ pub enum ControlMode {
     NextNode,
 }
 
-/// One position axis in engineering units.
+/// The position loop's gains and its following-error limit, in engineering units: what a
+/// tuning produces for one axis at one control period. With the `serde` feature it is
+/// what a scenario's `[tuning.axes.<name>]` table holds (every field optional, defaults
+/// as below; unknown keys refused).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct AxisConfig {
-    /// Control law.
-    pub mode: ControlMode,
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(deny_unknown_fields, default)
+)]
+pub struct PositionGains {
     /// Proportional gain Kp, DAC LSB per µm (0 … 1000).
     pub kp_lsb_per_um: f32,
     /// Integral gain Ki, DAC LSB per (µm·s) (0 … 1e5).
@@ -53,14 +59,11 @@ pub struct AxisConfig {
     pub valve_lag_us: f32,
     /// Following-error fault limit, µm (> 0).
     pub following_error_um: f32,
-    /// Valve output calibration.
-    pub valve: ValveCal,
 }
 
-impl Default for AxisConfig {
+impl Default for PositionGains {
     fn default() -> Self {
         Self {
-            mode: ControlMode::Feedforward,
             kp_lsb_per_um: 0.2,
             ki_lsb_per_um_s: 0.0,
             kd_lsb_s_per_um: 0.0,
@@ -71,9 +74,20 @@ impl Default for AxisConfig {
             ka_lsb_per_um_s2: 0.0,
             valve_lag_us: 4200.0,
             following_error_um: 5000.0,
-            valve: ValveCal::default(),
         }
     }
+}
+
+/// One position axis in engineering units: its control law, its gains and its valve.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AxisConfig {
+    /// Control law.
+    pub mode: ControlMode,
+    /// Gains and the following-error limit.
+    pub gains: PositionGains,
+    /// Valve output calibration.
+    pub valve: ValveCal,
 }
 
 /// An axis parameter out of range (the field it names).
@@ -153,25 +167,21 @@ impl AxisConfig {
     /// Validates the configuration for a control period `period_us` and converts it.
     pub fn build(&self, period_us: u32) -> Result<AxisCoeffs, AxisConfigError> {
         use AxisConfigError as E;
+        let g = &self.gains;
         if !(50..=1_000_000).contains(&period_us) {
             return Err(E::Period);
         }
         let t = f64::from(period_us) * 1e-6;
-        let kp = f64::from(check(self.kp_lsb_per_um, 0.0, 1000.0, E::Kp)?);
-        let ki = f64::from(check(self.ki_lsb_per_um_s, 0.0, 1e5, E::Ki)?);
-        let kd = f64::from(check(self.kd_lsb_s_per_um, 0.0, 10.0, E::Kd)?);
-        let zone = f64::from(check(self.i_zone_um, 1e-3, 1e6, E::IZone)?);
-        let ilim = f64::from(check(self.i_limit_lsb, 0.0, 2047.0, E::ILimit)?);
-        let kvp = f64::from(check(self.kv_pos_lsb_per_um_s, 0.0, 100.0, E::Kv)?);
-        let kvn = f64::from(check(self.kv_neg_lsb_per_um_s, 0.0, 100.0, E::Kv)?);
-        let ka = f64::from(check(self.ka_lsb_per_um_s2, 0.0, 0.4, E::Ka)?);
-        let lag = f64::from(check(self.valve_lag_us, 0.0, 100_000.0, E::ValveLag)?);
-        let fe = f64::from(check(
-            self.following_error_um,
-            1e-3,
-            1e6,
-            E::FollowingError,
-        )?);
+        let kp = f64::from(check(g.kp_lsb_per_um, 0.0, 1000.0, E::Kp)?);
+        let ki = f64::from(check(g.ki_lsb_per_um_s, 0.0, 1e5, E::Ki)?);
+        let kd = f64::from(check(g.kd_lsb_s_per_um, 0.0, 10.0, E::Kd)?);
+        let zone = f64::from(check(g.i_zone_um, 1e-3, 1e6, E::IZone)?);
+        let ilim = f64::from(check(g.i_limit_lsb, 0.0, 2047.0, E::ILimit)?);
+        let kvp = f64::from(check(g.kv_pos_lsb_per_um_s, 0.0, 100.0, E::Kv)?);
+        let kvn = f64::from(check(g.kv_neg_lsb_per_um_s, 0.0, 100.0, E::Kv)?);
+        let ka = f64::from(check(g.ka_lsb_per_um_s2, 0.0, 0.4, E::Ka)?);
+        let lag = f64::from(check(g.valve_lag_us, 0.0, 100_000.0, E::ValveLag)?);
+        let fe = f64::from(check(g.following_error_um, 1e-3, 1e6, E::FollowingError)?);
         let valve = self.valve.build().map_err(E::Valve)?;
         let lead_ticks = 1.5 + lag / f64::from(period_us);
         // Below the master filter's extrapolation limit (2^14 ticks).
@@ -210,10 +220,13 @@ mod tests {
     #[test]
     fn converts_units() {
         let c = AxisConfig {
-            kp_lsb_per_um: 0.5,
-            ki_lsb_per_um_s: 10.0,
-            kd_lsb_s_per_um: 0.001,
-            kv_pos_lsb_per_um_s: 0.017,
+            gains: PositionGains {
+                kp_lsb_per_um: 0.5,
+                ki_lsb_per_um_s: 10.0,
+                kd_lsb_s_per_um: 0.001,
+                kv_pos_lsb_per_um_s: 0.017,
+                ..PositionGains::default()
+            },
             ..AxisConfig::default()
         }
         .build(1000)
@@ -231,36 +244,48 @@ mod tests {
             f(&mut c);
             c.build(1000)
         };
-        assert_eq!(bad(|c| c.kp_lsb_per_um = -1.0), Err(AxisConfigError::Kp));
         assert_eq!(
-            bad(|c| c.ki_lsb_per_um_s = f32::NAN),
+            bad(|c| c.gains.kp_lsb_per_um = -1.0),
+            Err(AxisConfigError::Kp)
+        );
+        assert_eq!(
+            bad(|c| c.gains.ki_lsb_per_um_s = f32::NAN),
             Err(AxisConfigError::Ki)
         );
-        assert_eq!(bad(|c| c.kd_lsb_s_per_um = 20.0), Err(AxisConfigError::Kd));
+        assert_eq!(
+            bad(|c| c.gains.kd_lsb_s_per_um = 20.0),
+            Err(AxisConfigError::Kd)
+        );
         // Ki·T·m = 1e5·1e-3·1e6 = 1e8 LSB per tick
         assert_eq!(
             bad(|c| {
-                c.ki_lsb_per_um_s = 1e5;
-                c.i_zone_um = 1e6;
+                c.gains.ki_lsb_per_um_s = 1e5;
+                c.gains.i_zone_um = 1e6;
             }),
             Err(AxisConfigError::Ki)
         );
-        assert_eq!(bad(|c| c.i_zone_um = 0.0), Err(AxisConfigError::IZone));
         assert_eq!(
-            bad(|c| c.i_limit_lsb = 3000.0),
+            bad(|c| c.gains.i_zone_um = 0.0),
+            Err(AxisConfigError::IZone)
+        );
+        assert_eq!(
+            bad(|c| c.gains.i_limit_lsb = 3000.0),
             Err(AxisConfigError::ILimit)
         );
         assert_eq!(
-            bad(|c| c.kv_neg_lsb_per_um_s = -0.1),
+            bad(|c| c.gains.kv_neg_lsb_per_um_s = -0.1),
             Err(AxisConfigError::Kv)
         );
-        assert_eq!(bad(|c| c.ka_lsb_per_um_s2 = 1.0), Err(AxisConfigError::Ka));
         assert_eq!(
-            bad(|c| c.valve_lag_us = f32::INFINITY),
+            bad(|c| c.gains.ka_lsb_per_um_s2 = 1.0),
+            Err(AxisConfigError::Ka)
+        );
+        assert_eq!(
+            bad(|c| c.gains.valve_lag_us = f32::INFINITY),
             Err(AxisConfigError::ValveLag)
         );
         assert_eq!(
-            bad(|c| c.following_error_um = 0.0),
+            bad(|c| c.gains.following_error_um = 0.0),
             Err(AxisConfigError::FollowingError)
         );
         assert_eq!(
@@ -272,10 +297,8 @@ mod tests {
             Err(AxisConfigError::Period)
         );
         // Kd/T out of I16F16 at 50 µs: 10 / 5e-5 = 2e5
-        let c = AxisConfig {
-            kd_lsb_s_per_um: 10.0,
-            ..AxisConfig::default()
-        };
+        let mut c = AxisConfig::default();
+        c.gains.kd_lsb_s_per_um = 10.0;
         assert_eq!(c.build(50), Err(AxisConfigError::Kd));
     }
 }

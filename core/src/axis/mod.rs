@@ -4,6 +4,8 @@ pub mod config;
 pub mod position;
 pub mod press;
 
-pub use config::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode};
+pub use config::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PositionGains};
 pub use position::{position_law, PosRef, PosState};
-pub use press::{PressCoeffs, PressConfig, PressConfigError, PressOutput, PressPhase, PressState};
+pub use press::{
+    PressCoeffs, PressConfig, PressConfigError, PressGains, PressOutput, PressPhase, PressState,
+};

@@ -200,20 +200,23 @@ pub fn output(c: &AxisCoeffs, u: CmdLsb) -> DacCode {
 
 #[cfg(test)]
 mod tests {
-    use super::super::config::AxisConfig;
+    use super::super::config::{AxisConfig, PositionGains};
     use super::*;
     use proptest::prelude::*;
 
     fn coeffs(mode: ControlMode) -> AxisCoeffs {
         AxisConfig {
+            gains: PositionGains {
+                kp_lsb_per_um: 0.5,
+                ki_lsb_per_um_s: 20.0,
+                kd_lsb_s_per_um: 0.0,
+                i_zone_um: 100.0,
+                i_limit_lsb: 50.0,
+                kv_pos_lsb_per_um_s: 0.02,
+                kv_neg_lsb_per_um_s: 0.01,
+                ..PositionGains::default()
+            },
             mode,
-            kp_lsb_per_um: 0.5,
-            ki_lsb_per_um_s: 20.0,
-            kd_lsb_s_per_um: 0.0,
-            i_zone_um: 100.0,
-            i_limit_lsb: 50.0,
-            kv_pos_lsb_per_um_s: 0.02,
-            kv_neg_lsb_per_um_s: 0.01,
             ..AxisConfig::default()
         }
         .build(1000)
@@ -277,9 +280,20 @@ mod tests {
             mode in prop_oneof![Just(ControlMode::Feedforward), Just(ControlMode::Paper), Just(ControlMode::NextNode)],
             clamp in 1u16..2047, ilim in 0.0f32..2047.0, ka in 0.0f32..0.4)
         {
-            let mut cfg = AxisConfig { mode, kp_lsb_per_um: 3.0, ki_lsb_per_um_s: 500.0, kd_lsb_s_per_um: 0.01,
-                                       i_limit_lsb: ilim, kv_pos_lsb_per_um_s: 0.5, kv_neg_lsb_per_um_s: 0.5,
-                                       ka_lsb_per_um_s2: ka, ..AxisConfig::default() };
+            let mut cfg = AxisConfig {
+                gains: PositionGains {
+                    kp_lsb_per_um: 3.0,
+                    ki_lsb_per_um_s: 500.0,
+                    kd_lsb_s_per_um: 0.01,
+                    i_limit_lsb: ilim,
+                    kv_pos_lsb_per_um_s: 0.5,
+                    kv_neg_lsb_per_um_s: 0.5,
+                    ka_lsb_per_um_s2: ka,
+                    ..PositionGains::default()
+                },
+                mode,
+                ..AxisConfig::default()
+            };
             cfg.valve.clamp_lsb = clamp;
             let c = cfg.build(1000).unwrap();
             let mut st = PosState::default();

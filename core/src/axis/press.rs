@@ -19,6 +19,38 @@ use crate::units::{CmdLsb, DacCode, ForceN, PosUm, PressureBar, VelUmPerS};
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
 use fixed::types::{I16F16, I8F24};
 
+/// The press law's gains: what a tuning produces for one force axis at one control
+/// period. With the `serde` feature it is what a scenario's `[tuning.press.<name>]` table
+/// holds (every field optional, defaults as below; unknown keys refused).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(deny_unknown_fields, default)
+)]
+pub struct PressGains {
+    /// Position gain during the approach, LSB/µm (0 … 1000).
+    pub kp_lsb_per_um: f32,
+    /// Velocity feed-forward during the approach, LSB/(µm/s) (0 … 100).
+    pub kv_lsb_per_um_s: f32,
+    /// Force proportional gain, LSB/N (0 … 100).
+    pub kp_lsb_per_n: f32,
+    /// Force integral gain, LSB/(N·s) (0 … 1e4).
+    pub ki_lsb_per_n_s: f32,
+}
+
+impl Default for PressGains {
+    fn default() -> Self {
+        Self {
+            kp_lsb_per_um: 0.2,
+            kv_lsb_per_um_s: 0.0,
+            kp_lsb_per_n: 0.005,
+            ki_lsb_per_n_s: 0.1,
+        }
+    }
+}
+
 /// Press axis configuration in engineering units.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -31,10 +63,6 @@ pub struct PressConfig {
     pub approach_end_um: f32,
     /// Approach speed, µm/s (> 0, ≤ 1e6).
     pub approach_speed_um_per_s: f32,
-    /// Position gain during the approach, LSB/µm (0 … 1000).
-    pub kp_lsb_per_um: f32,
-    /// Velocity feed-forward during the approach, LSB/(µm/s) (0 … 100).
-    pub kv_lsb_per_um_s: f32,
     /// Force at which contact is declared and force control takes over, N (> 0).
     pub contact_force_n: f32,
     /// Time from the start of the approach before contact can be declared, ms
@@ -45,10 +73,8 @@ pub struct PressConfig {
     pub force_set_n: f32,
     /// Time to ramp the force reference from contact to the set-point, ms (1 … 60 000).
     pub force_ramp_ms: f32,
-    /// Force proportional gain, LSB/N (0 … 100).
-    pub kp_lsb_per_n: f32,
-    /// Force integral gain, LSB/(N·s) (0 … 1e4).
-    pub ki_lsb_per_n_s: f32,
+    /// Gains of the approach and of the force loop.
+    pub gains: PressGains,
     /// Valve output calibration.
     pub valve: ValveCal,
 }
@@ -131,14 +157,14 @@ impl PressConfig {
         let ab = chk(self.area_b_mm2, 1.0, 1e5, E::Area)?;
         let x_end = chk(self.approach_end_um, -8e6, 8e6, E::ApproachEnd)?;
         let v = chk(self.approach_speed_um_per_s, 1e-3, 1e6, E::ApproachSpeed)?;
-        let kp = chk(self.kp_lsb_per_um, 0.0, 1000.0, E::PositionGain)?;
-        let kv = chk(self.kv_lsb_per_um_s, 0.0, 100.0, E::PositionGain)?;
+        let kp = chk(self.gains.kp_lsb_per_um, 0.0, 1000.0, E::PositionGain)?;
+        let kv = chk(self.gains.kv_lsb_per_um_s, 0.0, 100.0, E::PositionGain)?;
         let fc = chk(self.contact_force_n, 1e-3, 1e6, E::ContactForce)?;
         let fs = chk(self.force_set_n, 1e-3, 1e6, E::ForceSet)?;
         let ramp = chk(self.force_ramp_ms, 1.0, 60_000.0, E::ForceRamp)?;
         let arm = chk(self.contact_arm_ms, 0.0, 60_000.0, E::ContactForce)?;
-        let kpf = chk(self.kp_lsb_per_n, 0.0, 100.0, E::ForceGain)?;
-        let kif = chk(self.ki_lsb_per_n_s, 0.0, 1e4, E::ForceGain)?;
+        let kpf = chk(self.gains.kp_lsb_per_n, 0.0, 100.0, E::ForceGain)?;
+        let kif = chk(self.gains.ki_lsb_per_n_s, 0.0, 1e4, E::ForceGain)?;
         Ok(PressCoeffs {
             ka: bits::<I16F16>(aa / 10.0, E::Area)?,
             kb: bits::<I16F16>(ab / 10.0, E::Area)?,
@@ -311,14 +337,16 @@ mod tests {
             area_b_mm2: 3436.1,
             approach_end_um: 60_000.0,
             approach_speed_um_per_s: 20_000.0,
-            kp_lsb_per_um: 0.2,
-            kv_lsb_per_um_s: 0.017,
             contact_force_n: 1000.0,
             contact_arm_ms: 0.0,
             force_set_n: 20_000.0,
             force_ramp_ms: 1000.0,
-            kp_lsb_per_n: 0.01,
-            ki_lsb_per_n_s: 0.5,
+            gains: PressGains {
+                kp_lsb_per_um: 0.2,
+                kv_lsb_per_um_s: 0.017,
+                kp_lsb_per_n: 0.01,
+                ki_lsb_per_n_s: 0.5,
+            },
             valve: ValveCal::default(),
         }
     }

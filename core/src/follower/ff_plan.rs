@@ -257,7 +257,7 @@ impl FfPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::axis::AxisConfig;
+    use crate::axis::{AxisConfig, PositionGains};
     use proptest::prelude::*;
 
     /// (recip_m, recip_s) of a segment of `len` raw bits, as the table builds them.
@@ -275,9 +275,12 @@ mod tests {
 
     fn coeffs(kvp: f32, kvn: f32, ka: f32) -> AxisCoeffs {
         AxisConfig {
-            kv_pos_lsb_per_um_s: kvp,
-            kv_neg_lsb_per_um_s: kvn,
-            ka_lsb_per_um_s2: ka,
+            gains: PositionGains {
+                kv_pos_lsb_per_um_s: kvp,
+                kv_neg_lsb_per_um_s: kvn,
+                ka_lsb_per_um_s2: ka,
+                ..PositionGains::default()
+            },
             ..AxisConfig::default()
         }
         .build(1000)

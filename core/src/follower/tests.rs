@@ -2,7 +2,7 @@
 //! f64 reference of the same law.
 
 use super::*;
-use crate::axis::{position_law, PosRef};
+use crate::axis::{position_law, PosRef, PositionGains};
 use crate::table::{AxisLimits, Node, TableLimits};
 use crate::units::MasterRate;
 use crate::units::VelUmPerS;
@@ -47,17 +47,19 @@ fn table1(nodes: &[(f64, f64)]) -> CamTable<1, 256> {
 
 fn ff_axis() -> AxisConfig {
     AxisConfig {
+        gains: PositionGains {
+            kp_lsb_per_um: 0.4,
+            ki_lsb_per_um_s: 5.0,
+            kd_lsb_s_per_um: 0.0005,
+            i_zone_um: 200.0,
+            i_limit_lsb: 100.0,
+            kv_pos_lsb_per_um_s: 0.017,
+            kv_neg_lsb_per_um_s: 0.025,
+            ka_lsb_per_um_s2: 0.0001,
+            valve_lag_us: 4200.0,
+            following_error_um: 5000.0,
+        },
         mode: ControlMode::Feedforward,
-        kp_lsb_per_um: 0.4,
-        ki_lsb_per_um_s: 5.0,
-        kd_lsb_s_per_um: 0.0005,
-        i_zone_um: 200.0,
-        i_limit_lsb: 100.0,
-        kv_pos_lsb_per_um_s: 0.017,
-        kv_neg_lsb_per_um_s: 0.025,
-        ka_lsb_per_um_s2: 0.0001,
-        valve_lag_us: 4200.0,
-        following_error_um: 5000.0,
         ..AxisConfig::default()
     }
 }
@@ -93,7 +95,7 @@ fn holds_final_position_after_the_end() {
 fn following_error_latches_null_until_cleared() {
     let nodes = sine_nodes();
     let mut axis = ff_axis();
-    axis.following_error_um = 100.0;
+    axis.gains.following_error_um = 100.0;
     axis.valve.null_lsb = 7.0;
     let cfg = FollowerConfig {
         axes: [axis],
@@ -119,9 +121,12 @@ fn following_error_latches_null_until_cleared() {
 fn paper_mode_aims_at_the_predicted_master() {
     let nodes = sine_nodes();
     let axis = AxisConfig {
+        gains: PositionGains {
+            kp_lsb_per_um: 1.0,
+            ki_lsb_per_um_s: 0.0,
+            ..ff_axis().gains
+        },
         mode: ControlMode::Paper,
-        kp_lsb_per_um: 1.0,
-        ki_lsb_per_um_s: 0.0,
         ..ff_axis()
     };
     let cfg = FollowerConfig {
@@ -143,9 +148,12 @@ fn paper_mode_aims_at_the_predicted_master() {
     // replaying the law on the same state
     let mut st = before;
     let c = AxisConfig {
+        gains: PositionGains {
+            kp_lsb_per_um: 1.0,
+            ki_lsb_per_um_s: 0.0,
+            ..ff_axis().gains
+        },
         mode: ControlMode::Paper,
-        kp_lsb_per_um: 1.0,
-        ki_lsb_per_um_s: 0.0,
         ..ff_axis()
     }
     .build(1000)
@@ -167,10 +175,13 @@ fn paper_mode_aims_at_the_predicted_master() {
 fn next_node_aims_at_the_far_node() {
     let nodes = sine_nodes();
     let axis = AxisConfig {
+        gains: PositionGains {
+            kp_lsb_per_um: 1.0,
+            ki_lsb_per_um_s: 0.0,
+            kd_lsb_s_per_um: 0.0,
+            ..ff_axis().gains
+        },
         mode: ControlMode::NextNode,
-        kp_lsb_per_um: 1.0,
-        ki_lsb_per_um_s: 0.0,
-        kd_lsb_s_per_um: 0.0,
         ..ff_axis()
     };
     let cfg = FollowerConfig {
@@ -198,7 +209,7 @@ fn rejects_bad_config_naming_the_axis() {
         axes: [ff_axis(), ff_axis()],
         ..FollowerConfig::default()
     };
-    cfg.axes[1].kp_lsb_per_um = -1.0;
+    cfg.axes[1].gains.kp_lsb_per_um = -1.0;
     let n: Vec<Node<2>> = nodes
         .iter()
         .map(|&(m, x)| Node {
@@ -214,7 +225,7 @@ fn rejects_bad_config_naming_the_axis() {
             error: AxisConfigError::Kp
         })
     );
-    cfg.axes[1].kp_lsb_per_um = 1.0;
+    cfg.axes[1].gains.kp_lsb_per_um = 1.0;
     cfg.master_filter.bandwidth_hz = -1.0;
     assert_eq!(
         Follower::new(&cfg, t).err(),
@@ -265,15 +276,15 @@ impl Reference {
             acc: 0.0,
             started: false,
             tps: 1.0 / t,
-            kp: f64::from(a.kp_lsb_per_um),
-            ki_t: f64::from(a.ki_lsb_per_um_s) * t,
-            kd_t: f64::from(a.kd_lsb_s_per_um) / t,
-            zone: f64::from(a.i_zone_um),
-            ilim: f64::from(a.i_limit_lsb),
-            kvp: f64::from(a.kv_pos_lsb_per_um_s),
-            kvn: f64::from(a.kv_neg_lsb_per_um_s),
-            ka: f64::from(a.ka_lsb_per_um_s2),
-            lead: 1.5 + f64::from(a.valve_lag_us) / period_us,
+            kp: f64::from(a.gains.kp_lsb_per_um),
+            ki_t: f64::from(a.gains.ki_lsb_per_um_s) * t,
+            kd_t: f64::from(a.gains.kd_lsb_s_per_um) / t,
+            zone: f64::from(a.gains.i_zone_um),
+            ilim: f64::from(a.gains.i_limit_lsb),
+            kvp: f64::from(a.gains.kv_pos_lsb_per_um_s),
+            kvn: f64::from(a.gains.kv_neg_lsb_per_um_s),
+            ka: f64::from(a.gains.ka_lsb_per_um_s2),
+            lead: 1.5 + f64::from(a.gains.valve_lag_us) / period_us,
             integ: 0.0,
             e1: None,
             at_node_alt: None,
@@ -415,7 +426,10 @@ fn axes_with_different_leads_match_single_axis_followers() {
     let t3: CamTable<3, 256> = CamTable::try_from_nodes(&n3, &limits()).unwrap();
     let lags = [4200.0, 9000.0, 4200.0];
     let axes = lags.map(|lag| AxisConfig {
-        valve_lag_us: lag,
+        gains: PositionGains {
+            valve_lag_us: lag,
+            ..ff_axis().gains
+        },
         ..ff_axis()
     });
     let mut multi = Follower::new(
@@ -575,8 +589,11 @@ fn built_in_place_equals_new_and_refusals_change_nothing() {
     };
     let other = FollowerConfig {
         axes: [AxisConfig {
+            gains: PositionGains {
+                kp_lsb_per_um: 1.0,
+                ..ff_axis().gains
+            },
             mode: ControlMode::Paper,
-            kp_lsb_per_um: 1.0,
             ..ff_axis()
         }],
         ..FollowerConfig::default()
@@ -601,7 +618,10 @@ fn built_in_place_equals_new_and_refusals_change_nothing() {
     // A refused configuration (NaN gain) leaves the law as it was.
     let bad = FollowerConfig {
         axes: [AxisConfig {
-            kp_lsb_per_um: f32::NAN,
+            gains: PositionGains {
+                kp_lsb_per_um: f32::NAN,
+                ..ff_axis().gains
+            },
             ..ff_axis()
         }],
         ..FollowerConfig::default()

@@ -507,7 +507,7 @@ mod tests {
         d.command(Motion::Stop).unwrap();
         // Idle: a gain change rebuilds the running law (same table, new parameters) …
         d.set_param(0, ParamId::KpLsbPerUm, 2.0).unwrap();
-        assert_eq!(d.st.follower_config().axes[0].kp_lsb_per_um, 2.0);
+        assert_eq!(d.st.follower_config().axes[0].gains.kp_lsb_per_um, 2.0);
         let before = published();
         d.set_param(0, ParamId::ValveNullLsb, 50.0).unwrap();
         let nulls = d.glue.rt.as_ref().map(|r| r.null_codes()[0].get());
@@ -518,7 +518,7 @@ mod tests {
             d.set_param(0, ParamId::KpLsbPerUm, -1.0).unwrap_err(),
             Nak::with(NakCode::ParamRange, 0, ParamId::KpLsbPerUm as u8)
         );
-        assert_eq!(d.st.follower_config().axes[0].kp_lsb_per_um, 2.0);
+        assert_eq!(d.st.follower_config().axes[0].gains.kp_lsb_per_um, 2.0);
         // A limit the running table violates is refused too.
         assert!(d.set_param(0, ParamId::MaxUm, 50_000.0).is_err());
         assert_eq!(x(&d), Some(PosUm::from_num(100_000)));

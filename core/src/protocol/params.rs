@@ -106,15 +106,15 @@ fn assign_param<const S: usize>(
         return Err(unknown);
     };
     match param {
-        ParamId::KpLsbPerUm => a.kp_lsb_per_um = value,
-        ParamId::KiLsbPerUmS => a.ki_lsb_per_um_s = value,
-        ParamId::KdLsbSPerUm => a.kd_lsb_s_per_um = value,
+        ParamId::KpLsbPerUm => a.gains.kp_lsb_per_um = value,
+        ParamId::KiLsbPerUmS => a.gains.ki_lsb_per_um_s = value,
+        ParamId::KdLsbSPerUm => a.gains.kd_lsb_s_per_um = value,
         ParamId::KvLsbPerUmS => {
-            a.kv_pos_lsb_per_um_s = value;
-            a.kv_neg_lsb_per_um_s = value;
+            a.gains.kv_pos_lsb_per_um_s = value;
+            a.gains.kv_neg_lsb_per_um_s = value;
         }
-        ParamId::KaLsbPerUmS2 => a.ka_lsb_per_um_s2 = value,
-        ParamId::FollowingErrorUm => a.following_error_um = value,
+        ParamId::KaLsbPerUmS2 => a.gains.ka_lsb_per_um_s2 = value,
+        ParamId::FollowingErrorUm => a.gains.following_error_um = value,
         ParamId::ValveNullLsb => a.valve.null_lsb = value,
         ParamId::MinUm => l.min_um = PosUm::checked_from_num(value).ok_or(range)?,
         ParamId::MaxUm => l.max_um = PosUm::checked_from_num(value).ok_or(range)?,
@@ -189,9 +189,9 @@ mod tests {
     fn applies_and_validates() {
         let (mut c, mut l) = setup();
         apply_param(&mut c, &mut l, NONE, 0, ParamId::KpLsbPerUm, 0.5).unwrap();
-        assert_eq!(c.axes[0].kp_lsb_per_um, 0.5);
+        assert_eq!(c.axes[0].gains.kp_lsb_per_um, 0.5);
         apply_param(&mut c, &mut l, NONE, 0, ParamId::KvLsbPerUmS, 0.02).unwrap();
-        assert_eq!(c.axes[0].kv_neg_lsb_per_um_s, 0.02);
+        assert_eq!(c.axes[0].gains.kv_neg_lsb_per_um_s, 0.02);
         apply_param(&mut c, &mut l, NONE, 0, ParamId::MasterSpeedPerS, 5000.0).unwrap();
         assert_eq!(l.master_speed_per_s, MasterRate::from_num(5000));
         let range = Nak::with(NakCode::ParamRange, 0, ParamId::KpLsbPerUm as u8);

@@ -54,7 +54,7 @@ impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
 #[cfg(test)]
 mod tests {
     use super::super::*;
-    use crate::axis::AxisConfig;
+    use crate::axis::{AxisConfig, PositionGains};
     use crate::follower::{Follower, FollowerConfig};
     use crate::table::{AxisLimits, CamTable, Node, TableLimits};
     use crate::units::{Counts, Master, MasterRate, PosUm, PressureBar, VelUmPerS};
@@ -80,8 +80,11 @@ mod tests {
         let table = CamTable::try_from_nodes(&nodes, &limits).unwrap();
         let cfg = FollowerConfig {
             axes: [AxisConfig {
-                kp_lsb_per_um: 0.5,
-                following_error_um: 3000.0,
+                gains: PositionGains {
+                    kp_lsb_per_um: 0.5,
+                    following_error_um: 3000.0,
+                    ..PositionGains::default()
+                },
                 valve: ValveCal {
                     null_lsb: -12.0,
                     ..ValveCal::default()

@@ -189,7 +189,7 @@ mod tests {
     /// table's last node.
     #[test]
     fn drives_the_follower() {
-        use crate::axis::{AxisConfig, ControlMode};
+        use crate::axis::{AxisConfig, ControlMode, PositionGains};
         use crate::follower::{Follower, FollowerConfig, FollowerInputs};
         use crate::table::{AxisLimits, CamTable, Node, TableLimits};
         use crate::units::{MasterRate, PosUm, VelUmPerS};
@@ -226,9 +226,12 @@ mod tests {
         let table = CamTable::<1, 256>::try_from_nodes(&nodes, &limits).unwrap();
         let cfg = FollowerConfig {
             axes: [AxisConfig {
+                gains: PositionGains {
+                    kp_lsb_per_um: 0.4,
+                    following_error_um: 5000.0,
+                    ..PositionGains::default()
+                },
                 mode: ControlMode::Feedforward,
-                kp_lsb_per_um: 0.4,
-                following_error_um: 5000.0,
                 ..AxisConfig::default()
             }],
             ..FollowerConfig::default()

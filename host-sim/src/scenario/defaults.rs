@@ -15,35 +15,6 @@ impl Default for PressCfg {
     }
 }
 
-impl Default for PositionGains {
-    fn default() -> Self {
-        let c = hydra_core::axis::AxisConfig::default();
-        Self {
-            kp_lsb_per_um: f64::from(c.kp_lsb_per_um),
-            ki_lsb_per_um_s: f64::from(c.ki_lsb_per_um_s),
-            kd_lsb_s_per_um: f64::from(c.kd_lsb_s_per_um),
-            i_zone_um: f64::from(c.i_zone_um),
-            i_limit_lsb: f64::from(c.i_limit_lsb),
-            kv_pos_lsb_per_um_s: f64::from(c.kv_pos_lsb_per_um_s),
-            kv_neg_lsb_per_um_s: f64::from(c.kv_neg_lsb_per_um_s),
-            ka_lsb_per_um_s2: f64::from(c.ka_lsb_per_um_s2),
-            valve_lag_us: f64::from(c.valve_lag_us),
-            following_error_um: f64::from(c.following_error_um),
-        }
-    }
-}
-
-impl Default for PressGains {
-    fn default() -> Self {
-        Self {
-            kp_lsb_per_um: 0.2,
-            kv_lsb_per_um_s: 0.0,
-            kp_lsb_per_n: 0.005,
-            ki_lsb_per_n_s: 0.1,
-        }
-    }
-}
-
 impl Default for SimCfg {
     fn default() -> Self {
         Self {

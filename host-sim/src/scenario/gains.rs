@@ -33,16 +33,7 @@ pub fn select(s: &Scenario, controller: Controller, period_us: u32) -> Option<(&
 pub fn axis_config(axis: &AxisCfg, g: &PositionGains, controller: Controller) -> AxisConfig {
     AxisConfig {
         mode: controller.mode(),
-        kp_lsb_per_um: g.kp_lsb_per_um as f32,
-        ki_lsb_per_um_s: g.ki_lsb_per_um_s as f32,
-        kd_lsb_s_per_um: g.kd_lsb_s_per_um as f32,
-        i_zone_um: g.i_zone_um as f32,
-        i_limit_lsb: g.i_limit_lsb as f32,
-        kv_pos_lsb_per_um_s: g.kv_pos_lsb_per_um_s as f32,
-        kv_neg_lsb_per_um_s: g.kv_neg_lsb_per_um_s as f32,
-        ka_lsb_per_um_s2: g.ka_lsb_per_um_s2 as f32,
-        valve_lag_us: g.valve_lag_us as f32,
-        following_error_um: g.following_error_um as f32,
+        gains: *g,
         valve: axis.calibration,
     }
 }
@@ -56,15 +47,12 @@ pub fn press_config(axis: &AxisCfg, g: &PressGains) -> Option<PressConfig> {
         area_b_mm2: (c.area_b_m2 * 1e6) as f32,
         approach_end_um: (p.approach_end_mm * 1e3) as f32,
         approach_speed_um_per_s: (p.approach_speed_mm_per_s * 1e3) as f32,
-        kp_lsb_per_um: g.kp_lsb_per_um as f32,
-        kv_lsb_per_um_s: g.kv_lsb_per_um_s as f32,
         contact_force_n: p.contact_force_n as f32,
         // The approach's own acceleration transient lasts a few tens of ms.
         contact_arm_ms: 100.0,
         force_set_n: p.force_set_n as f32,
         force_ramp_ms: (p.force_ramp_s * 1e3) as f32,
-        kp_lsb_per_n: g.kp_lsb_per_n as f32,
-        ki_lsb_per_n_s: g.ki_lsb_per_n_s as f32,
+        gains: *g,
         valve: axis.calibration,
     })
 }

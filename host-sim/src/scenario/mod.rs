@@ -23,6 +23,9 @@ mod physics;
 mod validate;
 
 pub use defaults::reference_tuning;
+/// The gain sets of `[tuning.axes.<name>]` and `[tuning.press.<name>]` are core's own
+/// (deserialised with `hydra_core`'s `serde` feature).
+pub use hydra_core::axis::{PositionGains, PressGains};
 
 use crate::camfile::{CamCsv, TableError};
 use crate::die::DieTable;
@@ -298,46 +301,6 @@ pub struct Tuning {
 
 fn default_master_filter_hz() -> f64 {
     8.0
-}
-
-/// Position-loop gains of one follower axis (`hydra_core::axis::AxisConfig`).
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct PositionGains {
-    /// Kp, DAC LSB per µm.
-    pub kp_lsb_per_um: f64,
-    /// Ki, DAC LSB per (µm·s).
-    pub ki_lsb_per_um_s: f64,
-    /// Kd, DAC LSB per (µm/s).
-    pub kd_lsb_s_per_um: f64,
-    /// Integral separation: integrate only while |e| ≤ this, µm.
-    pub i_zone_um: f64,
-    /// Integrator clamp, LSB.
-    pub i_limit_lsb: f64,
-    /// Velocity feed-forward, extending, LSB per (µm/s).
-    pub kv_pos_lsb_per_um_s: f64,
-    /// Velocity feed-forward, retracting, LSB per (µm/s).
-    pub kv_neg_lsb_per_um_s: f64,
-    /// Acceleration feed-forward, LSB per (µm/s²).
-    pub ka_lsb_per_um_s2: f64,
-    /// Valve response delay the feed-forward is aimed past, µs.
-    pub valve_lag_us: f64,
-    /// Following-error fault limit, µm.
-    pub following_error_um: f64,
-}
-
-/// Gains of one force axis (`hydra_core::axis::PressConfig`).
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct PressGains {
-    /// Position gain during the approach, LSB/µm.
-    pub kp_lsb_per_um: f64,
-    /// Velocity feed-forward during the approach, LSB/(µm/s).
-    pub kv_lsb_per_um_s: f64,
-    /// Force proportional gain, LSB/N.
-    pub kp_lsb_per_n: f64,
-    /// Force integral gain, LSB/(N·s).
-    pub ki_lsb_per_n_s: f64,
 }
 
 /// `[axis.valve]`.

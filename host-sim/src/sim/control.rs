@@ -267,7 +267,7 @@ fn build<const S: usize>(
         ),
     })?;
     f.load_table(&table);
-    let rc = runtime_config::<S>(s, &cfg.axes.map(|a| a.following_error_um), period_us);
+    let rc = runtime_config::<S>(s, &cfg.axes.map(|a| a.gains.following_error_um), period_us);
     let coeffs = rc.build().map_err(|e| {
         invalid(
             "runtime".into(),
