@@ -3,12 +3,11 @@
 //! number; telemetry kept aside).
 
 use crate::machine::Machine;
-use anyhow::{bail, Result};
-use hydra_core::protocol::crc::crc32;
+use anyhow::{anyhow, bail, Result};
 use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
 use hydra_core::protocol::handler::encode_request;
-use hydra_core::protocol::msg::{row_len, write_row, Telemetry};
-use hydra_core::protocol::wire::Writer;
+use hydra_core::protocol::msg::Telemetry;
+use hydra_core::protocol::upload::TableUpload;
 use hydra_core::protocol::{Request, Response};
 use hydra_core::table::Node;
 
@@ -98,7 +97,9 @@ impl Host {
         }
     }
 
-    /// Uploads `nodes` as table `id` in chunks of `per` rows and commits it.
+    /// Uploads `nodes` as table `id` in chunks of `per` rows (core's
+    /// [`TableUpload`] sequence, each request acknowledged) and returns the answer to
+    /// the commit.
     pub fn upload<const N: usize>(
         &mut self,
         m: &mut Machine,
@@ -106,34 +107,17 @@ impl Host {
         nodes: &[Node<N>],
         per: usize,
     ) -> Result<Response> {
-        let rows = u16::try_from(nodes.len())?;
-        self.ack(
-            m,
-            &Request::TableBegin {
-                id,
-                columns: N as u8,
-                rows,
-            },
-        )?;
-        let mut all = Vec::new();
-        for (k, c) in nodes.chunks(per.max(1)).enumerate() {
-            let mut b = vec![0u8; c.len() * row_len(N)];
-            let mut w = Writer::new(&mut b);
-            for node in c {
-                if write_row(&mut w, node).is_none() {
-                    bail!("row does not fit");
-                }
+        let mut up = TableUpload::new(id, nodes, per).map_err(|e| anyhow!("upload: {e:?}"))?;
+        let mut buf = vec![0u8; up.chunk_bytes()];
+        while let Some(q) = up
+            .next_request(&mut buf)
+            .map_err(|e| anyhow!("upload: {e:?}"))?
+        {
+            if matches!(q, Request::TableCommit { .. }) {
+                return self.request(m, &q);
             }
-            all.extend_from_slice(&b);
-            self.ack(
-                m,
-                &Request::TableChunk {
-                    offset: u16::try_from(k * per)?,
-                    count: u8::try_from(c.len())?,
-                    data: &b,
-                },
-            )?;
+            self.ack(m, &q)?;
         }
-        self.request(m, &Request::TableCommit { crc: crc32(&all) })
+        bail!("upload ended without a commit")
     }
 }

@@ -4,8 +4,8 @@
 //! firmware's own (`hydra_core::profile`) — each failure naming the CSV line, the value
 //! and the limit.
 //!
-//! The CSV is converted exactly as `upload` sends it: master × counts per unit in I48F16
-//! master counts, slaves mm × 1000 in I24F8 µm.
+//! The CSV is converted exactly as `upload` sends it ([`nodes`]): master × counts per
+//! unit in I48F16 master counts, slaves mm × 1000 in I24F8 µm.
 
 use crate::camfile::CamCsv;
 use hydra_core::profile;
@@ -82,8 +82,13 @@ pub struct CheckError {
 }
 
 /// The table as the board receives it (`upload` sends these): per row the master in
-/// I48F16 master counts and each slave in I24F8 µm, raw bits.
-pub fn wire_rows(csv: &CamCsv, counts_per_unit: f64) -> Result<Vec<(i64, Vec<i32>)>, CheckError> {
+/// master counts ([`Master`], I48F16) and each slave in µm ([`PosUm`], I24F8), converted
+/// by core's own fixed-point types (round to nearest). A value outside its format names
+/// its line.
+pub fn nodes<const S: usize>(
+    csv: &CamCsv,
+    counts_per_unit: f64,
+) -> Result<Vec<Node<S>>, CheckError> {
     let err = |row: usize, reason: String| CheckError {
         file: csv.path.display().to_string(),
         line: csv.lines.get(row).copied(),
@@ -91,27 +96,72 @@ pub fn wire_rows(csv: &CamCsv, counts_per_unit: f64) -> Result<Vec<(i64, Vec<i32
     };
     let mut out = Vec::with_capacity(csv.master.len());
     for (i, m) in csv.master.iter().enumerate() {
-        let mc = (m * counts_per_unit * 65536.0).round();
-        if !mc.is_finite() || mc.abs() >= 9.0e18 {
-            return Err(err(i, format!("master {m} is out of range")));
-        }
-        let mut xs = Vec::with_capacity(csv.columns.len());
-        for (a, col) in csv.columns.iter().enumerate() {
-            let um = (col[i] * 1000.0 * 256.0).round();
-            if !um.is_finite() || um.abs() >= 2.1e9 {
-                return Err(err(
+        let master = Master::checked_from_num(m * counts_per_unit)
+            .ok_or_else(|| err(i, format!("master {m} is out of range")))?;
+        let mut slave_um = [PosUm::ZERO; S];
+        for (a, x) in slave_um.iter_mut().enumerate() {
+            let mm = csv
+                .columns
+                .get(a)
+                .and_then(|c| c.get(i))
+                .copied()
+                .unwrap_or(0.0);
+            *x = PosUm::checked_from_num(mm * 1000.0).ok_or_else(|| {
+                err(
                     i,
                     format!(
-                        "{} = {} mm is out of range (±8 388 mm)",
-                        csv.axes[a], col[i]
+                        "{} = {mm} mm is out of range (±8 388 mm)",
+                        csv.axes.get(a).map_or("?", |s| s.as_str())
                     ),
-                ));
-            }
-            xs.push(um as i32);
+                )
+            })?;
         }
-        out.push((mc as i64, xs));
+        out.push(Node { master, slave_um });
     }
     Ok(out)
+}
+
+/// Calls `$body` with `$S` the const slave count `$n` (1 … 8, the most a table row
+/// carries), else evaluates `$other`.
+#[macro_export]
+macro_rules! with_slaves {
+    ($n:expr, $S:ident => $body:expr, $other:expr) => {
+        match $n {
+            1 => {
+                const $S: usize = 1;
+                $body
+            }
+            2 => {
+                const $S: usize = 2;
+                $body
+            }
+            3 => {
+                const $S: usize = 3;
+                $body
+            }
+            4 => {
+                const $S: usize = 4;
+                $body
+            }
+            5 => {
+                const $S: usize = 5;
+                $body
+            }
+            6 => {
+                const $S: usize = 6;
+                $body
+            }
+            7 => {
+                const $S: usize = 7;
+                $body
+            }
+            8 => {
+                const $S: usize = 8;
+                $body
+            }
+            _ => $other,
+        }
+    };
 }
 
 /// Checks `csv` against `rules` (`counts_per_unit`: master counts per CSV master unit).
@@ -137,37 +187,19 @@ pub fn check(csv: &CamCsv, rules: &BoardRules, counts_per_unit: f64) -> Result<(
             ),
         });
     }
-    let rows = wire_rows(csv, counts_per_unit)?;
-    let r = match rules.axes {
-        1 => check_s::<1>(&rows, rules),
-        2 => check_s::<2>(&rows, rules),
-        3 => check_s::<3>(&rows, rules),
-        4 => check_s::<4>(&rows, rules),
-        5 => check_s::<5>(&rows, rules),
-        6 => check_s::<6>(&rows, rules),
-        7 => check_s::<7>(&rows, rules),
-        8 => check_s::<8>(&rows, rules),
-        n => {
-            return Err(CheckError {
-                file,
-                line: None,
-                reason: format!("a board of {n} slaves (1 … 8 supported)"),
-            })
-        }
-    };
+    let r = with_slaves!(rules.axes, S => check_s::<S>(&nodes::<S>(csv, counts_per_unit)?, rules), {
+        return Err(CheckError {
+            file,
+            line: None,
+            reason: format!("a board of {} slaves (1 … 8 supported)", rules.axes),
+        })
+    });
     r.map_err(|e| explain(csv, rules, counts_per_unit, e))
 }
 
-fn check_s<const S: usize>(rows: &[(i64, Vec<i32>)], rules: &BoardRules) -> Result<(), TableError> {
-    let nodes: Vec<Node<S>> = rows
-        .iter()
-        .map(|(m, xs)| Node {
-            master: Master::from_bits(*m),
-            slave_um: core::array::from_fn(|k| PosUm::from_bits(xs.get(k).copied().unwrap_or(0))),
-        })
-        .collect();
+fn check_s<const S: usize>(nodes: &[Node<S>], rules: &BoardRules) -> Result<(), TableError> {
     check_nodes(
-        &nodes,
+        nodes,
         &rules.table_limits::<S>(),
         rules.capacity_rows,
         rules.max_segment_counts,

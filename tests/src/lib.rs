@@ -9,11 +9,9 @@ pub fn workspace_root() -> std::path::PathBuf {
 }
 
 use host_sim::vboard::{VBoard, AXES, CAPACITY};
-use hydra_core::protocol::crc::crc32;
 use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
 use hydra_core::protocol::handler::encode_request;
-use hydra_core::protocol::msg::{row_len, write_row};
-use hydra_core::protocol::wire::Writer;
+use hydra_core::protocol::upload::TableUpload;
 use hydra_core::protocol::{Handler, Request, Response};
 use hydra_core::table::Node;
 
@@ -53,33 +51,20 @@ impl VbHost {
         assert!(matches!(r, Response::Ack { .. }), "{q:?}: {r:?}");
     }
 
-    /// Uploads `nodes` (one column per slave of the board) as table `id` (Begin, chunks of the board's size, each Ack'd) and
+    /// Uploads `nodes` (one column per slave of the board) as table `id` — core's
+    /// [`TableUpload`] sequence in chunks of the board's size, each request Ack'd — and
     /// returns the answer to TableCommit.
     pub fn upload(&mut self, b: &mut VBoard, id: u32, nodes: &[Node<AXES>]) -> Response {
-        let rows = u16::try_from(nodes.len()).expect("rows fit u16");
-        self.ack(
-            b,
-            &Request::TableBegin {
-                id,
-                columns: AXES as u8,
-                rows,
-            },
-        );
         let per = Handler::<AXES, CAPACITY>::MAX_CHUNK_ROWS;
-        let mut all = Vec::new();
-        for (k, c) in nodes.chunks(per).enumerate() {
-            let bytes = rows_bytes(c);
-            all.extend_from_slice(&bytes);
-            self.ack(
-                b,
-                &Request::TableChunk {
-                    offset: (k * per) as u16,
-                    count: c.len() as u8,
-                    data: &bytes,
-                },
-            );
+        let mut up = TableUpload::new(id, nodes, per).expect("an upload the board can take");
+        let mut buf = vec![0u8; up.chunk_bytes()];
+        while let Some(q) = up.next_request(&mut buf).expect("a chunk that fits") {
+            if matches!(q, Request::TableCommit { .. }) {
+                return self.req(b, &q);
+            }
+            self.ack(b, &q);
         }
-        self.req(b, &Request::TableCommit { crc: crc32(&all) })
+        unreachable!("an upload ends with its commit")
     }
 }
 
@@ -97,14 +82,4 @@ pub fn exchange(b: &mut VBoard, frame: &[u8]) -> Vec<Response> {
         }
     }
     rs
-}
-
-/// Rows as on the wire.
-pub fn rows_bytes<const S: usize>(ns: &[Node<S>]) -> Vec<u8> {
-    let mut b = vec![0u8; ns.len() * row_len(S)];
-    let mut w = Writer::new(&mut b);
-    for n in ns {
-        write_row(&mut w, n).expect("row fits");
-    }
-    b
 }

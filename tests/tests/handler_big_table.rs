@@ -7,15 +7,14 @@
 //! under `cargo test --profile bench` ("TableCommit of a valid 512-row table: Nak {
 //! code: TableTooSteep, detail: 1 }"); tables are now built in place.
 
-use hydra_core::protocol::crc::crc32;
 use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
 use hydra_core::protocol::handler::encode_request;
 use hydra_core::protocol::msg::StatusMsg;
 use hydra_core::protocol::ramflash::RamFlash;
+use hydra_core::protocol::upload::TableUpload;
 use hydra_core::protocol::{Device, Handler, Motion, Nak, ParamId, Request, Response, Store};
 use hydra_core::table::{AxisLimits, CamTable, Node, TableLimits};
 use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
-use hydra_tests::rows_bytes;
 
 const S: usize = 1;
 const N: usize = 512;
@@ -138,33 +137,16 @@ fn a_valid_512_row_table_commits_through_the_handler() {
     let nodes = wavy(N);
     let mut r = Rig::new();
     assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
-    let begin = r.req(&Request::TableBegin {
-        id: 5,
-        columns: S as u8,
-        rows: N as u16,
-    });
-    assert!(
-        matches!(begin, Response::Ack { .. }),
-        "TableBegin: {begin:?}"
-    );
     let per = Handler::<S, N>::MAX_CHUNK_ROWS;
-    for (k, c) in nodes.chunks(per).enumerate() {
-        let bytes = rows_bytes(c);
-        let q = Request::TableChunk {
-            offset: (k * per) as u16,
-            count: c.len() as u8,
-            data: &bytes,
-        };
+    let mut up = TableUpload::new(5, &nodes, per).expect("a sendable table");
+    let mut buf = vec![0u8; up.chunk_bytes()];
+    while let Some(q) = up.next_request(&mut buf).expect("a chunk that fits") {
         let a = r.req(&q);
-        assert!(matches!(a, Response::Ack { .. }), "TableChunk {k}: {a:?}");
+        assert!(
+            matches!(a, Response::Ack { .. }),
+            "{q:?} of a valid 512-row table: {a:?}"
+        );
     }
-    let commit = r.req(&Request::TableCommit {
-        crc: crc32(&rows_bytes(&nodes)),
-    });
-    assert!(
-        matches!(commit, Response::Ack { .. }),
-        "TableCommit of a valid 512-row table: {commit:?}"
-    );
     let act = r.req(&Request::Activate { id: 5 });
     assert!(matches!(act, Response::Ack { .. }), "Activate: {act:?}");
     let t = r.dev.table.as_ref().expect("installed");

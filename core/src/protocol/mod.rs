@@ -9,6 +9,7 @@
 //! - [`msg`]: requests, responses, typed [`msg::NakCode`]s;
 //! - [`store`]: two flash slots (table + [`overrides`], the changed parameters) through
 //!   the `embedded-storage` NorFlash traits;
+//! - [`upload`]: the request sequence of a table upload (every host's);
 //! - [`report`]: the runtime's status as Status reports it (shared by every device);
 //! - [`handler`]: the board's state machine ([`handler::Handler`]) behind the
 //!   [`handler::Device`] seam;
@@ -35,6 +36,7 @@ pub mod params;
 pub mod ramflash;
 pub mod report;
 pub mod store;
+pub mod upload;
 pub mod wire;
 
 pub use device::{BoardDevice, DeviceGlue, LawBuffer, LawDevice};

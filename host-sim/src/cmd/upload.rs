@@ -1,19 +1,18 @@
 //! `host-sim upload --port PORT TABLE.csv [--activate] [--save]`.
 //!
 //! The CSV (`master,<axis>…`, master in degrees, slaves in mm, see [`crate::camfile`]) is
-//! converted to the wire's fixed point — master counts = mdeg (the rotary table's
-//! encoder: 0.001° per count) in I48F16, slaves µm in I24F8 — sent in chunks of the
-//! board's `max_chunk_rows`, committed with its CRC-32, then optionally activated and
-//! saved. First the table is checked against every rule the board applies, with the
+//! converted to core's fixed point ([`crate::tablecheck::nodes`]) — master counts = mdeg
+//! (the rotary table's encoder: 0.001° per count) in I48F16, slaves µm in I24F8 — sent in
+//! chunks of the board's `max_chunk_rows` by core's upload sequence, committed with its
+//! CRC-32, then optionally activated and saved. First the table is checked against every rule the board applies, with the
 //! limits the board reports in Info ([`crate::tablecheck`]): a table it would refuse is
 //! refused before anything is sent, naming the CSV line. Any Nak stops the upload with
 //! the board's typed reason.
 
 use super::serial::Link;
 use crate::camfile::CamCsv;
-use hydra_core::protocol::crc::Crc32;
 use hydra_core::protocol::handler::ACK_DEFERRED;
-use hydra_core::protocol::msg::row_len;
+use hydra_core::protocol::upload::TableUpload;
 use hydra_core::protocol::Request;
 use std::path::PathBuf;
 
@@ -39,32 +38,9 @@ pub struct Args {
     pub master_counts_per_unit: f64,
 }
 
-/// Rows of a CSV in wire format: master I48F16 raw, then each slave µm I24F8 raw
-/// ([`crate::tablecheck::wire_rows`]).
-pub fn rows_bytes(csv: &CamCsv, counts_per_unit: f64) -> anyhow::Result<Vec<u8>> {
-    let rows = crate::tablecheck::wire_rows(csv, counts_per_unit)?;
-    let mut out = Vec::with_capacity(rows.len() * row_len(csv.axes.len()));
-    for (m, xs) in rows {
-        out.extend_from_slice(&m.to_le_bytes());
-        for x in xs {
-            out.extend_from_slice(&x.to_le_bytes());
-        }
-    }
-    Ok(out)
-}
-
 /// Runs the upload.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let csv = CamCsv::load(&args.table)?;
-    let cols = csv.axes.len();
-    let rows = csv.master.len();
-    let data = rows_bytes(&csv, args.master_counts_per_unit)?;
-    let crc = {
-        let mut c = Crc32::new();
-        c.update(&data);
-        c.finish()
-    };
-    let id = args.id.unwrap_or(crc & 0x7FFF_FFFF);
     let mut link = Link::open(&args.port)?;
     let info = link.info;
     // Every rule the board applies at commit, with the limits it reported: a table it
@@ -74,33 +50,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         &crate::tablecheck::BoardRules::of_info(&info),
         args.master_counts_per_unit,
     )?;
-    link.expect_ack(&Request::TableBegin {
-        id,
-        columns: cols as u8,
-        rows: rows as u16,
-    })?;
     let per = usize::from(info.max_chunk_rows.max(1));
-    let rl = row_len(cols);
-    let bar = indicatif::ProgressBar::new(rows as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} rows")?
-            .progress_chars("=> "),
-    );
-    bar.set_message("upload");
-    let mut off = 0usize;
-    while off < rows {
-        let n = per.min(rows - off);
-        link.expect_ack(&Request::TableChunk {
-            offset: off as u16,
-            count: n as u8,
-            data: &data[off * rl..(off + n) * rl],
-        })?;
-        off += n;
-        bar.set_position(off as u64);
-    }
-    link.expect_ack(&Request::TableCommit { crc })?;
-    bar.finish_with_message("committed");
-    eprintln!("table {id} ({rows} rows, CRC-32 {crc:08x}) committed");
+    let id = crate::with_slaves!(csv.axes.len(), S => send::<S>(&mut link, &csv, args, per)?, {
+        anyhow::bail!("{} slave columns: a table row carries 1 … 8", csv.axes.len())
+    });
     if args.activate {
         let f = link.expect_ack(&Request::Activate { id })?;
         if f & ACK_DEFERRED != 0 {
@@ -118,4 +71,40 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     println!("{id}");
     Ok(())
+}
+
+/// Sends the table (core's [`TableUpload`] sequence, each request acknowledged) and
+/// returns its id.
+fn send<const S: usize>(
+    link: &mut Link,
+    csv: &CamCsv,
+    args: &Args,
+    per: usize,
+) -> anyhow::Result<u32> {
+    let nodes = crate::tablecheck::nodes::<S>(csv, args.master_counts_per_unit)?;
+    let upload =
+        |id| TableUpload::new(id, &nodes, per).map_err(|e| anyhow::anyhow!("upload: {e:?}"));
+    let crc = upload(0)?.crc();
+    let id = args.id.unwrap_or(crc & 0x7FFF_FFFF);
+    let mut up = upload(id)?;
+    let bar = indicatif::ProgressBar::new(nodes.len() as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} rows")?
+            .progress_chars("=> "),
+    );
+    bar.set_message("upload");
+    let mut buf = vec![0u8; up.chunk_bytes()];
+    while let Some(q) = up
+        .next_request(&mut buf)
+        .map_err(|e| anyhow::anyhow!("upload: {e:?}"))?
+    {
+        link.expect_ack(&q)?;
+        bar.set_position(up.rows_sent() as u64);
+    }
+    bar.finish_with_message("committed");
+    eprintln!(
+        "table {id} ({} rows, CRC-32 {crc:08x}) committed",
+        nodes.len()
+    );
+    Ok(id)
 }
