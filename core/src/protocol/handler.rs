@@ -262,24 +262,55 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     /// undoes that slot's parameters ([`Device::reset_params`]) and tries the older slot
     /// the same way — a slot is a table *and* its parameters, never half of one. Returns
     /// the header of the slot whose table runs (`None`: no table, boot configuration —
-    /// also if the device cannot undo a refused slot's parameters).
+    /// also if the device cannot undo a refused slot's parameters). Finally the slot that
+    /// booted is confirmed and a slot that did not read as valid is revoked
+    /// ([`Store::confirm`], [`Store::revoke`]), so every later boot of this flash boots the
+    /// same.
     pub fn boot<D: Device<S, N>, F: NorFlash>(
         &mut self,
         dev: &mut D,
         flash: &mut F,
     ) -> Option<SlotHeader> {
+        // Slots that did not read as valid at this boot (blank, cut or garbage).
+        let mut invalid = [true; 2];
+        let booted = self.boot_slots(dev, flash, &mut invalid);
+        // What this boot read is what every later boot reads: the slot that booted has
+        // its commit record programmed again, a slot that did not read as valid has it
+        // programmed to zero (the store's module docs). A flash error here changes
+        // nothing that booted.
+        if let Some(h) = booted {
+            let _ = self.store.confirm(flash, h.slot);
+        }
+        for (slot, bad) in (0u8..).zip(invalid) {
+            if bad && booted.map(|h| h.slot) != Some(slot) {
+                let _ = self.store.revoke(flash, slot);
+            }
+        }
+        booted
+    }
+
+    fn boot_slots<D: Device<S, N>, F: NorFlash>(
+        &mut self,
+        dev: &mut D,
+        flash: &mut F,
+        invalid: &mut [bool; 2],
+    ) -> Option<SlotHeader> {
         let mut params = ParamOverrides::new();
-        for h in self
-            .store
-            .newest_first::<F, S, N>(flash)
-            .into_iter()
-            .flatten()
-        {
+        let slots = self.store.newest_first::<F, S, N>(flash);
+        for h in slots.iter().flatten() {
+            if let Some(v) = invalid.get_mut(usize::from(h.slot)) {
+                *v = false;
+            }
+        }
+        for h in slots.into_iter().flatten() {
             if self
                 .store
                 .read_slot(flash, h.slot, &mut self.staging, &mut params)
                 .is_none()
             {
+                if let Some(v) = invalid.get_mut(usize::from(h.slot)) {
+                    *v = true;
+                }
                 continue;
             }
             // The slot's settings as one set: all apply, or the slot is refused like a

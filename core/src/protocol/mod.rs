@@ -50,3 +50,5 @@ pub use store::{SlotHeader, Store, StoreError};
 
 #[cfg(test)]
 mod handler_tests;
+#[cfg(test)]
+mod powercut_tests;

@@ -20,14 +20,25 @@
 //!
 //! **Save** ([`Store::save_keeping`]) erases the slot that is not the one to keep (the
 //! handler passes the slot that booted or was saved last; without one, the slot that
-//! does not hold the newest valid table), writes bytes 16 … end, then the magic, then
-//! reads the slot back and checks it. **Boot**
-//! ([`super::Handler::boot`]) takes the valid slot with the highest generation (valid:
-//! magic, CRC, columns = S, rows ≤ N, P ≤ S · [`ParamId::COUNT`]), applies its parameters,
-//! and installs its table if it passes the [`CamTable`] rules with the resulting limits;
-//! otherwise the other slot. A power cut at any byte of a Save therefore leaves the
-//! previous slot untouched and the one being written without its magic (or with a bad
-//! CRC): boot finds the old table and parameters, or the new ones once the magic is down.
+//! does not hold the newest valid table), writes bytes 16 … end, then the magic — the
+//! slot's **commit record** —, then reads the slot back and checks it; only then is the
+//! Save acknowledged. **Boot** ([`super::Handler::boot`]) takes the valid slot with the
+//! highest generation (valid: magic, CRC, columns = S, rows ≤ N, P ≤ S ·
+//! [`ParamId::COUNT`]), applies its parameters as one set, and installs its table if it
+//! passes the [`CamTable`] rules with the resulting limits; otherwise the other slot.
+//! Then it makes what it read permanent: the commit record of the slot that booted is
+//! programmed again ([`Store::confirm`]) and that of a slot that did not read as valid
+//! is programmed to zero ([`Store::revoke`]).
+//!
+//! Why this survives the F407's flash (modelled in `ramflash`, measured by the
+//! power-cut benchmark in `powercut_tests`): a cut erase leaves its sector undefined and
+//! a cut program leaves the word half programmed, with weak cells that read differently
+//! from one read to the next. The slot being written is never the slot that booted, so a
+//! cut anywhere in a Save leaves that slot intact; the new slot's data is complete and
+//! verified before its commit record is programmed, so only the commit record can be
+//! half done — and a half-done commit record is settled at the next boot, one way or the
+//! other, by confirm or revoke. Programming a word again over programmed content only
+//! clears bits (RM0090 allows it; nothing but 1 → 0 changes).
 //! Slots of the first layout ("HYT1", no parameters) are not valid in this one.
 //!
 //! Generations are compared as plain `u32`: at one save per second that is 136 years,
@@ -253,6 +264,39 @@ impl Store {
         }
     }
 
+    /// Re-programs the commit record of `slot` (the one that booted). A commit record cut
+    /// while it was programmed can read as complete on one boot and not on the next (weak
+    /// cells); programming it again completes it, so the next boot reads what this one
+    /// did. Programming the same value again only clears bits that should be clear.
+    pub fn confirm<F: NorFlash>(&self, flash: &mut F, slot: u8) -> Result<(), StoreError> {
+        self.write_commit(flash, slot, MAGIC)
+    }
+
+    /// Programs the commit record of `slot` (one that did not read as valid at boot) to
+    /// zero, so a half-programmed record can never read as complete later and boot a
+    /// table the board did not boot before. Zero only clears bits: any content allows it.
+    pub fn revoke<F: NorFlash>(&self, flash: &mut F, slot: u8) -> Result<(), StoreError> {
+        self.write_commit(flash, slot, 0)
+    }
+
+    fn write_commit<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        slot: u8,
+        word: u32,
+    ) -> Result<(), StoreError> {
+        if self.slot_size == 0 {
+            return Err(StoreError::Geometry);
+        }
+        let mut unit = [0xFFu8; MAGIC_UNIT];
+        unit.get_mut(MAGIC_UNIT - 4..)
+            .ok_or(StoreError::Geometry)?
+            .copy_from_slice(&word.to_le_bytes());
+        flash
+            .write(self.slot_base(slot), &unit)
+            .map_err(|_| StoreError::Flash)
+    }
+
     /// Saves `table` under `id`, with the parameter records `params`, into the slot not
     /// holding the newest valid table.
     pub fn save<F: NorFlash, const S: usize, const N: usize>(
@@ -331,12 +375,7 @@ impl Store {
         let crc = out.crc.finish();
         out.put(flash, &crc.to_le_bytes(), false)?;
         out.flush(flash)?;
-        let mut magic = [0xFFu8; MAGIC_UNIT];
-        magic
-            .get_mut(MAGIC_UNIT - 4..)
-            .ok_or(fl)?
-            .copy_from_slice(&MAGIC.to_le_bytes());
-        flash.write(at, &magic).map_err(|_| fl)?;
+        self.write_commit(flash, slot, MAGIC)?;
         match self.scan::<F, S, N>(flash, slot) {
             Some(h)
                 if h.generation == generation
