@@ -142,8 +142,13 @@ impl Session {
                 },
             )?;
         }
+        // The master starts at a tick instant, as in `host-sim run` (its master starts at
+        // t = 0, a sampling instant): the next TIM7 update after now. The error figure
+        // then measures the controller, not the phase of the master against the tick
+        // (master quantisation alone is 12 µm per count).
         let now = self.m.cycles();
-        self.plant.borrow_mut().master_start = Some(now);
+        let at = self.m.state().bus.tim7.next_event(now).unwrap_or(now);
+        self.plant.borrow_mut().master_start = Some(at);
         self.host.ack(&mut self.m, &Request::Start)
     }
 
