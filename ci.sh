@@ -16,6 +16,10 @@ rustc --version
 # flip-link: the firmware's linker (.cargo/config.toml), stack below .data/.bss.
 command -v flip-link >/dev/null 2>&1 || cargo install flip-link --version 0.1.12 --locked
 
+step "unused dependencies (cargo machete)"
+command -v cargo-machete >/dev/null 2>&1 || cargo install cargo-machete --version 0.9.2 --locked
+cargo machete
+
 step "rustfmt"
 cargo fmt --all -- --check
 

@@ -62,24 +62,78 @@ pub struct CamCsv {
     pub header_line: usize,
 }
 
-/// The data lines of a CSV text with their 1-based line numbers (blank lines and `#`
-/// comments skipped), after its header line: `(header line, header, rows)`. An empty text
-/// is an error naming the header it should have had (`expected`).
-pub(crate) fn csv_lines<'a>(
-    text: &'a str,
+/// The records of a CSV text read by the `csv` crate: the header and the data rows, each
+/// with its 1-based line number and its fields trimmed. `#` comment lines and blank lines
+/// are skipped, quoted fields are allowed, a UTF-8 byte-order mark (which Excel writes) is
+/// skipped. A header that is one field holding `;` is refused in words: the file was
+/// written with `;` as the separator (a locale with decimal commas). An empty text is an
+/// error naming the header it should have had (`expected`).
+pub(crate) struct CsvRecords {
+    /// 1-based line of the header.
+    pub header_line: usize,
+    /// The header's fields.
+    pub header: Vec<String>,
+    /// `(line, fields)` of every data row.
+    pub rows: Vec<(usize, Vec<String>)>,
+}
+
+/// Reads `text` (see [`CsvRecords`]); `path` is only used in messages.
+pub(crate) fn csv_records(
+    text: &str,
     path: &Path,
     expected: &str,
-) -> Result<(usize, &'a str, impl Iterator<Item = (usize, &'a str)>), TableError> {
-    let mut rows = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let (line, header) = rows.next().ok_or_else(|| TableError::File {
+) -> Result<CsvRecords, TableError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let mut r = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    // The 1-based line where a record starts. The reader's positions point at the line
+    // ends it skipped before the record (and its own line count skips blank lines), so
+    // the line is counted from the first byte after them.
+    let line_of = |byte: u64| {
+        let b = text.as_bytes();
+        let mut end = usize::try_from(byte).unwrap_or(usize::MAX).min(b.len());
+        while b.get(end).is_some_and(|c| *c == b'\r' || *c == b'\n') {
+            end += 1;
+        }
+        1 + b[..end].iter().filter(|c| **c == b'\n').count()
+    };
+    let mut recs = Vec::new();
+    for rec in r.records() {
+        let rec = rec.map_err(|e| {
+            let line = e.position().map_or(0, |p| line_of(p.byte()));
+            line_error(path, line, format!("not CSV: {e}"))
+        })?;
+        if rec.iter().all(str::is_empty) {
+            continue;
+        }
+        let line = rec.position().map_or(0, |p| line_of(p.byte()));
+        recs.push((line, rec.iter().map(str::to_string).collect::<Vec<_>>()));
+    }
+    let mut it = recs.into_iter();
+    let (header_line, header) = it.next().ok_or_else(|| TableError::File {
         path: path.to_path_buf(),
         reason: format!("empty file: expected a header `{expected}`"),
     })?;
-    Ok((line, header, rows))
+    if let [one] = &header[..] {
+        if one.contains(';') {
+            return Err(line_error(
+                path,
+                header_line,
+                format!(
+                    "the separator is `;` (`{one}`), as a spreadsheet writes it with decimal commas: save the file comma-separated with decimal points (expected `{expected}`)"
+                ),
+            ));
+        }
+    }
+    Ok(CsvRecords {
+        header_line,
+        header,
+        rows: it.collect(),
+    })
 }
 
 /// An error at a line of a CSV file.
@@ -104,12 +158,18 @@ impl CamCsv {
     /// Parses CSV text; `path` is only used in messages.
     pub fn parse(text: &str, path: &Path) -> Result<Self, TableError> {
         let at = |line: usize, reason: String| line_error(path, line, reason);
-        let (hline, header, rows) = csv_lines(text, path, "master,<axis>,…")?;
-        let names: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
+        let CsvRecords {
+            header_line: hline,
+            header: names,
+            rows,
+        } = csv_records(text, path, "master,<axis>,…")?;
         if names.first().map(String::as_str) != Some("master") {
             return Err(at(
                 hline,
-                format!("header must start with `master`, found `{header}`"),
+                format!(
+                    "header must start with `master`, found `{}`",
+                    names.join(",")
+                ),
             ));
         }
         if names.len() < 2 {
@@ -127,8 +187,7 @@ impl CamCsv {
         let mut master = Vec::new();
         let mut columns = vec![Vec::new(); axes.len()];
         let mut lines = Vec::new();
-        for (line, row) in rows {
-            let fields: Vec<&str> = row.split(',').map(str::trim).collect();
+        for (line, fields) in rows {
             if fields.len() != names.len() {
                 return Err(at(
                     line,
@@ -274,6 +333,20 @@ mod tests {
         assert!(e("master,a\n0,1\n1,2\n0.5,3\n").contains("t.csv:4: master 0.5 does not continue"));
         assert!(e("master,a\n0,1\n0,2\n").contains("t.csv:3: master 0 repeats"));
         assert!(e("master,a\n0,1\n").contains("1 node(s)"));
+    }
+
+    /// What a spreadsheet writes: a UTF-8 byte-order mark, CRLF line ends, quoted fields
+    /// — read; `;` separators — refused in words.
+    #[test]
+    fn reads_what_excel_writes_and_names_a_semicolon_separator() {
+        let t = parse("\u{feff}master,\"tangent\"\r\n0,1.5\r\n\"1\",2.5\r\n").unwrap();
+        assert_eq!(t.axes, ["tangent"]);
+        assert_eq!(t.master, [0.0, 1.0]);
+        assert_eq!(t.lines, [2, 3]);
+        let e = parse("master;tangent\n0;1,5\n1;2,5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("t.csv:1: the separator is `;`"), "{e}");
     }
 
     #[test]

@@ -11,7 +11,7 @@
 //! Output `--csv`: `t,x_mm,v_mm_s,pA_bar,pB_bar,spool` every 1 ms (true plant values,
 //! not the quantised sensor readings).
 
-use crate::camfile::{csv_lines, line_error, TableError};
+use crate::camfile::{csv_records, line_error, CsvRecords, TableError};
 use crate::plant::HydraulicAxis;
 use crate::scenario::Scenario;
 use anyhow::Context as _;
@@ -58,14 +58,19 @@ pub struct Sample {
 /// Parses a `t,u` command recording; errors name the line.
 pub fn parse_command(text: &str, path: &Path) -> Result<Vec<(f64, f64)>, TableError> {
     let at = |line: usize, reason: String| line_error(path, line, reason);
-    let (hl, header, rows) = csv_lines(text, path, "t,u")?;
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
-    if names != ["t", "u"] {
-        return Err(at(hl, format!("header must be `t,u`, found `{header}`")));
+    let CsvRecords {
+        header_line: hl,
+        header,
+        rows,
+    } = csv_records(text, path, "t,u")?;
+    if header != ["t", "u"] {
+        return Err(at(
+            hl,
+            format!("header must be `t,u`, found `{}`", header.join(",")),
+        ));
     }
     let mut out: Vec<(f64, f64)> = Vec::new();
-    for (line, row) in rows {
-        let f: Vec<&str> = row.split(',').map(str::trim).collect();
+    for (line, f) in rows {
         if f.len() != 2 {
             return Err(at(line, format!("{} fields, expected 2 (t,u)", f.len())));
         }
@@ -80,7 +85,7 @@ pub fn parse_command(text: &str, path: &Path) -> Result<Vec<(f64, f64)>, TableEr
                     )
                 })
         };
-        let (t, u) = (num(f[0], "t")?, num(f[1], "u")?);
+        let (t, u) = (num(&f[0], "t")?, num(&f[1], "u")?);
         if t < 0.0 {
             return Err(at(line, format!("t = {t} is negative")));
         }
