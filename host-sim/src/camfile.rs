@@ -91,13 +91,22 @@ pub(crate) fn csv_records(
         .flexible(true)
         .from_reader(text.as_bytes());
     // The 1-based line where a record starts. The reader's positions point at the line
-    // ends it skipped before the record (and its own line count skips blank lines), so
-    // the line is counted from the first byte after them.
+    // ends and `#` comment lines it skipped before the record (and its own line count
+    // skips blank lines), so the line is counted from the first byte after them.
     let line_of = |byte: u64| {
         let b = text.as_bytes();
         let mut end = usize::try_from(byte).unwrap_or(usize::MAX).min(b.len());
-        while b.get(end).is_some_and(|c| *c == b'\r' || *c == b'\n') {
-            end += 1;
+        loop {
+            match b.get(end) {
+                Some(b'\r' | b'\n') => end += 1,
+                Some(b'#') => {
+                    end = b[end..]
+                        .iter()
+                        .position(|c| *c == b'\n')
+                        .map_or(b.len(), |k| end + k + 1);
+                }
+                _ => break,
+            }
         }
         1 + b[..end].iter().filter(|c| **c == b'\n').count()
     };
@@ -312,6 +321,7 @@ mod tests {
     #[test]
     fn parses_and_roundtrips() {
         let t = parse("# c\nmaster, a ,b\n0,1,2\n\n1,3,4\n2,5,6\n").unwrap();
+        assert_eq!(t.header_line, 2);
         assert_eq!(t.axes, ["a", "b"]);
         assert_eq!(t.master, [0.0, 1.0, 2.0]);
         assert_eq!(t.column("b").unwrap(), [2.0, 4.0, 6.0]);
