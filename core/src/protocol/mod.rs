@@ -13,7 +13,8 @@
 //! - [`report`]: the runtime's status as Status reports it (shared by every device);
 //! - [`handler`]: the board's state machine ([`handler::Handler`]) behind the
 //!   [`handler::Device`] seam;
-//! - `ramflash` (host only): a NOR flash in RAM that can lose power at any byte.
+//! - `ramflash` (host only): an F407-like NOR flash in RAM (sector erase, word program,
+//!   half-done operations and weak cells at a power cut), for tests and the virtual board.
 //!
 //! Firmware glue: construct `Handler::new(Store::new(&flash, base, slot)?)`, call
 //! `boot` once, then from the low-priority UART task `on_bytes(dev, flash, rx, tx)` with
