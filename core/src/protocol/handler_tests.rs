@@ -10,6 +10,7 @@ use super::msg::{
 use super::overrides::ParamOverrides;
 use super::ramflash::RamFlash;
 use super::store::Store;
+use super::upload::TableUpload;
 use super::wire::Writer;
 use crate::table::{AxisLimits, CamTable, Node, TableLimits};
 use crate::units::{Master, MasterRate, PosUm, VelUmPerS};
@@ -233,29 +234,24 @@ impl Rig {
         }
     }
 
+    /// Uploads `ns` as table `id` (core's [`TableUpload`] sequence, each step Ack'd) and
+    /// returns the answer to the commit.
     pub(super) fn upload(&mut self, id: u32, ns: &[Node<S>]) -> Result<(), Nak> {
-        self.ack(&Request::TableBegin {
-            id,
-            columns: S as u8,
-            rows: ns.len() as u16,
-        });
-        let data = rows_bytes(ns);
         let per = Handler::<S, N>::MAX_CHUNK_ROWS;
-        for (k, c) in ns.chunks(per).enumerate() {
-            let bytes = rows_bytes(c);
-            self.ack(&Request::TableChunk {
-                offset: (k * per) as u16,
-                count: c.len() as u8,
-                data: &bytes,
-            });
+        let mut up = TableUpload::new(id, ns, per).unwrap();
+        let mut buf = std::vec![0u8; up.chunk_bytes()];
+        while let Some(q) = up.next_request(&mut buf).unwrap() {
+            if !matches!(q, Request::TableCommit { .. }) {
+                self.ack(&q);
+                continue;
+            }
+            return match self.req(&q) {
+                Response::Ack { .. } => Ok(()),
+                Response::Nak { nak, .. } => Err(nak),
+                r => panic!("{r:?}"),
+            };
         }
-        match self.req(&Request::TableCommit {
-            crc: super::crc::crc32(&data),
-        }) {
-            Response::Ack { .. } => Ok(()),
-            Response::Nak { nak, .. } => Err(nak),
-            r => panic!("{r:?}"),
-        }
+        unreachable!("an upload ends with its commit")
     }
 
     /// What must not change on a Nak: active table, both flash slots, handler status.

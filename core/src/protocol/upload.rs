@@ -75,6 +75,12 @@ impl<'a, const S: usize> TableUpload<'a, S> {
         })
     }
 
+    /// The same upload under another id (the CRC is the rows', whatever the id: a host
+    /// that names a table by its CRC builds the upload once).
+    pub fn with_id(self, id: u32) -> Self {
+        Self { id, ..self }
+    }
+
     /// CRC-32 of every row's wire bytes (what `TableCommit` carries).
     pub fn crc(&self) -> u32 {
         self.crc

@@ -82,11 +82,10 @@ fn send<const S: usize>(
     per: usize,
 ) -> anyhow::Result<u32> {
     let nodes = crate::tablecheck::nodes::<S>(csv, args.master_counts_per_unit)?;
-    let upload =
-        |id| TableUpload::new(id, &nodes, per).map_err(|e| anyhow::anyhow!("upload: {e:?}"));
-    let crc = upload(0)?.crc();
+    let up = TableUpload::new(0, &nodes, per).map_err(|e| anyhow::anyhow!("upload: {e:?}"))?;
+    let crc = up.crc();
     let id = args.id.unwrap_or(crc & 0x7FFF_FFFF);
-    let mut up = upload(id)?;
+    let mut up = up.with_id(id);
     let bar = indicatif::ProgressBar::new(nodes.len() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} rows")?
