@@ -34,6 +34,8 @@ enum Command {
     Motion(cmd::motion::Args),
     /// List a board's tables or activate a committed one.
     Table(cmd::table::Args),
+    /// List, read, set and save a board's settings by path (`axis/0/kp_lsb_per_um`).
+    Param(cmd::param::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -67,5 +69,6 @@ fn dispatch() -> anyhow::Result<()> {
         Some(Command::Trace(a)) => cmd::trace::run(&a),
         Some(Command::Motion(a)) => cmd::motion::run(&a),
         Some(Command::Table(a)) => cmd::table::run(&a),
+        Some(Command::Param(a)) => cmd::param::run(&a),
     }
 }

@@ -78,6 +78,9 @@ impl Device<S, N> for Dev {
     fn set_param(&mut self, _: u8, _: ParamId, _: f32) -> Result<(), Nak> {
         Ok(())
     }
+    fn get_param(&self, _: u8, _: ParamId) -> Result<f32, Nak> {
+        Ok(0.0)
+    }
     fn reset_params(&mut self) -> Result<(), Nak> {
         Ok(())
     }

@@ -22,7 +22,7 @@ use super::handler::{Device, Motion};
 use super::msg::ParamId;
 use super::msg::{Nak, NakCode, StatusMsg};
 use super::overrides::ParamRecord;
-use super::params::{apply_param, apply_saved_set, reference_offset_um};
+use super::params::{apply_param, apply_saved_set, read_param, reference_offset_um};
 use super::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
@@ -284,6 +284,27 @@ where
             .flatten()
             .map(|o| o.to_num())
     }
+    fn get_param(&self, axis: u8, param: ParamId) -> Result<f32, Nak> {
+        if param == ParamId::SlaveOffsetUm {
+            let i = usize::from(axis);
+            let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
+            // The runtime's offset once it runs; before (boot) the one kept for it.
+            let off = match self
+                .glue
+                .read(|rt| rt.references().offsets().get(i).copied())
+            {
+                Some(o) => o,
+                None => self
+                    .st
+                    .boot_offsets
+                    .get(i)
+                    .copied()
+                    .map(Option::unwrap_or_default),
+            };
+            return off.map(|o| o.to_num()).ok_or(unknown);
+        }
+        read_param(&self.st.fcfg, &self.st.limits, axis, param)
+    }
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
         let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
         if param == ParamId::SlaveOffsetUm {
@@ -522,5 +543,41 @@ mod tests {
         // A limit the running table violates is refused too.
         assert!(d.set_param(0, ParamId::MaxUm, 50_000.0).is_err());
         assert_eq!(x(&d), Some(PosUm::from_num(100_000)));
+        // Every parameter reads back what is in force; the two Kv are set separately.
+        d.set_param(0, ParamId::KvNegLsbPerUmS, 0.25).unwrap();
+        assert_eq!(d.get_param(0, ParamId::KvNegLsbPerUmS), Ok(0.25));
+        assert_eq!(d.get_param(0, ParamId::KvPosLsbPerUmS), Ok(0.0));
+        assert_eq!(d.get_param(0, ParamId::KpLsbPerUm), Ok(2.0));
+        assert_eq!(d.get_param(0, ParamId::ValveNullLsb), Ok(50.0));
+        assert_eq!(d.get_param(0, ParamId::PeriodUs), Ok(1000.0));
+        d.set_param(0, ParamId::ValveInvert, 1.0).unwrap();
+        assert_eq!(d.get_param(0, ParamId::ValveInvert), Ok(1.0));
+        assert!(d.st.follower_config().axes[0].valve.invert);
+        d.set_param(0, ParamId::MasterFilterHz, 20.0).unwrap();
+        assert_eq!(d.get_param(0, ParamId::MasterFilterHz), Ok(20.0));
+        // Above 0.2/T for this board's 1 ms: refused as a set.
+        assert_eq!(
+            d.set_param(0, ParamId::MasterFilterHz, 300.0),
+            Err(Nak::with(
+                NakCode::ParamRange,
+                0,
+                ParamId::MasterFilterHz as u8
+            ))
+        );
+        assert_eq!(d.get_param(0, ParamId::SlaveOffsetUm), Ok(0.0));
+        assert_eq!(
+            d.get_param(1, ParamId::KpLsbPerUm),
+            Err(Nak::with(
+                NakCode::UnknownParam,
+                1,
+                ParamId::KpLsbPerUm as u8
+            ))
+        );
+        for pp in crate::protocol::settings::all_paths(1) {
+            assert!(
+                pp.id == ParamId::LinkTimeoutMs || d.get_param(pp.axis, pp.id).is_ok(),
+                "{pp:?}"
+            );
+        }
     }
 }

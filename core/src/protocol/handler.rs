@@ -91,6 +91,9 @@ pub trait Device<const S: usize, const N: usize> {
     fn command(&mut self, m: Motion) -> Result<(), Nak>;
     /// Sets one parameter (validated; typed error).
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak>;
+    /// The value of one parameter in force (every id but [`ParamId::LinkTimeoutMs`],
+    /// which the handler holds), in its unit; `UnknownParam` for a slave it does not have.
+    fn get_param(&self, axis: u8, param: ParamId) -> Result<f32, Nak>;
     /// Applies a saved set of parameters at boot, **as one validated set**: all of them,
     /// or none ([`super::params::apply_param_set`]: the order they were first set in does
     /// not matter). Only called while no table is installed. The default sets them one
@@ -114,6 +117,45 @@ pub trait Device<const S: usize, const N: usize> {
     /// [`ParamId::SlaveOffsetUm`]), µm; `None` for an incremental axis.
     fn persisted_offset_um(&self, _axis: u8) -> Option<f32> {
         None
+    }
+}
+
+/// Why the board booted what it booted (`Status.boot_reason`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum BootReason {
+    /// No flash slot held a save (never saved, or both slots blank or unreadable): the
+    /// boot configuration runs, no table.
+    #[default]
+    NoSave = 0,
+    /// The newest complete save booted (table and settings).
+    Newest = 1,
+    /// The newest slot's rows did not read back (CRC): the previous complete save booted.
+    FallbackUnreadable = 2,
+    /// The newest slot's settings were refused as a set: the previous save booted.
+    FallbackSettings = 3,
+    /// The newest slot's table breaks the rules under its own settings: the previous
+    /// save booted.
+    FallbackTable = 4,
+    /// Every saved slot was refused: the boot configuration runs, no table.
+    NoneBootable = 5,
+}
+
+impl BootReason {
+    /// From the wire byte.
+    pub fn from_u8(b: u8) -> Option<Self> {
+        use BootReason::*;
+        [
+            NoSave,
+            Newest,
+            FallbackUnreadable,
+            FallbackSettings,
+            FallbackTable,
+            NoneBootable,
+        ]
+        .into_iter()
+        .find(|r| *r as u8 == b)
     }
 }
 
@@ -143,6 +185,9 @@ pub struct Handler<const S: usize, const N: usize> {
     /// The active table's id (`None`: no table; all-zero, so a static handler is `.bss`).
     active_id: Option<u32>,
     saved: Option<SlotHeader>,
+    /// The slot [`Handler::boot`] booted, and why.
+    boot_slot: Option<u8>,
+    boot_reason: BootReason,
     /// SetParams accepted since boot (plus those boot applied): what Save stores.
     overrides: ParamOverrides,
     decimation: u16,
@@ -196,6 +241,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             pending: false,
             active_id: None,
             saved: None,
+            boot_slot: None,
+            boot_reason: BootReason::NoSave,
             overrides: ParamOverrides::new(),
             decimation: 0,
             tick_count: 0,
@@ -302,6 +349,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 *v = false;
             }
         }
+        // Why the newest slot did not boot (the reason a later slot boots instead).
+        let mut refused: Option<BootReason> = None;
+        self.boot_slot = None;
+        self.boot_reason = BootReason::NoSave;
         for h in slots.into_iter().flatten() {
             if self
                 .store
@@ -311,8 +362,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 if let Some(v) = invalid.get_mut(usize::from(h.slot)) {
                     *v = true;
                 }
+                refused.get_or_insert(BootReason::FallbackUnreadable);
                 continue;
             }
+            self.boot_reason = BootReason::NoneBootable;
             // The slot's settings as one set: all apply, or the slot is refused like a
             // table that fails its rules (the older slot is tried).
             let mut set: Vec<super::ParamRecord, { super::overrides::MAX_RECORDS }> = Vec::new();
@@ -328,6 +381,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 dev.reset_params().ok()?;
                 self.overrides.clear();
                 self.link.timeout_ms = 0;
+                refused.get_or_insert(BootReason::FallbackSettings);
                 continue;
             }
             for r in params.iter() {
@@ -344,12 +398,20 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 self.saved = Some(h);
                 dev.install_table(&self.committed).ok()?;
                 self.active_id = Some(h.id);
+                self.boot_slot = Some(h.slot);
+                self.boot_reason = refused.unwrap_or(BootReason::Newest);
                 return Some(h);
             }
             // Refused: back to the boot configuration before the older slot.
             dev.reset_params().ok()?;
             self.overrides.clear();
             self.link.timeout_ms = 0;
+            refused.get_or_insert(BootReason::FallbackTable);
+        }
+        if refused == Some(BootReason::FallbackUnreadable) && self.boot_reason == BootReason::NoSave
+        {
+            // The only slot with a header did not read back: nothing bootable was saved.
+            self.boot_reason = BootReason::NoneBootable;
         }
         None
     }
@@ -358,6 +420,11 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     /// gets its store once the flash driver exists, before [`Handler::boot`]).
     pub fn set_store(&mut self, store: Store) {
         self.store = store;
+    }
+
+    /// The flash slot [`Handler::boot`] booted (`None`: none) and why.
+    pub fn boot_report(&self) -> (Option<u8>, BootReason) {
+        (self.boot_slot, self.boot_reason)
     }
 
     /// Id of the active table ([`NO_TABLE`] if none).
@@ -546,7 +613,21 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                     }
                 }),
             Request::Home { axis } => dev.command(Motion::Home { axis }),
+            Request::GetParam { axis, param } => {
+                let value = match ParamId::from_u8(param) {
+                    Some(ParamId::LinkTimeoutMs) => Ok(self.link.timeout_ms as f32),
+                    Some(p) => dev.get_param(axis, p),
+                    None => Err(Nak::with(NakCode::UnknownParam, u16::from(axis), param)),
+                };
+                return match value {
+                    Ok(value) => Response::Param { axis, param, value },
+                    Err(nak) => Response::Nak { req: t, nak },
+                };
+            }
             Request::SetParam { axis, param, value } => match ParamId::from_u8(param) {
+                Some(p) if p.info().read_only => {
+                    Err(Nak::with(NakCode::ReadOnly, u16::from(axis), param))
+                }
                 Some(ParamId::LinkTimeoutMs) => self.set_link_timeout(value).map(|()| {
                     self.overrides.record(0, ParamId::LinkTimeoutMs, value);
                 }),
@@ -608,6 +689,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         s.active_id = self.active_id();
         s.committed_id = self.committed_id.unwrap_or(NO_TABLE);
         s.saved_id = self.saved.map_or(NO_TABLE, |h| h.id);
+        s.boot_slot = self.boot_slot.unwrap_or(0xFF);
+        s.boot_reason = self.boot_reason as u8;
         s.upload_rows = u16::try_from(self.staging.len()).unwrap_or(u16::MAX);
         s
     }

@@ -2,7 +2,7 @@
 //! proptest state machine over random requests and random bytes.
 
 use super::frame::{FrameDecoder, MAX_WIRE};
-use super::handler::{encode_request, Device, Handler, Motion, ACK_DEFERRED};
+use super::handler::{encode_request, BootReason, Device, Handler, Motion, ACK_DEFERRED};
 use super::msg::{
     row_len, write_row, AxisStatus, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
     NO_TABLE,
@@ -127,6 +127,16 @@ impl Device<S, N> for Mock {
                 Ok(())
             }
             _ => Err(Nak::with(NakCode::ParamRange, u16::from(axis), p as u8)),
+        }
+    }
+    fn get_param(&self, axis: u8, p: ParamId) -> Result<f32, Nak> {
+        match p {
+            _ if usize::from(axis) >= S => {
+                Err(Nak::with(NakCode::UnknownParam, u16::from(axis), p as u8))
+            }
+            ParamId::KpLsbPerUm => Ok(self.kp),
+            ParamId::SlaveOffsetUm => Ok(self.offset.unwrap_or(0.0)),
+            _ => Err(Nak::with(NakCode::UnknownParam, u16::from(axis), p as u8)),
         }
     }
     fn reset_params(&mut self) -> Result<(), Nak> {
@@ -331,9 +341,80 @@ fn upload_activate_save_boot() {
     let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
     let mut h2 = Handler::<S, N>::new(store);
     let mut dev2 = Mock::default();
+    assert_eq!(h2.boot_report(), (None, BootReason::NoSave));
     let hd = h2.boot(&mut dev2, &mut r.flash).unwrap();
     assert_eq!(hd.id, 8);
     assert_eq!(dev2.table, r.dev.table);
+    assert_eq!(h2.boot_report(), (Some(hd.slot), BootReason::Newest));
+    // A blank flash boots nothing and says so.
+    let mut blank = RamFlash::new(2 * SLOT as usize);
+    let mut h3 = Handler::<S, N>::new(store);
+    assert!(h3.boot(&mut Mock::default(), &mut blank).is_none());
+    assert_eq!(h3.boot_report(), (None, BootReason::NoSave));
+}
+
+/// GetParam reads what SetParam set (and the handler's own link timeout); read-only and
+/// unknown parameters are typed refusals; Status reports the boot.
+#[test]
+fn get_param_reads_back_and_read_only_params_are_refused() {
+    let mut r = loaded_rig();
+    let get = |r: &mut Rig, axis, p: ParamId| {
+        r.req(&Request::GetParam {
+            axis,
+            param: p as u8,
+        })
+    };
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: 0.5,
+    });
+    assert_eq!(
+        get(&mut r, 0, ParamId::KpLsbPerUm),
+        Response::Param {
+            axis: 0,
+            param: ParamId::KpLsbPerUm as u8,
+            value: 0.5
+        }
+    );
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::LinkTimeoutMs as u8,
+        value: 250.0,
+    });
+    assert!(matches!(
+        get(&mut r, 0, ParamId::LinkTimeoutMs),
+        Response::Param { value, .. } if value == 250.0
+    ));
+    for p in [ParamId::PeriodUs, ParamId::SlaveOffsetUm] {
+        let n = r.req(&Request::SetParam {
+            axis: 0,
+            param: p as u8,
+            value: 1.0,
+        });
+        assert_eq!(
+            n,
+            Response::Nak {
+                req: super::msg::ty::SET_PARAM,
+                nak: Nak::with(NakCode::ReadOnly, 0, p as u8)
+            }
+        );
+    }
+    assert_eq!(
+        nak_code(&get(&mut r, 3, ParamId::KpLsbPerUm)),
+        NakCode::UnknownParam
+    );
+    assert_eq!(
+        nak_code(&r.req(&Request::GetParam {
+            axis: 0,
+            param: 200
+        })),
+        NakCode::UnknownParam
+    );
+    match r.req(&Request::GetStatus) {
+        Response::Status(s) => assert_eq!((s.boot_slot, s.boot_reason), (0xFF, 0)),
+        x => panic!("{x:?}"),
+    }
 }
 
 #[test]
@@ -415,6 +496,7 @@ fn a_refused_slot_leaves_none_of_its_parameters() {
     let mut h = Handler::<S, N>::new(store);
     let hd = h.boot(&mut dev, &mut r.flash).unwrap();
     assert_eq!((hd.id, hd.params), (1, 0));
+    assert_eq!(h.boot_report(), (Some(hd.slot), BootReason::FallbackTable));
     assert_eq!(dev.kp, 0.0, "slot 2's kp must not stay applied");
     assert_eq!(dev.table.as_ref().map(|t| t.len()), Some(10));
     // A device that cannot undo parameters boots no table rather than a mix.

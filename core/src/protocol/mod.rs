@@ -7,6 +7,7 @@
 //! - [`frame`]: `seq · type · payload · crc32`, the streaming [`frame::FrameDecoder`];
 //! - [`wire`]: little-endian field reader/writer;
 //! - [`msg`]: requests, responses, typed [`msg::NakCode`]s;
+//! - [`settings`]: the settings tree — every parameter's path, unit and range;
 //! - [`store`]: two flash slots (table + [`overrides`], the changed parameters) through
 //!   the `embedded-storage` NorFlash traits;
 //! - [`upload`]: the request sequence of a table upload (every host's);
@@ -36,16 +37,17 @@ pub mod params;
 )]
 pub mod ramflash;
 pub mod report;
+pub mod settings;
 pub mod store;
 pub mod upload;
 pub mod wire;
 
 pub use device::{BoardDevice, DeviceGlue, LawBuffer, LawDevice};
-pub use handler::{Device, Handler, Motion};
+pub use handler::{BootReason, Device, Handler, Motion};
 pub use msg::{Nak, NakCode, ParamId, Request, Response};
 pub use overrides::{ParamOverrides, ParamRecord};
 pub use params::{
-    apply_param, apply_param_set, apply_saved_set, reference_offset_um, validate_params,
+    apply_param, apply_param_set, apply_saved_set, read_param, reference_offset_um, validate_params,
 };
 pub use store::{SlotHeader, Store, StoreError};
 

@@ -6,13 +6,14 @@
 //! `Telemetry` frames are unsolicited; their `seq` is the board's own telemetry counter.
 //! Byte-by-byte layouts are in `PROTOCOL.md` at the repository root.
 
+pub use super::settings::ParamId;
 use super::wire::{Reader, Writer};
 use crate::table::{Node, TableError};
 use crate::units::{Master, PosUm};
 use heapless::Vec;
 
 /// Protocol version reported in `Info`.
-pub const PROTOCOL_VERSION: u8 = 2;
+pub const PROTOCOL_VERSION: u8 = 3;
 /// Most axes a `Status`/`Telemetry` message can describe.
 pub const MAX_AXES: usize = 8;
 /// "No table" in id fields.
@@ -52,6 +53,8 @@ pub mod ty {
     pub const SAVE: u8 = 0x31;
     /// Request: telemetry every N ticks (0 = off).
     pub const SET_TELEMETRY: u8 = 0x32;
+    /// Request: read one parameter.
+    pub const GET_PARAM: u8 = 0x33;
     /// Response: done.
     pub const ACK: u8 = 0x80;
     /// Response: refused, nothing changed.
@@ -62,6 +65,8 @@ pub mod ty {
     pub const STATUS: u8 = 0x83;
     /// Unsolicited telemetry sample.
     pub const TELEMETRY: u8 = 0x84;
+    /// Response to GetParam.
+    pub const PARAM: u8 = 0x85;
 }
 
 /// Why a request was refused (`Nak` code byte). Nothing changed on the board.
@@ -136,13 +141,16 @@ pub enum NakCode {
     NotReferenced = 31,
     /// A command for a slave the board does not have (detail: the axis asked for).
     NoAxis = 32,
+    /// SetParam of a parameter the board sets itself (the period, a reference offset:
+    /// `detail` = axis, `detail2` = parameter id).
+    ReadOnly = 33,
 }
 
 impl NakCode {
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use NakCode::*;
-        const ALL: [NakCode; 32] = [
+        const ALL: [NakCode; 33] = [
             UnknownType,
             Truncated,
             Oversized,
@@ -175,6 +183,7 @@ impl NakCode {
             Refused,
             NotReferenced,
             NoAxis,
+            ReadOnly,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -230,69 +239,6 @@ impl From<TableError> for Nak {
             }
             TableError::MasterSpeed => Nak::new(NakCode::TableMasterSpeed),
         }
-    }
-}
-
-/// Settable parameters (`SetParam.param`). Values are `f32` in the unit named.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[repr(u8)]
-pub enum ParamId {
-    /// Proportional gain, DAC LSB per µm.
-    KpLsbPerUm = 1,
-    /// Integral gain, DAC LSB per (µm·s).
-    KiLsbPerUmS = 2,
-    /// Derivative gain, DAC LSB per (µm/s).
-    KdLsbSPerUm = 3,
-    /// Velocity feed-forward (both directions), LSB per (µm/s).
-    KvLsbPerUmS = 4,
-    /// Acceleration feed-forward, LSB per (µm/s²).
-    KaLsbPerUmS2 = 5,
-    /// Following-error fault limit, µm.
-    FollowingErrorUm = 6,
-    /// Table validation: lowest position, µm.
-    MinUm = 7,
-    /// Table validation: highest position, µm.
-    MaxUm = 8,
-    /// Table validation: axis top speed, µm/s.
-    MaxSpeedUmPerS = 9,
-    /// Table validation: fastest master speed, master counts/s (axis byte ignored).
-    MasterSpeedPerS = 10,
-    /// Valve calibration: null offset, DAC LSB.
-    ValveNullLsb = 11,
-    /// Host-link watchdog, ms (axis byte ignored): while following after a Start from
-    /// the link, no valid frame for this long holds the axes. 0 = off (the default; 10 …
-    /// 60 000 otherwise). Kept by the protocol handler, not the device.
-    LinkTimeoutMs = 12,
-    /// Reference offset of an absolute slave, µm (|x| ≤ 8 000 000): written by the
-    /// handler when a set-position on an absolute axis succeeds, so Save persists it and
-    /// boot restores it (`runtime::reference`).
-    SlaveOffsetUm = 13,
-}
-
-impl ParamId {
-    /// Number of parameter ids.
-    pub const COUNT: usize = 13;
-
-    /// From the wire byte.
-    pub fn from_u8(b: u8) -> Option<Self> {
-        use ParamId::*;
-        const ALL: [ParamId; ParamId::COUNT] = [
-            KpLsbPerUm,
-            KiLsbPerUmS,
-            KdLsbSPerUm,
-            KvLsbPerUmS,
-            KaLsbPerUmS2,
-            FollowingErrorUm,
-            MinUm,
-            MaxUm,
-            MaxSpeedUmPerS,
-            MasterSpeedPerS,
-            ValveNullLsb,
-            LinkTimeoutMs,
-            SlaveOffsetUm,
-        ];
-        ALL.iter().copied().find(|c| *c as u8 == b)
     }
 }
 
@@ -394,6 +340,13 @@ pub enum Request<'a> {
         /// Ticks between samples.
         decimation: u16,
     },
+    /// Read one parameter (answered by [`Response::Param`]).
+    GetParam {
+        /// Axis (ignored by board-wide parameters).
+        axis: u8,
+        /// Raw parameter id (see [`ParamId`]).
+        param: u8,
+    },
 }
 
 impl<'a> Request<'a> {
@@ -447,6 +400,10 @@ impl<'a> Request<'a> {
             ty::SET_TELEMETRY => Request::SetTelemetry {
                 decimation: r.u16().ok_or(t)?,
             },
+            ty::GET_PARAM => Request::GetParam {
+                axis: r.u8().ok_or(t)?,
+                param: r.u8().ok_or(t)?,
+            },
             _ => return Err(NakCode::UnknownType),
         };
         if r.remaining() != 0 {
@@ -474,6 +431,7 @@ impl<'a> Request<'a> {
             Request::SetParam { .. } => ty::SET_PARAM,
             Request::Save => ty::SAVE,
             Request::SetTelemetry { .. } => ty::SET_TELEMETRY,
+            Request::GetParam { .. } => ty::GET_PARAM,
         }
     }
 
@@ -516,6 +474,10 @@ impl<'a> Request<'a> {
                 w.f32(value)?;
             }
             Request::SetTelemetry { decimation } => w.u16(decimation)?,
+            Request::GetParam { axis, param } => {
+                w.u8(axis)?;
+                w.u8(param)?;
+            }
         }
         Some(w.len())
     }
@@ -630,6 +592,10 @@ pub struct StatusMsg {
     pub committed_id: u32,
     /// Id of the table in the newest valid flash slot.
     pub saved_id: u32,
+    /// The flash slot the board booted (0, 1; 0xFF: none).
+    pub boot_slot: u8,
+    /// Why that slot ([`super::handler::BootReason`] code).
+    pub boot_reason: u8,
     /// Rows received of the upload in progress.
     pub upload_rows: u16,
     /// Ticks since boot.
@@ -689,7 +655,7 @@ impl Telemetry {
 }
 
 /// A decoded response.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Response {
     /// Done. `flags` bit 0: Activate deferred to the next safe point.
     Ack {
@@ -711,6 +677,15 @@ pub enum Response {
     Status(StatusMsg),
     /// Unsolicited sample.
     Telemetry(Telemetry),
+    /// Answer to GetParam: the value in force.
+    Param {
+        /// Axis asked for (0 for a board-wide parameter).
+        axis: u8,
+        /// Raw parameter id.
+        param: u8,
+        /// Value in the parameter's unit.
+        value: f32,
+    },
 }
 
 impl Response {
@@ -722,6 +697,7 @@ impl Response {
             Response::Info(_) => ty::INFO,
             Response::Status(_) => ty::STATUS,
             Response::Telemetry(_) => ty::TELEMETRY,
+            Response::Param { .. } => ty::PARAM,
         }
     }
 
@@ -732,6 +708,11 @@ impl Response {
             Response::Ack { req, flags } => {
                 w.u8(*req)?;
                 w.u8(*flags)?;
+            }
+            Response::Param { axis, param, value } => {
+                w.u8(*axis)?;
+                w.u8(*param)?;
+                w.f32(*value)?;
             }
             Response::Nak { req, nak } => {
                 w.u8(*req)?;
@@ -766,6 +747,8 @@ impl Response {
                 w.u32(s.active_id)?;
                 w.u32(s.committed_id)?;
                 w.u32(s.saved_id)?;
+                w.u8(s.boot_slot)?;
+                w.u8(s.boot_reason)?;
                 w.u16(s.upload_rows)?;
                 w.u32(s.ticks)?;
                 w.u32(s.tick_max_ns)?;
@@ -801,6 +784,11 @@ impl Response {
             ty::ACK => Response::Ack {
                 req: r.u8()?,
                 flags: r.u8()?,
+            },
+            ty::PARAM => Response::Param {
+                axis: r.u8()?,
+                param: r.u8()?,
+                value: r.f32()?,
             },
             ty::NAK => Response::Nak {
                 req: r.u8()?,
@@ -859,6 +847,8 @@ impl Response {
                     active_id: r.u32()?,
                     committed_id: r.u32()?,
                     saved_id: r.u32()?,
+                    boot_slot: r.u8()?,
+                    boot_reason: r.u8()?,
                     upload_rows: r.u16()?,
                     ticks: r.u32()?,
                     tick_max_ns: r.u32()?,
@@ -918,7 +908,8 @@ mod tests {
         assert_eq!(NakCode::from_u8(30), Some(NakCode::Refused));
         assert_eq!(NakCode::from_u8(31), Some(NakCode::NotReferenced));
         assert_eq!(NakCode::from_u8(32), Some(NakCode::NoAxis));
-        assert_eq!(NakCode::from_u8(33), None);
+        assert_eq!(NakCode::from_u8(33), Some(NakCode::ReadOnly));
+        assert_eq!(NakCode::from_u8(34), None);
     }
 
     #[test]
@@ -944,6 +935,7 @@ mod tests {
                 value: 2.5,
             },
             Request::SetTelemetry { decimation: 10 },
+            Request::GetParam { axis: 1, param: 14 },
             Request::Save,
         ];
         for q in reqs {
@@ -992,6 +984,11 @@ mod tests {
             .unwrap();
         let rs = [
             Response::Ack { req: 1, flags: 1 },
+            Response::Param {
+                axis: 1,
+                param: 14,
+                value: -0.125,
+            },
             Response::Nak {
                 req: 2,
                 nak: Nak::with(NakCode::TableTooSteep, 4, 1),

@@ -5,6 +5,7 @@
 //! keeps the copies only if that succeeds, so a refused parameter changes nothing.
 
 use super::msg::{Nak, NakCode, ParamId};
+use crate::axis::AxisConfig;
 use crate::follower::FollowerConfig;
 use crate::table::{CamTable, TableLimits};
 use crate::units::{MasterRate, PosUm, VelUmPerS};
@@ -44,7 +45,10 @@ pub fn apply_param_set<const S: usize, const N: usize>(
     records: &[super::ParamRecord],
 ) -> Result<(), Nak> {
     for r in records {
-        if matches!(r.param, ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm) {
+        if matches!(
+            r.param,
+            ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm | ParamId::PeriodUs
+        ) {
             continue;
         }
         assign_param(cfg, lim, r.axis, r.param, r.value)?;
@@ -87,7 +91,9 @@ pub fn apply_saved_set<const S: usize, const N: usize>(
     Ok(())
 }
 
-/// Writes one parameter's value (checked only for its own representable range).
+/// Writes one parameter's value, checked against its range alone ([`ParamId::check`]).
+/// Read-only parameters ([`ParamId::PeriodUs`], [`ParamId::SlaveOffsetUm`]) and the
+/// handler's own ([`ParamId::LinkTimeoutMs`]) are `UnknownParam` here.
 fn assign_param<const S: usize>(
     cfg: &mut FollowerConfig<S>,
     lim: &mut TableLimits<S>,
@@ -95,39 +101,112 @@ fn assign_param<const S: usize>(
     param: ParamId,
     value: f32,
 ) -> Result<(), Nak> {
-    let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
     let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
-    let i = usize::from(axis);
-    if param == ParamId::MasterSpeedPerS {
-        lim.master_speed_per_s = MasterRate::checked_from_num(value).ok_or(range)?;
-        return Ok(());
+    let value = param.check(axis, value)?;
+    let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+    match param {
+        ParamId::MasterSpeedPerS => {
+            lim.master_speed_per_s = MasterRate::checked_from_num(value).ok_or(range)?;
+            return Ok(());
+        }
+        ParamId::MasterFilterHz => {
+            cfg.master_filter.bandwidth_hz = value;
+            return Ok(());
+        }
+        _ => {}
     }
+    let i = usize::from(axis);
     let (Some(a), Some(l)) = (cfg.axes.get_mut(i), lim.axes.get_mut(i)) else {
         return Err(unknown);
     };
     match param {
-        ParamId::KpLsbPerUm => a.gains.kp_lsb_per_um = value,
-        ParamId::KiLsbPerUmS => a.gains.ki_lsb_per_um_s = value,
-        ParamId::KdLsbSPerUm => a.gains.kd_lsb_s_per_um = value,
-        ParamId::KvLsbPerUmS => {
-            a.gains.kv_pos_lsb_per_um_s = value;
-            a.gains.kv_neg_lsb_per_um_s = value;
-        }
-        ParamId::KaLsbPerUmS2 => a.gains.ka_lsb_per_um_s2 = value,
-        ParamId::FollowingErrorUm => a.gains.following_error_um = value,
-        ParamId::ValveNullLsb => a.valve.null_lsb = value,
         ParamId::MinUm => l.min_um = PosUm::checked_from_num(value).ok_or(range)?,
         ParamId::MaxUm => l.max_um = PosUm::checked_from_num(value).ok_or(range)?,
         ParamId::MaxSpeedUmPerS => {
             l.max_speed_um_per_s = VelUmPerS::checked_from_num(value).ok_or(range)?
         }
-        // Not follower parameters: the handler (link timeout) and the device (reference
-        // offset) take them before this function.
-        ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm | ParamId::MasterSpeedPerS => {
-            return Err(unknown)
+        _ => {
+            if !assign_axis(a, param, value) {
+                return Err(unknown);
+            }
         }
     }
     Ok(())
+}
+
+/// Writes a gain or valve calibration field of one axis; `false` if `param` is not one.
+pub(super) fn assign_axis(a: &mut AxisConfig, param: ParamId, value: f32) -> bool {
+    let (g, v) = (&mut a.gains, &mut a.valve);
+    match param {
+        ParamId::KpLsbPerUm => g.kp_lsb_per_um = value,
+        ParamId::KiLsbPerUmS => g.ki_lsb_per_um_s = value,
+        ParamId::KdLsbSPerUm => g.kd_lsb_s_per_um = value,
+        ParamId::IZoneUm => g.i_zone_um = value,
+        ParamId::ILimitLsb => g.i_limit_lsb = value,
+        ParamId::KvPosLsbPerUmS => g.kv_pos_lsb_per_um_s = value,
+        ParamId::KvNegLsbPerUmS => g.kv_neg_lsb_per_um_s = value,
+        ParamId::KaLsbPerUmS2 => g.ka_lsb_per_um_s2 = value,
+        ParamId::ValveLagUs => g.valve_lag_us = value,
+        ParamId::FollowingErrorUm => g.following_error_um = value,
+        ParamId::ValveNullLsb => v.null_lsb = value,
+        ParamId::ValveOverlapPosLsb => v.overlap_pos_lsb = value,
+        ParamId::ValveOverlapNegLsb => v.overlap_neg_lsb = value,
+        ParamId::ValveOverlapZoneLsb => v.overlap_zone_lsb = value,
+        ParamId::ValveGainPos => v.gain_pos = value,
+        ParamId::ValveGainNeg => v.gain_neg = value,
+        ParamId::ValveInvert => v.invert = value != 0.0,
+        // Checked an integer in 1 … 2047 by `ParamId::check`.
+        ParamId::ValveClampLsb => v.clamp_lsb = value as u16,
+        _ => return false,
+    }
+    true
+}
+
+/// The value of `param` of slave `axis` in `cfg` and `lim`, in its unit (what GetParam
+/// answers for every parameter the follower holds; the handler answers
+/// [`ParamId::LinkTimeoutMs`], the device [`ParamId::SlaveOffsetUm`]).
+pub fn read_param<const S: usize>(
+    cfg: &FollowerConfig<S>,
+    lim: &TableLimits<S>,
+    axis: u8,
+    param: ParamId,
+) -> Result<f32, Nak> {
+    let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
+    match param {
+        ParamId::MasterSpeedPerS => return Ok(lim.master_speed_per_s.to_num()),
+        ParamId::MasterFilterHz => return Ok(cfg.master_filter.bandwidth_hz),
+        ParamId::PeriodUs => return Ok(cfg.period_us as f32),
+        _ => {}
+    }
+    let i = usize::from(axis);
+    let (Some(a), Some(l)) = (cfg.axes.get(i), lim.axes.get(i)) else {
+        return Err(unknown);
+    };
+    let (g, v) = (&a.gains, &a.valve);
+    Ok(match param {
+        ParamId::KpLsbPerUm => g.kp_lsb_per_um,
+        ParamId::KiLsbPerUmS => g.ki_lsb_per_um_s,
+        ParamId::KdLsbSPerUm => g.kd_lsb_s_per_um,
+        ParamId::IZoneUm => g.i_zone_um,
+        ParamId::ILimitLsb => g.i_limit_lsb,
+        ParamId::KvPosLsbPerUmS => g.kv_pos_lsb_per_um_s,
+        ParamId::KvNegLsbPerUmS => g.kv_neg_lsb_per_um_s,
+        ParamId::KaLsbPerUmS2 => g.ka_lsb_per_um_s2,
+        ParamId::ValveLagUs => g.valve_lag_us,
+        ParamId::FollowingErrorUm => g.following_error_um,
+        ParamId::ValveNullLsb => v.null_lsb,
+        ParamId::ValveOverlapPosLsb => v.overlap_pos_lsb,
+        ParamId::ValveOverlapNegLsb => v.overlap_neg_lsb,
+        ParamId::ValveOverlapZoneLsb => v.overlap_zone_lsb,
+        ParamId::ValveGainPos => v.gain_pos,
+        ParamId::ValveGainNeg => v.gain_neg,
+        ParamId::ValveInvert => f32::from(u8::from(v.invert)),
+        ParamId::ValveClampLsb => f32::from(v.clamp_lsb),
+        ParamId::MinUm => l.min_um.to_num(),
+        ParamId::MaxUm => l.max_um.to_num(),
+        ParamId::MaxSpeedUmPerS => l.max_speed_um_per_s.to_num(),
+        _ => return Err(unknown),
+    })
 }
 
 /// Validates a configuration as a whole: the master top speed positive; per axis min <
@@ -146,6 +225,9 @@ pub fn validate_params<const S: usize, const N: usize>(
     };
     if lim.master_speed_per_s <= 0 {
         return Err(nak(0, ParamId::MasterSpeedPerS));
+    }
+    if cfg.master_filter.build(cfg.period_us).is_err() {
+        return Err(nak(0, ParamId::MasterFilterHz));
     }
     for (i, (a, l)) in cfg.axes.iter().zip(lim.axes.iter()).enumerate() {
         if l.min_um >= l.max_um {
@@ -190,7 +272,7 @@ mod tests {
         let (mut c, mut l) = setup();
         apply_param(&mut c, &mut l, NONE, 0, ParamId::KpLsbPerUm, 0.5).unwrap();
         assert_eq!(c.axes[0].gains.kp_lsb_per_um, 0.5);
-        apply_param(&mut c, &mut l, NONE, 0, ParamId::KvLsbPerUmS, 0.02).unwrap();
+        apply_param(&mut c, &mut l, NONE, 0, ParamId::KvNegLsbPerUmS, 0.02).unwrap();
         assert_eq!(c.axes[0].gains.kv_neg_lsb_per_um_s, 0.02);
         apply_param(&mut c, &mut l, NONE, 0, ParamId::MasterSpeedPerS, 5000.0).unwrap();
         assert_eq!(l.master_speed_per_s, MasterRate::from_num(5000));

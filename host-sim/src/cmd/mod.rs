@@ -3,6 +3,7 @@
 pub mod contour_estimate;
 pub mod motion;
 pub mod open_loop;
+pub mod param;
 pub mod run;
 pub mod scurve;
 pub mod serial;

@@ -79,8 +79,16 @@ pub fn explain(nak: &Nak) -> String {
         C::TableMasterSpeed => "the board's master top speed is not positive".into(),
         C::UnknownTable => "no committed table with this id".into(),
         C::NotIdle => "only possible while every axis is idle".into(),
-        C::UnknownParam => format!("axis {d}: unknown parameter {d2}"),
-        C::ParamRange => format!("axis {d}: parameter {d2} out of its range"),
+        C::UnknownParam => format!("{}: not a parameter of this board", param_path(d, d2)),
+        C::ParamRange => format!(
+            "{}: outside its range, or invalid with the other settings and the active table \
+             (see `param list`)",
+            param_path(d, d2)
+        ),
+        C::ReadOnly => format!(
+            "{}: read-only (the board sets it itself)",
+            param_path(d, d2)
+        ),
         C::NothingToSave => "no active table to save".into(),
         C::Flash => "the flash erase, write or verify failed".into(),
         C::Refused if d == 0 => {
@@ -88,6 +96,15 @@ pub fn explain(nak: &Nak) -> String {
         }
         C::Refused => "the board was not at a safe point".into(),
         c => format!("{c:?}"),
+    }
+}
+
+/// The settings path a Nak's (axis, parameter id) details name.
+fn param_path(axis: u16, id: u8) -> String {
+    use hydra_core::protocol::settings::{ParamId, ParamPath};
+    match (ParamId::from_u8(id), u8::try_from(axis)) {
+        (Some(id), Ok(axis)) => ParamPath { id, axis }.to_string(),
+        _ => format!("axis {axis}, parameter id {id}"),
     }
 }
 

@@ -57,6 +57,11 @@ pub struct Report {
     pub committed_id: Option<u32>,
     /// Table id in flash.
     pub saved_id: Option<u32>,
+    /// The flash slot the board booted (none: it booted without a saved table).
+    pub boot_slot: Option<u8>,
+    /// Why (`newest`, `fallback_unreadable`, `fallback_settings`, `fallback_table`,
+    /// `no_save`, `none_bootable`; [`boot_words`] says it in words).
+    pub boot_reason: String,
     /// The running table has ended.
     pub end_of_table: bool,
     /// An activation waits for a safe point.
@@ -103,6 +108,8 @@ pub fn report(s: &StatusMsg) -> Report {
         active_id: id(s.active_id),
         committed_id: id(s.committed_id),
         saved_id: id(s.saved_id),
+        boot_slot: (s.boot_slot != 0xFF).then_some(s.boot_slot),
+        boot_reason: boot_name(s.boot_reason).to_string(),
         end_of_table: s.flags & 1 != 0,
         activation_pending: s.flags & 2 != 0,
         ticks: s.ticks,
@@ -120,6 +127,37 @@ pub fn report(s: &StatusMsg) -> Report {
             })
             .collect(),
     }
+}
+
+/// The JSON name of a `Status.boot_reason` code.
+fn boot_name(code: u8) -> &'static str {
+    use hydra_core::protocol::BootReason as B;
+    match B::from_u8(code) {
+        Some(B::NoSave) => "no_save",
+        Some(B::Newest) => "newest",
+        Some(B::FallbackUnreadable) => "fallback_unreadable",
+        Some(B::FallbackSettings) => "fallback_settings",
+        Some(B::FallbackTable) => "fallback_table",
+        Some(B::NoneBootable) => "none_bootable",
+        None => "unknown",
+    }
+}
+
+/// What the board booted, in words.
+pub fn boot_words(r: &Report) -> String {
+    let slot = r
+        .boot_slot
+        .map_or_else(String::new, |s| format!("slot {s}: "));
+    let why = match r.boot_reason.as_str() {
+        "no_save" => "nothing saved, boot configuration",
+        "newest" => "the last save (table and settings)",
+        "fallback_unreadable" => "the save before the last (the last one did not read back)",
+        "fallback_settings" => "the save before the last (the last one's settings were refused)",
+        "fallback_table" => "the save before the last (the last one's table breaks its rules)",
+        "none_bootable" => "no save could boot, boot configuration",
+        _ => "unknown reason",
+    };
+    format!("{slot}{why}")
 }
 
 /// Asks for the status.
@@ -175,6 +213,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             ""
         }
     );
+    println!("boot         {}", boot_words(&r));
     println!(
         "tick         max {:.1} µs, mean {:.1} µs, {} overruns, {} ticks",
         r.tick_max_us, r.tick_mean_us, r.overruns, r.ticks
@@ -203,6 +242,8 @@ mod tests {
             active_id: 7,
             committed_id: NO_TABLE,
             saved_id: NO_TABLE,
+            boot_slot: 1,
+            boot_reason: 4,
             upload_rows: 0,
             ticks: 10,
             tick_max_ns: 0,
@@ -222,6 +263,11 @@ mod tests {
         assert_eq!(r.fault_axis, Some(1));
         assert!(r.unreferenced && !r.link_lost && !r.pressure_stale);
         assert_eq!((r.active_id, r.committed_id), (Some(7), None));
+        assert_eq!(
+            (r.boot_slot, r.boot_reason.as_str()),
+            (Some(1), "fallback_table")
+        );
+        assert!(boot_words(&r).starts_with("slot 1: the save before the last"));
         assert!((r.axes[0].pos_mm - 1.0).abs() < 1e-12);
         s.fault_code = 0;
         assert_eq!(report(&s).fault_name, None);

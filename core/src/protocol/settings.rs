@@ -1,0 +1,520 @@
+//! The settings tree: every parameter a board holds, by path, with its unit and range.
+//!
+//! A path is made of the field names core and the scenario files use:
+//! `axis/<n>/<gain>` for the position loop ([`crate::axis::PositionGains`]),
+//! `axis/<n>/valve/<field>` for the valve calibration ([`crate::valve::ValveCal`]),
+//! `axis/<n>/limits/<field>` for the table limits ([`crate::table::AxisLimits`]),
+//! `axis/<n>/reference_offset_um` for an absolute slave's reference, and board-wide
+//! `limits/master_speed_per_s`, `master/filter_bandwidth_hz`, `link/timeout_ms` and
+//! `period_us`. `<n>` is the 0-based slave.
+//!
+//! On the wire and on flash a parameter is its stable [`ParamId`] byte and an `f32` value
+//! in the unit named (a boolean is 0 or 1, a count an integer): the id of a path never
+//! changes when parameters are added, so a saved setting keeps its meaning across
+//! firmware versions, and a record is 6 bytes. (`miniconf` — stabilizer's settings
+//! tree — keys a leaf by its position in the tree, which moves when a field is added,
+//! or by its path string, 20–35 bytes here; and its leaves are struct fields, while a
+//! board validates the settings as one set together with the tables, see
+//! [`super::params::validate_params`]. This table is the one description of the tree
+//! for the board, the host and the documentation.)
+//!
+//! The range here is what SetParam accepts for the value alone; the set as a whole is
+//! then validated (`min_um < max_um`, the axis' law at the board's period, the master
+//! filter below 0.2/T, the active table within the limits).
+
+use super::msg::{Nak, NakCode};
+use core::fmt;
+
+/// Settable parameters (`SetParam.param`, `GetParam.param`). Values are `f32` in the
+/// unit of [`ParamId::info`]; the byte is stable.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum ParamId {
+    /// Proportional gain, DAC LSB per µm.
+    KpLsbPerUm = 1,
+    /// Integral gain, DAC LSB per (µm·s).
+    KiLsbPerUmS = 2,
+    /// Derivative gain, DAC LSB per (µm/s).
+    KdLsbSPerUm = 3,
+    /// Velocity feed-forward for extending (positive) target speed, LSB per (µm/s).
+    KvPosLsbPerUmS = 4,
+    /// Acceleration feed-forward, LSB per (µm/s²).
+    KaLsbPerUmS2 = 5,
+    /// Following-error fault limit, µm.
+    FollowingErrorUm = 6,
+    /// Table validation: lowest position, µm.
+    MinUm = 7,
+    /// Table validation: highest position, µm.
+    MaxUm = 8,
+    /// Table validation: axis top speed, µm/s.
+    MaxSpeedUmPerS = 9,
+    /// Table validation: fastest master speed, master counts/s (axis byte ignored).
+    MasterSpeedPerS = 10,
+    /// Valve calibration: null offset, DAC LSB.
+    ValveNullLsb = 11,
+    /// Host-link watchdog, ms (axis byte ignored): while following after a Start from
+    /// the link, no valid frame for this long holds the axes. 0 = off (the default; 10 …
+    /// 60 000 otherwise). Kept by the protocol handler, not the device.
+    LinkTimeoutMs = 12,
+    /// Reference offset of an absolute slave, µm (|x| ≤ 8 000 000): written by the
+    /// handler when a set-position on an absolute axis succeeds, so Save persists it and
+    /// boot restores it (`runtime::reference`). Read-only for SetParam.
+    SlaveOffsetUm = 13,
+    /// Velocity feed-forward for retracting (negative) target speed, LSB per (µm/s).
+    KvNegLsbPerUmS = 14,
+    /// Integral separation zone, µm.
+    IZoneUm = 15,
+    /// Integrator clamp, DAC LSB.
+    ILimitLsb = 16,
+    /// Valve response delay the feed-forward is aimed at, µs.
+    ValveLagUs = 17,
+    /// Valve calibration: deadband compensation for positive commands, LSB.
+    ValveOverlapPosLsb = 18,
+    /// Valve calibration: deadband compensation for negative commands, LSB.
+    ValveOverlapNegLsb = 19,
+    /// Valve calibration: width of the linear zone around zero, LSB.
+    ValveOverlapZoneLsb = 20,
+    /// Valve calibration: gain for positive commands (ratio).
+    ValveGainPos = 21,
+    /// Valve calibration: gain for negative commands (ratio).
+    ValveGainNeg = 22,
+    /// Valve calibration: 1 if a positive code retracts the axis, else 0.
+    ValveInvert = 23,
+    /// Valve calibration: largest |code| ever output, LSB (integer).
+    ValveClampLsb = 24,
+    /// Master tracking filter bandwidth, Hz (axis byte ignored).
+    MasterFilterHz = 25,
+    /// The control period, µs (axis byte ignored; read-only: the firmware's tick).
+    PeriodUs = 26,
+}
+
+/// Whether a parameter belongs to each slave or to the board.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scope {
+    /// One value per slave: `axis/<n>/…`.
+    Axis,
+    /// One value for the board (the axis byte is ignored and sent as 0).
+    Board,
+}
+
+/// One parameter of the tree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamInfo {
+    /// Its id.
+    pub id: ParamId,
+    /// Per slave or board-wide.
+    pub scope: Scope,
+    /// The path after `axis/<n>/` (per slave) or the whole path (board-wide).
+    pub path: &'static str,
+    /// Unit of the value.
+    pub unit: &'static str,
+    /// Smallest value accepted (inclusive).
+    pub min: f32,
+    /// Largest value accepted (inclusive).
+    pub max: f32,
+    /// Only integers are accepted (booleans are 0 or 1).
+    pub integer: bool,
+    /// SetParam refuses it ([`NakCode::ReadOnly`]): the board sets it itself.
+    pub read_only: bool,
+}
+
+const fn p(
+    id: ParamId,
+    scope: Scope,
+    path: &'static str,
+    unit: &'static str,
+    min: f32,
+    max: f32,
+) -> ParamInfo {
+    ParamInfo {
+        id,
+        scope,
+        path,
+        unit,
+        min,
+        max,
+        integer: false,
+        read_only: false,
+    }
+}
+
+const fn int(i: ParamInfo) -> ParamInfo {
+    ParamInfo { integer: true, ..i }
+}
+
+const fn ro(i: ParamInfo) -> ParamInfo {
+    ParamInfo {
+        read_only: true,
+        ..i
+    }
+}
+
+use ParamId as P;
+use Scope::{Axis as A, Board as B};
+
+/// Every parameter, in the order `param list` prints them (per-slave ones first).
+pub const PARAMS: [ParamInfo; ParamId::COUNT] = [
+    p(P::KpLsbPerUm, A, "kp_lsb_per_um", "LSB/µm", 0.0, 1000.0),
+    p(P::KiLsbPerUmS, A, "ki_lsb_per_um_s", "LSB/(µm·s)", 0.0, 1e5),
+    p(P::KdLsbSPerUm, A, "kd_lsb_s_per_um", "LSB·s/µm", 0.0, 10.0),
+    p(P::IZoneUm, A, "i_zone_um", "µm", 1e-3, 1e6),
+    p(P::ILimitLsb, A, "i_limit_lsb", "LSB", 0.0, 2047.0),
+    p(
+        P::KvPosLsbPerUmS,
+        A,
+        "kv_pos_lsb_per_um_s",
+        "LSB·s/µm",
+        0.0,
+        100.0,
+    ),
+    p(
+        P::KvNegLsbPerUmS,
+        A,
+        "kv_neg_lsb_per_um_s",
+        "LSB·s/µm",
+        0.0,
+        100.0,
+    ),
+    p(
+        P::KaLsbPerUmS2,
+        A,
+        "ka_lsb_per_um_s2",
+        "LSB·s²/µm",
+        0.0,
+        0.4,
+    ),
+    p(P::ValveLagUs, A, "valve_lag_us", "µs", 0.0, 100_000.0),
+    p(
+        P::FollowingErrorUm,
+        A,
+        "following_error_um",
+        "µm",
+        1e-3,
+        1e6,
+    ),
+    p(P::ValveNullLsb, A, "valve/null_lsb", "LSB", -500.0, 500.0),
+    p(
+        P::ValveOverlapPosLsb,
+        A,
+        "valve/overlap_pos_lsb",
+        "LSB",
+        0.0,
+        1000.0,
+    ),
+    p(
+        P::ValveOverlapNegLsb,
+        A,
+        "valve/overlap_neg_lsb",
+        "LSB",
+        0.0,
+        1000.0,
+    ),
+    p(
+        P::ValveOverlapZoneLsb,
+        A,
+        "valve/overlap_zone_lsb",
+        "LSB",
+        1e-3,
+        1000.0,
+    ),
+    p(P::ValveGainPos, A, "valve/gain_pos", "ratio", 0.1, 10.0),
+    p(P::ValveGainNeg, A, "valve/gain_neg", "ratio", 0.1, 10.0),
+    int(p(P::ValveInvert, A, "valve/invert", "bool", 0.0, 1.0)),
+    int(p(
+        P::ValveClampLsb,
+        A,
+        "valve/clamp_lsb",
+        "LSB",
+        1.0,
+        2047.0,
+    )),
+    p(P::MinUm, A, "limits/min_um", "µm", -8.0e6, 8.0e6),
+    p(P::MaxUm, A, "limits/max_um", "µm", -8.0e6, 8.0e6),
+    p(
+        P::MaxSpeedUmPerS,
+        A,
+        "limits/max_speed_um_per_s",
+        "µm/s",
+        1e-3,
+        8.0e6,
+    ),
+    ro(p(
+        P::SlaveOffsetUm,
+        A,
+        "reference_offset_um",
+        "µm",
+        -8.0e6,
+        8.0e6,
+    )),
+    p(
+        P::MasterSpeedPerS,
+        B,
+        "limits/master_speed_per_s",
+        "counts/s",
+        1e-3,
+        1e9,
+    ),
+    p(
+        P::MasterFilterHz,
+        B,
+        "master/filter_bandwidth_hz",
+        "Hz",
+        0.1,
+        4000.0,
+    ),
+    int(p(
+        P::LinkTimeoutMs,
+        B,
+        "link/timeout_ms",
+        "ms",
+        0.0,
+        60_000.0,
+    )),
+    ro(int(p(P::PeriodUs, B, "period_us", "µs", 50.0, 1e6))),
+];
+
+impl ParamId {
+    /// Number of parameter ids.
+    pub const COUNT: usize = 26;
+
+    /// From the wire byte.
+    pub fn from_u8(b: u8) -> Option<Self> {
+        PARAMS.iter().map(|i| i.id).find(|c| *c as u8 == b)
+    }
+
+    /// Its path, unit and range.
+    pub fn info(self) -> &'static ParamInfo {
+        // Every id is in PARAMS (a unit test checks it); the fallback is never taken.
+        const FALLBACK: &ParamInfo = &ro(p(P::PeriodUs, B, "period_us", "µs", 50.0, 1e6));
+        PARAMS.iter().find(|i| i.id == self).unwrap_or(FALLBACK)
+    }
+
+    /// Checks `value` against the range alone: finite, within `min … max`, an integer
+    /// where one is needed. Error: `ParamRange` naming `axis` and the parameter.
+    pub fn check(self, axis: u8, value: f32) -> Result<f32, Nak> {
+        let i = self.info();
+        let whole = !i.integer || value == libm::roundf(value);
+        if value.is_finite() && value >= i.min && value <= i.max && whole {
+            Ok(value)
+        } else {
+            Err(Nak::with(NakCode::ParamRange, u16::from(axis), self as u8))
+        }
+    }
+}
+
+/// Why a path names no parameter of this board.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathError {
+    /// No parameter has this name.
+    Unknown,
+    /// `axis/<n>/…` with `<n>` not a slave of the board (the board's slave count).
+    NoAxis(u8),
+}
+
+impl fmt::Display for PathError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PathError::Unknown => f.write_str("no parameter has this path"),
+            PathError::NoAxis(n) => write!(
+                f,
+                "the board has {n} slave(s): axis/0 … axis/{}",
+                n.saturating_sub(1)
+            ),
+        }
+    }
+}
+
+/// The parameter and slave a path names on a board of `axes` slaves (board-wide
+/// parameters: slave 0).
+pub fn parse_path(path: &str, axes: u8) -> Result<(u8, ParamId), PathError> {
+    let path = path.trim_matches('/');
+    if let Some(rest) = path.strip_prefix("axis/") {
+        let (n, name) = rest.split_once('/').ok_or(PathError::Unknown)?;
+        let n: u8 = n.parse().map_err(|_| PathError::Unknown)?;
+        let i = PARAMS
+            .iter()
+            .find(|i| i.scope == Scope::Axis && i.path == name)
+            .ok_or(PathError::Unknown)?;
+        if n >= axes {
+            return Err(PathError::NoAxis(axes));
+        }
+        return Ok((n, i.id));
+    }
+    PARAMS
+        .iter()
+        .find(|i| i.scope == Scope::Board && i.path == path)
+        .map(|i| (0, i.id))
+        .ok_or(PathError::Unknown)
+}
+
+/// A parameter's path on slave `axis` (`Display`: `axis/1/valve/null_lsb`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParamPath {
+    /// The parameter.
+    pub id: ParamId,
+    /// The slave (ignored for a board-wide parameter).
+    pub axis: u8,
+}
+
+impl fmt::Display for ParamPath {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let i = self.id.info();
+        match i.scope {
+            Scope::Axis => write!(f, "axis/{}/{}", self.axis, i.path),
+            Scope::Board => f.write_str(i.path),
+        }
+    }
+}
+
+/// Every `(axis, parameter)` of a board of `axes` slaves: slave 0's parameters in
+/// [`PARAMS`] order, then slave 1's, …, then the board-wide ones.
+pub fn all_paths(axes: u8) -> impl Iterator<Item = ParamPath> {
+    let of = |scope| PARAMS.iter().filter(move |i| i.scope == scope);
+    let per_axis =
+        (0..axes).flat_map(move |axis| of(Scope::Axis).map(move |i| ParamPath { id: i.id, axis }));
+    per_axis.chain(of(Scope::Board).map(|i| ParamPath { id: i.id, axis: 0 }))
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::string::ToString;
+
+    #[test]
+    fn every_id_is_described_once_and_its_path_parses_back() {
+        for b in 0..=u8::MAX {
+            let n = PARAMS.iter().filter(|i| i.id as u8 == b).count();
+            assert!(n <= 1, "id {b} described {n} times");
+            if let Some(id) = ParamId::from_u8(b) {
+                assert_eq!(id.info().id, id);
+            }
+        }
+        assert_eq!(all_paths(2).count(), 22 * 2 + 4);
+        for pp in all_paths(3) {
+            let s = pp.to_string();
+            let (axis, id) = parse_path(&s, 3).unwrap();
+            assert_eq!(id, pp.id, "{s}");
+            if pp.id.info().scope == Scope::Axis {
+                assert_eq!(axis, pp.axis, "{s}");
+            }
+            assert!(parse_path(&s.to_uppercase(), 3).is_err() || !s.contains('_'));
+        }
+        let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
+        paths.sort();
+        paths.dedup();
+        assert_eq!(paths.len(), 48, "two parameters share a path");
+    }
+
+    #[test]
+    fn a_bad_path_is_named_as_such() {
+        assert_eq!(
+            parse_path("axis/0/kp_lsb_per_um", 2),
+            Ok((0, ParamId::KpLsbPerUm))
+        );
+        assert_eq!(
+            parse_path("/limits/master_speed_per_s", 2),
+            Ok((0, ParamId::MasterSpeedPerS))
+        );
+        assert_eq!(
+            parse_path("axis/2/kp_lsb_per_um", 2),
+            Err(PathError::NoAxis(2))
+        );
+        assert_eq!(
+            parse_path("axis/x/kp_lsb_per_um", 2),
+            Err(PathError::Unknown)
+        );
+        assert_eq!(parse_path("axis/0/kp", 2), Err(PathError::Unknown));
+        assert_eq!(parse_path("kp_lsb_per_um", 2), Err(PathError::Unknown));
+        assert_eq!(parse_path("axis/0", 2), Err(PathError::Unknown));
+        assert_eq!(parse_path("", 2), Err(PathError::Unknown));
+        assert_eq!(parse_path("axis/0/period_us", 2), Err(PathError::Unknown));
+    }
+
+    #[test]
+    fn values_are_checked_against_the_range_alone() {
+        let k = ParamId::KpLsbPerUm;
+        assert_eq!(k.check(1, 1000.0), Ok(1000.0));
+        let e = Err(Nak::with(NakCode::ParamRange, 1, k as u8));
+        assert_eq!(k.check(1, 1000.1), e);
+        assert_eq!(k.check(1, -0.0001), e);
+        assert_eq!(k.check(1, f32::NAN), e);
+        assert_eq!(k.check(1, f32::INFINITY), e);
+        let c = ParamId::ValveClampLsb;
+        assert!(c.check(0, 2047.0).is_ok());
+        assert!(c.check(0, 2046.5).is_err());
+        assert!(c.check(0, 0.0).is_err());
+        assert!(ParamId::ValveInvert.check(0, 0.5).is_err());
+        assert!(ParamId::ValveInvert.check(0, 1.0).is_ok());
+    }
+
+    /// The ranges here are the builders' own: each bound is accepted by the struct's
+    /// validation and a value just outside it refused (so this table cannot drift from
+    /// the code that enforces it).
+    #[test]
+    fn the_ranges_are_the_builders_ranges() {
+        use crate::axis::AxisConfig;
+        use crate::master::MasterFilterConfig;
+        let gains = [
+            P::KpLsbPerUm,
+            P::KiLsbPerUmS,
+            P::KdLsbSPerUm,
+            P::IZoneUm,
+            P::ILimitLsb,
+            P::KvPosLsbPerUmS,
+            P::KvNegLsbPerUmS,
+            P::KaLsbPerUmS2,
+            P::ValveLagUs,
+            P::FollowingErrorUm,
+            P::ValveNullLsb,
+            P::ValveOverlapPosLsb,
+            P::ValveOverlapNegLsb,
+            P::ValveOverlapZoneLsb,
+            P::ValveGainPos,
+            P::ValveGainNeg,
+            P::ValveClampLsb,
+        ];
+        for id in gains {
+            let i = id.info();
+            for (v, ok) in [
+                (i.min, true),
+                (i.max, true),
+                (i.min - i.min.abs().max(1e-3) * 0.01, false),
+                (i.max + i.max.abs() * 0.01, false),
+            ] {
+                let mut a = AxisConfig::default();
+                if id == P::ValveClampLsb {
+                    a.valve.clamp_lsb = v as u16;
+                    if !ok && v < 1.0 {
+                        a.valve.clamp_lsb = 0;
+                    }
+                } else {
+                    assert!(super::super::params::assign_axis(&mut a, id, v));
+                }
+                // Ki at its top needs a narrow zone to stay inside the integrator format.
+                if id == P::KiLsbPerUmS {
+                    a.gains.i_zone_um = 1.0;
+                }
+                assert_eq!(a.build(1000).is_ok(), ok, "{} = {v}", i.path);
+            }
+        }
+        let f = P::MasterFilterHz.info();
+        assert!(MasterFilterConfig {
+            bandwidth_hz: f.min
+        }
+        .build(50)
+        .is_ok());
+        assert!(MasterFilterConfig {
+            bandwidth_hz: f.max
+        }
+        .build(50)
+        .is_ok());
+        assert!(MasterFilterConfig {
+            bandwidth_hz: f.max * 1.01
+        }
+        .build(50)
+        .is_err());
+        assert!(MasterFilterConfig { bandwidth_hz: 0.09 }.build(50).is_err());
+    }
+}
