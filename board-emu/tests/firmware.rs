@@ -102,6 +102,24 @@ fn follow_after_reboot(table: host_sim::camfile::CamCsv, id: u32) -> (f64, f64, 
         Response::Info(i) => assert_eq!(i.active_id, id),
         r => panic!("{r:?}"),
     }
+    // The board says which slot booted and why: the last save.
+    let st = s.status().expect("status");
+    assert!(st.boot_slot < 2, "booted slot {}", st.boot_slot);
+    assert_eq!(
+        st.boot_reason,
+        hydra_core::protocol::BootReason::Newest as u8
+    );
+    // Every path of the settings tree reads back from the firmware.
+    for pp in hydra_core::protocol::settings::all_paths(2) {
+        let q = Request::GetParam {
+            axis: pp.axis,
+            param: pp.id as u8,
+        };
+        match s.host.request(&mut s.m, &q).expect("GetParam") {
+            Response::Param { value, .. } => assert!(value.is_finite(), "{pp}"),
+            r => panic!("{pp}: {r:?}"),
+        }
+    }
     s.reference_and_start().expect("start");
     s.m.run_for(scn.duration_s().expect("duration"))
         .expect("follow");
@@ -276,6 +294,14 @@ fn a_power_cut_at_twenty_points_of_a_save_always_boots_a_valid_table() {
             id == 1 || id == 2,
             "cut {k} at {dt} cycles: booted table {id:#x}; {:?}",
             log(&s)
+        );
+        // A cut save never reads as complete: what booted is the newest complete one.
+        let st = s.status().expect("status");
+        assert!(st.boot_slot < 2, "cut {k}: booted slot {}", st.boot_slot);
+        assert_eq!(
+            st.boot_reason,
+            hydra_core::protocol::BootReason::Newest as u8,
+            "cut {k}"
         );
         booted[(id - 1) as usize] += 1;
         assert_stack(&s);

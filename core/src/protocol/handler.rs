@@ -96,11 +96,12 @@ pub trait Device<const S: usize, const N: usize> {
     fn get_param(&self, axis: u8, param: ParamId) -> Result<f32, Nak>;
     /// Applies a saved set of parameters at boot, **as one validated set**: all of them,
     /// or none ([`super::params::apply_param_set`]: the order they were first set in does
-    /// not matter). Only called while no table is installed. The default sets them one
+    /// not matter; [`ParamId::LinkTimeoutMs`] is the handler's and is skipped). Only
+    /// called while no table is installed. The default sets them one
     /// by one and stops at the first refusal — the handler then undoes everything with
     /// [`Device::reset_params`] — which is order-dependent: a device overrides it.
     fn set_params(&mut self, records: &[super::ParamRecord]) -> Result<(), Nak> {
-        for r in records {
+        for r in records.iter().filter(|r| r.param != ParamId::LinkTimeoutMs) {
             self.set_param(r.axis, r.param, r.value)?;
         }
         Ok(())
@@ -118,6 +119,21 @@ pub trait Device<const S: usize, const N: usize> {
     fn persisted_offset_um(&self, _axis: u8) -> Option<f32> {
         None
     }
+}
+
+/// A host-link timeout from its SetParam value: 0 (off) or 10 … 60 000 ms, else
+/// `ParamRange` naming [`ParamId::LinkTimeoutMs`].
+fn link_timeout_ms(value: f32) -> Result<u32, Nak> {
+    let ok = value == 0.0 || (10.0..=60_000.0).contains(&value);
+    if !ok || !value.is_finite() {
+        return Err(Nak::with(
+            NakCode::ParamRange,
+            0,
+            ParamId::LinkTimeoutMs as u8,
+        ));
+    }
+    // In range: the cast is exact for whole ms and truncates a fraction.
+    Ok(value as u32)
 }
 
 /// Why the board booted what it booted (`Status.boot_reason`).
@@ -290,16 +306,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     }
 
     fn set_link_timeout(&mut self, value: f32) -> Result<(), Nak> {
-        let ok = value == 0.0 || (10.0..=60_000.0).contains(&value);
-        if !ok || !value.is_finite() {
-            return Err(Nak::with(
-                NakCode::ParamRange,
-                0,
-                ParamId::LinkTimeoutMs as u8,
-            ));
-        }
-        // In range: the cast is exact for whole ms and truncates a fraction.
-        self.link.timeout_ms = value as u32;
+        self.link.timeout_ms = link_timeout_ms(value)?;
         Ok(())
     }
 
@@ -342,7 +349,6 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         flash: &mut F,
         invalid: &mut [bool; 2],
     ) -> Option<SlotHeader> {
-        let mut params = ParamOverrides::new();
         let slots = self.store.newest_first::<F, S, N>(flash);
         for h in slots.iter().flatten() {
             if let Some(v) = invalid.get_mut(usize::from(h.slot)) {
@@ -354,39 +360,39 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         self.boot_slot = None;
         self.boot_reason = BootReason::NoSave;
         for h in slots.into_iter().flatten() {
+            // The slot's records go straight into the handler's own set (what the next
+            // Save stores): no copy of them on the stack.
             if self
                 .store
-                .read_slot(flash, h.slot, &mut self.staging, &mut params)
+                .read_slot(flash, h.slot, &mut self.staging, &mut self.overrides)
                 .is_none()
             {
                 if let Some(v) = invalid.get_mut(usize::from(h.slot)) {
                     *v = true;
                 }
+                self.overrides.clear();
                 refused.get_or_insert(BootReason::FallbackUnreadable);
                 continue;
             }
             self.boot_reason = BootReason::NoneBootable;
             // The slot's settings as one set: all apply, or the slot is refused like a
-            // table that fails its rules (the older slot is tried).
-            let mut set: Vec<super::ParamRecord, { super::overrides::MAX_RECORDS }> = Vec::new();
-            let mut link_ok = true;
-            for r in params.iter() {
+            // table that fails its rules (the older slot is tried). The link timeout is
+            // the handler's (at most one record); the device skips it.
+            let mut timeout = Ok(0);
+            for r in self.overrides.iter() {
                 if r.param == ParamId::LinkTimeoutMs {
-                    link_ok &= self.set_link_timeout(r.value).is_ok();
-                } else if set.push(*r).is_err() {
-                    link_ok = false;
+                    timeout = link_timeout_ms(r.value);
                 }
             }
-            if !link_ok || dev.set_params(&set).is_err() {
+            let ok = timeout.is_ok() && dev.set_params(self.overrides.as_slice()).is_ok();
+            if !ok {
                 dev.reset_params().ok()?;
                 self.overrides.clear();
                 self.link.timeout_ms = 0;
                 refused.get_or_insert(BootReason::FallbackSettings);
                 continue;
             }
-            for r in params.iter() {
-                self.overrides.record(r.axis, r.param, r.value);
-            }
+            self.link.timeout_ms = timeout.unwrap_or(0);
             // Built in place in the committed table's buffer (nothing is committed at boot).
             self.committed_id = None;
             let t = self

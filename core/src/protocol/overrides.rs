@@ -78,6 +78,11 @@ impl ParamOverrides {
     }
 
     /// The records, in the order first set.
+    pub fn as_slice(&self) -> &[ParamRecord] {
+        &self.recs
+    }
+
+    /// The records, in the order first set.
     pub fn iter(&self) -> impl Iterator<Item = &ParamRecord> {
         self.recs.iter()
     }

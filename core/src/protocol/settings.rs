@@ -153,8 +153,10 @@ const fn ro(i: ParamInfo) -> ParamInfo {
 use ParamId as P;
 use Scope::{Axis as A, Board as B};
 
-/// Every parameter, in the order `param list` prints them (per-slave ones first).
-pub const PARAMS: [ParamInfo; ParamId::COUNT] = [
+/// Every parameter, in the order `param list` prints them (per-slave ones first). A
+/// `static`, not a `const`: a `const` array would be copied onto the stack (1.2 KiB) at
+/// every lookup.
+pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
     p(P::KpLsbPerUm, A, "kp_lsb_per_um", "LSB/µm", 0.0, 1000.0),
     p(P::KiLsbPerUmS, A, "ki_lsb_per_um_s", "LSB/(µm·s)", 0.0, 1e5),
     p(P::KdLsbSPerUm, A, "kd_lsb_s_per_um", "LSB·s/µm", 0.0, 10.0),
