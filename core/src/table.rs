@@ -118,8 +118,7 @@ impl core::fmt::Display for TableError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for TableError {}
+impl core::error::Error for TableError {}
 
 /// One segment, precomputed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -11,7 +11,6 @@
 //! must be a finite number; every row has as many fields as the header. A bad file is a
 //! [`TableError`] naming the file, the line (1-based) and what is wrong.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// A problem with a cam-table CSV file.
@@ -265,20 +264,19 @@ impl CamCsv {
 
     /// The CSV text (6 decimals: 1 nm, 1 µdeg).
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("master");
-        for a in &self.axes {
-            s.push(',');
-            s.push_str(a);
-        }
-        s.push('\n');
+        let header = std::iter::once("master").chain(self.axes.iter().map(String::as_str));
+        let Ok(mut o) = crate::csvout::CsvOut::new(Vec::new(), header) else {
+            return String::new();
+        };
         for (i, m) in self.master.iter().enumerate() {
-            let _ = write!(s, "{m:.6}");
-            for c in &self.columns {
-                let _ = write!(s, ",{:.6}", c[i]);
+            let cols = self.columns.iter().map(|c| format!("{:.6}", c[i]));
+            if o.row(std::iter::once(format!("{m:.6}")).chain(cols))
+                .is_err()
+            {
+                return String::new();
             }
-            s.push('\n');
         }
-        s
+        o.text()
     }
 }
 

@@ -7,6 +7,7 @@ pub mod autotune;
 pub mod camfile;
 pub mod cmd;
 pub mod contour_truth;
+pub mod csvout;
 pub mod die;
 pub mod machine;
 pub mod plant;

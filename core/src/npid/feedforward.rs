@@ -82,8 +82,7 @@ pub enum FfError {
     FrictionSpeed,
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for FfError {}
+impl core::error::Error for FfError {}
 
 impl core::fmt::Display for FfError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {

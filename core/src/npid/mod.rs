@@ -121,8 +121,7 @@ pub enum NpidError {
     OutputLimit,
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for NpidError {}
+impl core::error::Error for NpidError {}
 
 impl core::fmt::Display for NpidError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {

@@ -327,6 +327,8 @@ impl fmt::Display for PathError {
     }
 }
 
+impl core::error::Error for PathError {}
+
 /// The parameter and slave a path names on a board of `axes` slaves (board-wide
 /// parameters: slave 0).
 pub fn parse_path(path: &str, axes: u8) -> Result<(u8, ParamId), PathError> {

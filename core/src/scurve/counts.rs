@@ -38,8 +38,7 @@ impl core::fmt::Display for CountsError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for CountsError {}
+impl core::error::Error for CountsError {}
 
 /// An encoder's scale: counts per `PosUm` LSB, Q16.48.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

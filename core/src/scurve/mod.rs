@@ -72,5 +72,4 @@ impl core::fmt::Display for ScurveError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for ScurveError {}
+impl core::error::Error for ScurveError {}

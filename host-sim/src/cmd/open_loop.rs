@@ -15,7 +15,6 @@ use crate::camfile::{csv_records, line_error, CsvRecords, TableError};
 use crate::plant::HydraulicAxis;
 use crate::scenario::Scenario;
 use anyhow::Context as _;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `host-sim open-loop`.
@@ -175,15 +174,19 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let cmd = parse_command(&text, &args.command_csv)?;
     let mut axis = axis_cfg.plant(scenario.supply(), x0 * 1e-3);
     let samples = simulate(&mut axis, &cmd, scenario.step_s(), 1e-3);
-    let mut s = String::from("t,x_mm,v_mm_s,pA_bar,pB_bar,spool\n");
+    let header = ["t", "x_mm", "v_mm_s", "pA_bar", "pB_bar", "spool"];
+    let mut o = crate::csvout::CsvOut::new(Vec::new(), header)?;
     for r in &samples {
-        let _ = writeln!(
-            s,
-            "{:.4},{:.6},{:.6},{:.5},{:.5},{:.6}",
-            r.t, r.x_mm, r.v_mm_s, r.pa_bar, r.pb_bar, r.spool
-        );
+        o.row([
+            format!("{:.4}", r.t),
+            format!("{:.6}", r.x_mm),
+            format!("{:.6}", r.v_mm_s),
+            format!("{:.5}", r.pa_bar),
+            format!("{:.5}", r.pb_bar),
+            format!("{:.6}", r.spool),
+        ])?;
     }
-    std::fs::write(&args.csv, s).with_context(|| format!("writing {}", args.csv.display()))?;
+    crate::csvout::save(&args.csv, &o.text())?;
     eprintln!(
         "open-loop: axis `{}`, {} rows of command, {:.3} s simulated, {} samples → {}",
         axis_cfg.name,

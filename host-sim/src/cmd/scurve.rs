@@ -198,11 +198,9 @@ fn write_line<const N: usize>(
     // Leader LSB (1/256 µm) → path mm.
     let to_path_mm = mv.path_per_leader() / 256_000.0;
 
-    let mut header = String::from("t,pos,vel,acc");
-    for i in 0..N {
-        header.push_str(&format!(",axis{i}"));
-    }
-    writeln!(out, "{header}")?;
+    let mut header: Vec<String> = ["t", "pos", "vel", "acc"].map(String::from).into();
+    header.extend((0..N).map(|i| format!("axis{i}")));
+    let mut o = crate::csvout::CsvOut::new(out, &header)?;
     let mut cursor = Cursor::new();
     let mut max_err = 0.0f64;
     let mut rows = 0u64;
@@ -215,21 +213,18 @@ fn write_line<const N: usize>(
         let exact = plan.state_at(t).0;
         max_err = max_err.max((s as f64 - exact).abs() * to_path_mm);
         let x = mv.axes_at(s);
-        let mut line = format!(
-            "{},{},{},{}",
+        let mut row = vec![
             num(t),
             num(mv.path_um(s) / 1000.0),
             num(p.vel_to_lsb_per_s(smp.vel_q) * to_path_mm),
-            num(p.acc_to_lsb_per_s2(smp.acc_q) * to_path_mm)
-        );
-        for xi in &x {
-            line.push(',');
-            line.push_str(&num(xi.to_num::<f64>() / 1000.0));
-        }
-        writeln!(out, "{line}")?;
+            num(p.acc_to_lsb_per_s2(smp.acc_q) * to_path_mm),
+        ];
+        row.extend(x.iter().map(|xi| num(xi.to_num::<f64>() / 1000.0)));
+        o.row(&row)?;
         last = x;
         rows += 1;
     }
+    o.finish()?;
     let last_t = f64::from(p.end_tick()) * period_s;
     Ok(Report {
         duration: plan.duration_s(),

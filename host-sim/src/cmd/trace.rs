@@ -7,7 +7,6 @@
 use super::serial::Link;
 use hydra_core::protocol::msg::Telemetry;
 use hydra_core::protocol::Request;
-use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -56,30 +55,35 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let samples = record(&mut link, args.seconds, args.every)?;
     anyhow::ensure!(!samples.is_empty(), "no telemetry received");
     let mm = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
-    let mut f = std::io::BufWriter::new(std::fs::File::create(&args.csv)?);
     let n = samples[0].axes.len();
-    write!(f, "t_s,master")?;
+    let mut header = vec!["t_s".to_string(), "master".to_string()];
     for i in 0..n {
-        write!(f, ",target{i}_mm,actual{i}_mm,error{i}_mm,dac{i}")?;
+        header.extend([
+            format!("target{i}_mm"),
+            format!("actual{i}_mm"),
+            format!("error{i}_mm"),
+            format!("dac{i}"),
+        ]);
     }
-    writeln!(f)?;
+    let mut o = crate::csvout::CsvOut::new(Vec::new(), &header)?;
     let t0 = samples[0].tick;
     for s in &samples {
         let t = f64::from(s.tick.wrapping_sub(t0)) * period_s;
-        write!(f, "{t:.4},{:.4}", s.master as f64 / 65536.0 / 1000.0)?;
+        let mut row = vec![
+            format!("{t:.4}"),
+            format!("{:.4}", s.master as f64 / 65536.0 / 1000.0),
+        ];
         for a in &s.axes {
-            write!(
-                f,
-                ",{:.4},{:.4},{:.4},{}",
-                mm(a.target_um),
-                mm(a.actual_um),
-                mm(a.target_um) - mm(a.actual_um),
-                a.dac
-            )?;
+            row.extend([
+                format!("{:.4}", mm(a.target_um)),
+                format!("{:.4}", mm(a.actual_um)),
+                format!("{:.4}", mm(a.target_um) - mm(a.actual_um)),
+                a.dac.to_string(),
+            ]);
         }
-        writeln!(f)?;
+        o.row(&row)?;
     }
-    f.flush()?;
+    crate::csvout::save(&args.csv, &o.text())?;
     eprintln!("{} samples → {}", samples.len(), args.csv.display());
     if let Some(p) = &args.plot {
         plot(p, &samples, period_s)?;

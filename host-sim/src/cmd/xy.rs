@@ -163,25 +163,34 @@ pub fn run(args: &Args) -> Result<()> {
 
 /// One row per period: `t_s,ref_x_um,ref_y_um,act_x_um,act_y_um,eps_um,ctl_eps_um,u_x_lsb,u_y_lsb`.
 fn write_csv(r: &XyReport, file: &Path) -> Result<()> {
-    use std::fmt::Write as _;
-    let mut s =
-        String::from("t_s,ref_x_um,ref_y_um,act_x_um,act_y_um,eps_um,ctl_eps_um,u_x_lsb,u_y_lsb\n");
+    let header = [
+        "t_s",
+        "ref_x_um",
+        "ref_y_um",
+        "act_x_um",
+        "act_y_um",
+        "eps_um",
+        "ctl_eps_um",
+        "u_x_lsb",
+        "u_y_lsb",
+    ];
+    let mut o = crate::csvout::CsvOut::new(Vec::new(), header)?;
     for p in &r.trace {
-        writeln!(
-            s,
-            "{:.3},{:.2},{:.2},{:.2},{:.2},{:.3},{:.3},{:.2},{:.2}",
-            p.t_s,
-            p.reference_um[0],
-            p.reference_um[1],
-            p.actual_um[0],
-            p.actual_um[1],
-            p.contour_um,
-            p.controller_contour_um,
-            p.command_lsb[0],
-            p.command_lsb[1]
-        )?;
+        let f2 = |v: f64| format!("{v:.2}");
+        let f3 = |v: f64| format!("{v:.3}");
+        o.row([
+            f3(p.t_s),
+            f2(p.reference_um[0]),
+            f2(p.reference_um[1]),
+            f2(p.actual_um[0]),
+            f2(p.actual_um[1]),
+            f3(p.contour_um),
+            f3(p.controller_contour_um),
+            f2(p.command_lsb[0]),
+            f2(p.command_lsb[1]),
+        ])?;
     }
-    std::fs::write(file, s).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))
+    crate::csvout::save(file, &o.text())
 }
 
 fn bounds(v: impl Iterator<Item = f64>) -> (f64, f64) {

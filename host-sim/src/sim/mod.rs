@@ -40,7 +40,6 @@ use crate::scenario::{Controller, Role, Scenario, ScenarioError};
 use control::{build_follower, Press};
 use hydra_core::axis::PressPhase;
 use hydra_core::units::{DacCode, PosUm, PressureBar};
-use std::fmt::Write as _;
 use std::time::Instant;
 
 /// What to run.
@@ -114,18 +113,15 @@ impl Trace {
 
     /// The CSV text.
     pub fn to_csv(&self) -> String {
-        let mut s = self.columns.join(",");
-        s.push('\n');
+        let Ok(mut o) = crate::csvout::CsvOut::new(Vec::new(), &self.columns) else {
+            return String::new();
+        };
         for r in self.data.chunks_exact(self.columns.len().max(1)) {
-            for (i, v) in r.iter().enumerate() {
-                if i > 0 {
-                    s.push(',');
-                }
-                let _ = write!(s, "{v:.6}");
+            if o.row(r.iter().map(|v| format!("{v:.6}"))).is_err() {
+                return String::new();
             }
-            s.push('\n');
         }
-        s
+        o.text()
     }
 }
 
