@@ -1,13 +1,14 @@
 //! Build script of the bench program.
 //!
-//! 1. Linker setup for QEMU's mps2-an386 (binaries only, never host builds). The script
-//!    has its own name and is passed by absolute path, so the firmware's `memory.x` in
-//!    the workspace root is never read (see `mps2-an386.x`).
+//! 1. Linker setup for QEMU's mps2-an386 (binaries only, never host builds):
+//!    cortex-m-rt's own `link.x` with this board's `memory.x`, written into OUT_DIR and
+//!    put on this crate's search path (the firmware's `memory.x` is in `firmware/`, on
+//!    the firmware's search path only).
 //! 2. The reference cam table's node values (PLANT.md), computed here in f64 so the
 //!    program on the target does no floating-point set-up and QEMU's instruction trace
 //!    of a profile run stays short.
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// The die curve (PLANT.md), mm, at table angle `deg`: the support point's x of an
 /// ellipse a = 900 mm, b = 600 mm whose centre is 250 mm off the rotation centre.
@@ -19,12 +20,18 @@ fn die_x_mm(deg: f64) -> f64 {
 }
 
 fn main() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let script = dir.join("mps2-an386.x");
-    println!("cargo:rerun-if-changed={}", script.display());
+    let out = PathBuf::from(std::env::var_os("OUT_DIR").unwrap_or_default());
+    // mps2-an386 (QEMU 7.2): 4 MiB of code RAM at 0x00000000 (where the vector table
+    // must be), 4 MiB of SRAM at 0x20000000 (data, bss, and the stack from its top).
+    let memory = "MEMORY\n{\n  FLASH : ORIGIN = 0x00000000, LENGTH = 4M\n  \
+                  RAM   : ORIGIN = 0x20000000, LENGTH = 4M\n}\n";
+    if let Err(e) = std::fs::write(out.join("memory.x"), memory) {
+        panic!("bench-m4 build: writing memory.x into OUT_DIR: {e}");
+    }
+    println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rustc-link-arg-bins=--nmagic");
-    println!("cargo:rustc-link-arg-bins=-T{}", script.display());
+    println!("cargo:rustc-link-arg-bins=-Tlink.x");
 
     // 181 nodes, 0° … 90° every 0.5°, scaled linearly to 20 … 480 mm; whole µm.
     let raw: Vec<f64> = (0..181).map(|j| die_x_mm(f64::from(j) * 0.5)).collect();
@@ -40,7 +47,6 @@ fn main() {
         let _ = writeln!(src, "    {},", um.round() as i32);
     }
     src.push_str("];\n");
-    let out = PathBuf::from(std::env::var_os("OUT_DIR").unwrap_or_default());
     if let Err(e) = std::fs::write(out.join("die_table.rs"), src) {
         panic!("cannot write die_table.rs: {e}");
     }

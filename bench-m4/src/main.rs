@@ -231,6 +231,6 @@ fn main() -> ! {
 
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
-    semihost::write0(b"ERROR panic\n\0");
+    semihost::write("ERROR panic\n");
     semihost::exit(false);
 }

@@ -1,5 +1,5 @@
 //! Line-buffered text output over semihosting (`core::fmt` into a fixed buffer, one
-//! SYS_WRITE0 per line).
+//! semihosting write per line).
 
 use crate::semihost;
 use core::fmt;
@@ -20,10 +20,14 @@ impl Out {
     }
 
     fn flush(&mut self) {
-        if let Some(b) = self.buf.get_mut(self.len) {
-            *b = 0;
-        }
-        semihost::write0(self.buf.get(..=self.len).unwrap_or(&[]));
+        // Whole UTF-8 characters only reach the buffer when a line is shorter than it;
+        // a longer one is cut at the last complete character.
+        let bytes = self.buf.get(..self.len).unwrap_or(&[]);
+        let text = match core::str::from_utf8(bytes) {
+            Ok(t) => t,
+            Err(e) => core::str::from_utf8(bytes.get(..e.valid_up_to()).unwrap_or(&[])).unwrap_or(""),
+        };
+        semihost::write(text);
         self.len = 0;
     }
 }
@@ -31,8 +35,7 @@ impl Out {
 impl fmt::Write for Out {
     fn write_str(&mut self, s: &str) -> fmt::Result {
         for &c in s.as_bytes() {
-            // Keep one byte for the NUL terminator.
-            if self.len + 1 >= self.buf.len() {
+            if self.len >= self.buf.len() {
                 self.flush();
             }
             if let Some(b) = self.buf.get_mut(self.len) {
