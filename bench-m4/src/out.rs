@@ -25,7 +25,9 @@ impl Out {
         let bytes = self.buf.get(..self.len).unwrap_or(&[]);
         let text = match core::str::from_utf8(bytes) {
             Ok(t) => t,
-            Err(e) => core::str::from_utf8(bytes.get(..e.valid_up_to()).unwrap_or(&[])).unwrap_or(""),
+            Err(e) => {
+                core::str::from_utf8(bytes.get(..e.valid_up_to()).unwrap_or(&[])).unwrap_or("")
+            }
         };
         semihost::write(text);
         self.len = 0;
