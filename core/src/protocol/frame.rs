@@ -10,9 +10,23 @@
 //! The decoded frame is 7 … [`MAX_FRAME`] bytes; COBS-encoded it is at most
 //! [`MAX_WIRE`] bytes, then one 0x00 delimiter. An empty frame (two delimiters in a row)
 //! is ignored, so a sender may start with 0x00 to resynchronise the receiver.
+//!
+//! COBS is the `cobs` crate's, the CRC the `crc` crate's CRC-32/ISO-HDLC (IEEE 802.3:
+//! polynomial 0x04C11DB7 reflected, init and final XOR 0xFFFFFFFF; check value of
+//! `"123456789"`: 0xCBF43926) — also the CRC of a table upload and of a flash slot.
 
-use super::cobs;
-use super::crc::crc32;
+/// The CRC-32 of every frame, table and flash slot. A `static`: its 1 KiB table is never
+/// copied onto a stack.
+pub static CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// A CRC-32 being computed over several pieces ([`CRC32`]`.digest()`, `update`,
+/// `finalize`).
+pub type Crc32 = crc::Digest<'static, u32>;
+
+/// The CRC-32 of `bytes`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    CRC32.checksum(bytes)
+}
 
 /// Largest decoded frame: header (3) + payload + CRC (4), bytes.
 pub const MAX_FRAME: usize = 512;
@@ -21,7 +35,7 @@ pub const OVERHEAD: usize = 7;
 /// Largest payload, bytes.
 pub const MAX_PAYLOAD: usize = MAX_FRAME - OVERHEAD;
 /// Largest COBS-encoded frame without its delimiter, bytes.
-pub const MAX_WIRE: usize = cobs::max_encoded_len(MAX_FRAME);
+pub const MAX_WIRE: usize = cobs::max_encoding_length(MAX_FRAME);
 
 /// Why received bytes are not a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,7 +104,7 @@ pub fn encode(seq: u16, ty: u8, payload: &[u8], out: &mut [u8]) -> Option<usize>
     let total = body_len.checked_add(4)?;
     raw.get_mut(body_len..total)?
         .copy_from_slice(&crc.to_le_bytes());
-    let n = cobs::encode(raw.get(..total)?, out).ok()?;
+    let n = cobs::try_encode(raw.get(..total)?, out).ok()?;
     *out.get_mut(n)? = 0;
     n.checked_add(1)
 }
@@ -144,7 +158,7 @@ impl FrameDecoder {
         let wire = self.wire.get(..len).unwrap_or(&[]);
         let n = match cobs::decode(wire, &mut self.decoded) {
             Ok(n) => n,
-            Err(cobs::CobsError::Overflow) => return Some(Err(FrameError::Oversized)),
+            Err(cobs::DecodeError::TargetBufTooSmall) => return Some(Err(FrameError::Oversized)),
             Err(_) => return Some(Err(FrameError::Cobs)),
         };
         Some(parse(self.decoded.get(..n).unwrap_or(&[])))
@@ -183,7 +197,7 @@ mod tests {
         assert_eq!(feed(&mut d, &bad), [Err(FrameError::Crc)]);
         // Too short.
         let mut short = [0u8; 8];
-        let m = cobs::encode(&[1, 2, 3], &mut short).unwrap();
+        let m = cobs::encode(&[1, 2, 3], &mut short);
         short[m] = 0;
         assert_eq!(feed(&mut d, &short[..=m]), [Err(FrameError::Truncated)]);
         // Oversized: then the decoder recovers.
@@ -196,6 +210,32 @@ mod tests {
         assert!(got[1].is_ok());
         // Empty frames are ignored.
         assert!(feed(&mut d, &[0, 0, 0]).is_empty());
+    }
+
+    /// The crates give the bytes the hand-written codecs gave (protocol version 2's
+    /// frames): the CRC's check value, and COBS of zeros, of a 254-byte run and of data.
+    #[test]
+    fn crc_and_cobs_are_the_standard_ones() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        let mut d = CRC32.digest();
+        d.update(b"1234");
+        d.update(b"56789");
+        assert_eq!(d.finalize(), 0xCBF4_3926);
+        let mut out = [0u8; 300];
+        let n = cobs::encode(&[0x11, 0x00, 0x00, 0x22], &mut out);
+        assert_eq!(&out[..n], &[0x02, 0x11, 0x01, 0x02, 0x22]);
+        let n = cobs::encode(&[0x00], &mut out);
+        assert_eq!(&out[..n], &[0x01, 0x01]);
+        // A 254-byte run without a zero: one 0xFF block. (The hand-written encoder added
+        // an empty final block, 0x01; both forms decode to the same bytes.)
+        let run: std::vec::Vec<u8> = (1..=254).collect();
+        let n = cobs::encode(&run, &mut out);
+        assert_eq!((n, out[0]), (255, 0xFF));
+        let mut back = [0u8; 300];
+        assert_eq!(cobs::decode(&out[..n], &mut back).unwrap(), 254);
+        out[255] = 0x01;
+        assert_eq!(cobs::decode(&out[..256], &mut back).unwrap(), 254);
+        assert_eq!(&back[..254], &run[..]);
     }
 
     #[test]

@@ -25,8 +25,8 @@
 //!   active table and every parameter changed by SetParam since boot (boot applies them
 //!   again before it validates the table).
 
-use super::crc::Crc32;
 use super::frame::{self, FrameDecoder, FrameError, MAX_PAYLOAD, MAX_WIRE};
+use super::frame::{Crc32, CRC32};
 use super::msg::{
     read_row, row_len, ty, Info, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
     FLAG_LINK_LOST, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, NO_TABLE, PROTOCOL_VERSION,
@@ -176,11 +176,21 @@ impl BootReason {
 }
 
 /// An upload in progress.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone)]
 struct Upload {
     id: u32,
     rows: u16,
     crc: Crc32,
+}
+
+impl core::fmt::Debug for Upload {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        // The running CRC (the crate's digest) has no Debug.
+        f.debug_struct("Upload")
+            .field("id", &self.id)
+            .field("rows", &self.rows)
+            .finish_non_exhaustive()
+    }
 }
 
 /// The protocol handler: one per serial port.
@@ -726,7 +736,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         self.upload = Some(Upload {
             id,
             rows,
-            crc: Crc32::new(),
+            crc: CRC32.digest(),
         });
         Ok(())
     }
@@ -761,7 +771,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     }
 
     fn commit<D: Device<S, N>>(&mut self, dev: &D, crc: u32) -> Result<(), Nak> {
-        let up = self.upload.ok_or(Nak::new(NakCode::NoUpload))?;
+        let up = self.upload.clone().ok_or(Nak::new(NakCode::NoUpload))?;
         let have = self.staging.len();
         if have != usize::from(up.rows) {
             return Err(Nak::with(
@@ -770,7 +780,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 0,
             ));
         }
-        if up.crc.finish() != crc {
+        if up.crc.finalize() != crc {
             return Err(Nak::new(NakCode::TableCrc));
         }
         // In place; a refused table leaves the committed one as it was.

@@ -568,15 +568,15 @@ fn bad_frames_change_nothing() {
         let mut body = std::vec![0u8; 3];
         body[..2].copy_from_slice(&good_next.to_le_bytes());
         body[2] = 0x21;
-        let c = super::crc::crc32(&body) ^ 0x0100;
+        let c = super::frame::crc32(&body) ^ 0x0100;
         body.extend_from_slice(&c.to_le_bytes());
         let mut enc = [0u8; 16];
-        let n = super::cobs::encode(&body, &mut enc).unwrap();
+        let n = cobs::encode(&body, &mut enc);
         let mut crc = enc[..n].to_vec();
         crc.push(0);
         // A frame with a valid CRC but only 5 bytes: below the 7-byte minimum.
         let mut short = [0u8; 16];
-        let n = super::cobs::encode(&[1, 2, 3, 4, 5], &mut short).unwrap();
+        let n = cobs::encode(&[1, 2, 3, 4, 5], &mut short);
         let mut short = short[..n].to_vec();
         short.push(0);
         let mut big = std::vec![0x42u8; MAX_WIRE + 40];
@@ -693,12 +693,12 @@ fn bad_frames_change_nothing() {
     let all = rows_bytes(&nodes(4, 10));
     let before = r.snapshot();
     let n = r.req(&Request::TableCommit {
-        crc: super::crc::crc32(&all) ^ 1,
+        crc: super::frame::crc32(&all) ^ 1,
     });
     assert_eq!(nak_code(&n), NakCode::TableCrc);
     assert_eq!(r.snapshot(), before);
     r.ack(&Request::TableCommit {
-        crc: super::crc::crc32(&all),
+        crc: super::frame::crc32(&all),
     });
 }
 
@@ -914,7 +914,7 @@ fn run_ops(ops: &[Op]) {
                 (resp, false)
             }
             Op::Commit(right) => {
-                let crc = super::crc::crc32(&rows_bytes(&rows_sent)) ^ u32::from(!right);
+                let crc = super::frame::crc32(&rows_bytes(&rows_sent)) ^ u32::from(!right);
                 (
                     r.raw(&Rig::frame(seq, &Request::TableCommit { crc })),
                     false,

@@ -2,9 +2,9 @@
 //!
 //! Layers, bottom up (byte-by-byte description in `PROTOCOL.md`):
 //!
-//! - [`cobs`]: frame delimiting (0x00 never appears inside a frame);
-//! - [`crc`]: CRC-32 (IEEE) per frame, per table, per flash slot;
-//! - [`frame`]: `seq · type · payload · crc32`, the streaming [`frame::FrameDecoder`];
+//! - [`frame`]: `COBS(seq · type · payload · crc32) 0x00` (COBS and CRC-32 from the `cobs`
+//!   and `crc` crates; the CRC also of tables and flash slots), the streaming
+//!   [`frame::FrameDecoder`];
 //! - [`wire`]: little-endian field reader/writer;
 //! - [`msg`]: requests, responses, typed [`msg::NakCode`]s;
 //! - [`settings`]: the settings tree — every parameter's path, unit and range;
@@ -21,8 +21,6 @@
 //! `boot` once, then from the low-priority UART task `on_bytes(dev, flash, rx, tx)` with
 //! each DMA chunk, `poll(dev)` every loop, and `on_tick(tx, sample)` for telemetry.
 
-pub mod cobs;
-pub mod crc;
 pub mod device;
 pub mod frame;
 pub mod handler;

@@ -44,7 +44,7 @@
 //! Generations are compared as plain `u32`: at one save per second that is 136 years,
 //! far beyond the flash's 10 000 erase cycles.
 
-use super::crc::Crc32;
+use super::frame::{Crc32, CRC32};
 use super::msg::{row_len, ParamId};
 use super::overrides::{ParamOverrides, ParamRecord, RECORD_LEN};
 use super::wire::{Reader, Writer};
@@ -195,7 +195,7 @@ impl Store {
         if r.u32()? != MAGIC {
             return None;
         }
-        let mut crc = Crc32::new();
+        let mut crc = CRC32.digest();
         crc.update(hdr.get(MAGIC_UNIT..)?);
         let generation = r.u32()?;
         let id = r.u32()?;
@@ -229,7 +229,7 @@ impl Store {
         }
         let mut c = [0u8; 4];
         flash.read(off, &mut c).ok()?;
-        (u32::from_le_bytes(c) == crc.finish()).then_some(SlotHeader {
+        (u32::from_le_bytes(c) == crc.finalize()).then_some(SlotHeader {
             slot,
             generation,
             id,
@@ -346,7 +346,7 @@ impl Store {
             buf: [0xFF; BUF],
             fill: 0,
             at: at.checked_add(MAGIC_UNIT as u32).ok_or(fl)?,
-            crc: Crc32::new(),
+            crc: CRC32.digest(),
             _f: core::marker::PhantomData,
         };
         let mut hdr = [0u8; HEADER - MAGIC_UNIT];
@@ -372,7 +372,7 @@ impl Store {
             let len = w.len();
             out.put(flash, row.get(..len).ok_or(fl)?, true)?;
         }
-        let crc = out.crc.finish();
+        let crc = out.crc.clone().finalize();
         out.put(flash, &crc.to_le_bytes(), false)?;
         out.flush(flash)?;
         self.write_commit(flash, slot, MAGIC)?;

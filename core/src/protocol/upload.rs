@@ -7,7 +7,7 @@
 //! Each request must be acknowledged before the next is sent; the caller sends them and
 //! stops at the first Nak.
 
-use super::crc::Crc32;
+use super::frame::CRC32;
 use super::msg::{row_len, write_row, Request};
 use super::wire::Writer;
 use crate::table::Node;
@@ -58,7 +58,7 @@ impl<'a, const S: usize> TableUpload<'a, S> {
         if per_chunk_rows == 0 || u8::try_from(per_chunk_rows).is_err() {
             return Err(UploadError::ChunkRows);
         }
-        let mut crc = Crc32::new();
+        let mut crc = CRC32.digest();
         let mut row = [0u8; row_len(super::msg::MAX_AXES)];
         for n in nodes {
             let mut w = Writer::new(&mut row);
@@ -70,7 +70,7 @@ impl<'a, const S: usize> TableUpload<'a, S> {
             id,
             nodes,
             per: per_chunk_rows,
-            crc: crc.finish(),
+            crc: crc.finalize(),
             step: Step::Begin,
         })
     }
@@ -154,7 +154,7 @@ impl<'a, const S: usize> TableUpload<'a, S> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::crc::crc32;
+    use super::super::frame::crc32;
     use super::*;
     use crate::units::{Master, PosUm};
     use std::string::String;
