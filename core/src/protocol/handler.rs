@@ -537,6 +537,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         let nak = |nak: Nak| Response::Nak { req: t, nak };
         let req = match Request::decode(t, payload) {
             Ok(r) => r,
+            // A host of another version is told which version this board speaks.
+            Err(NakCode::Version) => {
+                return nak(Nak::with(NakCode::Version, u16::from(PROTOCOL_VERSION), 0))
+            }
             Err(code) => return nak(Nak::new(code)),
         };
         if !matches!(req, Request::Hello) {

@@ -11,6 +11,7 @@ use super::wire::{Reader, Writer};
 use crate::table::{Node, TableError};
 use crate::units::{Master, PosUm};
 use heapless::Vec;
+use serde::{Deserialize, Serialize};
 
 /// Protocol version reported in `Info`.
 pub const PROTOCOL_VERSION: u8 = 3;
@@ -144,13 +145,18 @@ pub enum NakCode {
     /// SetParam of a parameter the board sets itself (the period, a reference offset:
     /// `detail` = axis, `detail2` = parameter id).
     ReadOnly = 33,
+    /// Hello from a host of another protocol version (`detail` = the board's version).
+    Version = 34,
+    /// A payload that is not a valid body of its type (e.g. a varint longer than its
+    /// integer).
+    Malformed = 35,
 }
 
 impl NakCode {
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use NakCode::*;
-        const ALL: [NakCode; 33] = [
+        const ALL: [NakCode; 35] = [
             UnknownType,
             Truncated,
             Oversized,
@@ -184,6 +190,8 @@ impl NakCode {
             NotReferenced,
             NoAxis,
             ReadOnly,
+            Version,
+            Malformed,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -350,23 +358,23 @@ pub enum Request<'a> {
 }
 
 impl<'a> Request<'a> {
-    /// Decodes a request payload of type `ty`.
+    /// Decodes a request payload of type `ty` (its postcard body, see `PROTOCOL.md`).
     pub fn decode(ty: u8, payload: &'a [u8]) -> Result<Self, NakCode> {
-        let mut r = Reader::new(payload);
-        let t = NakCode::Truncated;
-        let req = match ty {
-            ty::HELLO => Request::Hello,
-            ty::GET_STATUS => Request::GetStatus,
-            ty::TABLE_BEGIN => Request::TableBegin {
-                id: r.u32().ok_or(t)?,
-                columns: r.u8().ok_or(t)?,
-                rows: r.u16().ok_or(t)?,
+        Ok(match ty {
+            // Hello carries the host's protocol version: a host of another version (one of
+            // version 2 sends an empty Hello) is refused with `Version`.
+            ty::HELLO => match body::<u8>(payload) {
+                Ok(PROTOCOL_VERSION) => Request::Hello,
+                _ => return Err(NakCode::Version),
             },
+            ty::GET_STATUS => unit(payload, Request::GetStatus)?,
+            ty::TABLE_BEGIN => {
+                let (id, columns, rows) = body(payload)?;
+                Request::TableBegin { id, columns, rows }
+            }
             ty::TABLE_CHUNK => {
-                let offset = r.u16().ok_or(t)?;
-                let count = r.u8().ok_or(t)?;
                 // The row length depends on the upload's columns: the handler checks it.
-                let data = r.bytes(r.remaining()).ok_or(t)?;
+                let (offset, count, data) = body(payload)?;
                 Request::TableChunk {
                     offset,
                     count,
@@ -374,42 +382,35 @@ impl<'a> Request<'a> {
                 }
             }
             ty::TABLE_COMMIT => Request::TableCommit {
-                crc: r.u32().ok_or(t)?,
+                crc: body(payload)?,
             },
-            ty::TABLE_ABORT => Request::TableAbort,
-            ty::ACTIVATE => Request::Activate {
-                id: r.u32().ok_or(t)?,
-            },
-            ty::START => Request::Start,
-            ty::STOP => Request::Stop,
-            ty::HOLD => Request::Hold,
-            ty::CLEAR_FAULT => Request::ClearFault,
-            ty::SET_POSITION => Request::SetPosition {
-                axis: r.u8().ok_or(t)?,
-                pos_um: r.i32().ok_or(t)?,
-            },
+            ty::TABLE_ABORT => unit(payload, Request::TableAbort)?,
+            ty::ACTIVATE => Request::Activate { id: body(payload)? },
+            ty::START => unit(payload, Request::Start)?,
+            ty::STOP => unit(payload, Request::Stop)?,
+            ty::HOLD => unit(payload, Request::Hold)?,
+            ty::CLEAR_FAULT => unit(payload, Request::ClearFault)?,
+            ty::SET_POSITION => {
+                let (axis, pos_um) = body(payload)?;
+                Request::SetPosition { axis, pos_um }
+            }
             ty::HOME => Request::Home {
-                axis: r.u8().ok_or(t)?,
+                axis: body(payload)?,
             },
-            ty::SET_PARAM => Request::SetParam {
-                axis: r.u8().ok_or(t)?,
-                param: r.u8().ok_or(t)?,
-                value: r.f32().ok_or(t)?,
-            },
-            ty::SAVE => Request::Save,
+            ty::SET_PARAM => {
+                let (axis, param, value) = body(payload)?;
+                Request::SetParam { axis, param, value }
+            }
+            ty::SAVE => unit(payload, Request::Save)?,
             ty::SET_TELEMETRY => Request::SetTelemetry {
-                decimation: r.u16().ok_or(t)?,
+                decimation: body(payload)?,
             },
-            ty::GET_PARAM => Request::GetParam {
-                axis: r.u8().ok_or(t)?,
-                param: r.u8().ok_or(t)?,
-            },
+            ty::GET_PARAM => {
+                let (axis, param) = body(payload)?;
+                Request::GetParam { axis, param }
+            }
             _ => return Err(NakCode::UnknownType),
-        };
-        if r.remaining() != 0 {
-            return Err(NakCode::Length);
-        }
-        Ok(req)
+        })
     }
 
     /// The type code.
@@ -435,57 +436,62 @@ impl<'a> Request<'a> {
         }
     }
 
-    /// Encodes the payload into `buf`; returns its length.
+    /// Encodes the payload (postcard) into `buf`; returns its length.
     pub fn encode(&self, buf: &mut [u8]) -> Option<usize> {
-        let mut w = Writer::new(buf);
         match *self {
-            Request::Hello
-            | Request::GetStatus
+            Request::Hello => put(&PROTOCOL_VERSION, buf),
+            Request::GetStatus
             | Request::TableAbort
             | Request::Start
             | Request::Stop
             | Request::Hold
             | Request::ClearFault
-            | Request::Save => {}
-            Request::TableBegin { id, columns, rows } => {
-                w.u32(id)?;
-                w.u8(columns)?;
-                w.u16(rows)?;
-            }
+            | Request::Save => Some(0),
+            Request::TableBegin { id, columns, rows } => put(&(id, columns, rows), buf),
             Request::TableChunk {
                 offset,
                 count,
                 data,
-            } => {
-                w.u16(offset)?;
-                w.u8(count)?;
-                w.bytes(data)?;
-            }
-            Request::TableCommit { crc } => w.u32(crc)?,
-            Request::Activate { id } => w.u32(id)?,
-            Request::SetPosition { axis, pos_um } => {
-                w.u8(axis)?;
-                w.i32(pos_um)?;
-            }
-            Request::Home { axis } => w.u8(axis)?,
-            Request::SetParam { axis, param, value } => {
-                w.u8(axis)?;
-                w.u8(param)?;
-                w.f32(value)?;
-            }
-            Request::SetTelemetry { decimation } => w.u16(decimation)?,
-            Request::GetParam { axis, param } => {
-                w.u8(axis)?;
-                w.u8(param)?;
-            }
+            } => put(&(offset, count, data), buf),
+            Request::TableCommit { crc } => put(&crc, buf),
+            Request::Activate { id } => put(&id, buf),
+            Request::SetPosition { axis, pos_um } => put(&(axis, pos_um), buf),
+            Request::Home { axis } => put(&axis, buf),
+            Request::SetParam { axis, param, value } => put(&(axis, param, value), buf),
+            Request::SetTelemetry { decimation } => put(&decimation, buf),
+            Request::GetParam { axis, param } => put(&(axis, param), buf),
         }
-        Some(w.len())
     }
+}
+
+/// A payload's postcard body: exactly the bytes of one `T` (`Truncated` if it ends
+/// early, `Length` if bytes follow it, `Malformed` if they are not a `T`).
+fn body<'a, T: Deserialize<'a>>(payload: &'a [u8]) -> Result<T, NakCode> {
+    match postcard::take_from_bytes::<T>(payload) {
+        Ok((v, [])) => Ok(v),
+        Ok(_) => Err(NakCode::Length),
+        Err(postcard::Error::DeserializeUnexpectedEnd) => Err(NakCode::Truncated),
+        Err(_) => Err(NakCode::Malformed),
+    }
+}
+
+/// A request without a body: its payload is empty.
+fn unit<T>(payload: &[u8], req: T) -> Result<T, NakCode> {
+    if payload.is_empty() {
+        Ok(req)
+    } else {
+        Err(NakCode::Length)
+    }
+}
+
+/// Writes `v` (postcard) into `buf`; its length.
+fn put<T: Serialize + ?Sized>(v: &T, buf: &mut [u8]) -> Option<usize> {
+    postcard::to_slice(v, buf).ok().map(|b| b.len())
 }
 
 /// `Info`: what the board is — its profile (slaves, table rows, chunk size, law buffers,
 /// period and the periods it accepts, the longest segment) and the table limits in force.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Info {
     /// [`PROTOCOL_VERSION`].
     pub protocol: u8,
@@ -514,7 +520,7 @@ pub struct Info {
 }
 
 /// The table limits in `Info` (raw fixed-point bits, as the board holds them).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct InfoLimits {
     /// Fastest master speed, master counts/s, I48F16 raw.
     pub master_speed_per_s: i64,
@@ -523,7 +529,7 @@ pub struct InfoLimits {
 }
 
 /// One slave's table limits in `Info`: I24F8 raw µm and µm/s.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct AxisLimitsMsg {
     /// Lowest position, µm (I24F8 raw).
     pub min_um: i32,
@@ -559,7 +565,7 @@ pub const FLAG_LINK_LOST: u8 = 1 << 6;
 pub const FLAG_PRESSURE_STALE: u8 = 1 << 7;
 
 /// Per-axis part of `Status`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct AxisStatus {
     /// Measured position, I24F8 µm raw.
     pub pos_um: i32,
@@ -572,7 +578,7 @@ pub struct AxisStatus {
 }
 
 /// `Status`.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct StatusMsg {
     /// Runtime state: 0 Idle, 1 Following, 2 Holding, 3 Fault.
     pub state: u8,
@@ -613,7 +619,7 @@ pub struct StatusMsg {
 }
 
 /// Per-axis part of `Telemetry`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct AxisSample {
     /// Target, I24F8 µm raw.
     pub target_um: i32,
@@ -624,7 +630,7 @@ pub struct AxisSample {
 }
 
 /// `Telemetry`: one subsampled tick.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Telemetry {
     /// Tick number.
     pub tick: u32,
@@ -701,194 +707,57 @@ impl Response {
         }
     }
 
-    /// Encodes the payload; returns its length.
+    /// Encodes the payload (postcard); returns its length.
     pub fn encode(&self, buf: &mut [u8]) -> Option<usize> {
-        let mut w = Writer::new(buf);
         match self {
-            Response::Ack { req, flags } => {
-                w.u8(*req)?;
-                w.u8(*flags)?;
-            }
-            Response::Param { axis, param, value } => {
-                w.u8(*axis)?;
-                w.u8(*param)?;
-                w.f32(*value)?;
-            }
-            Response::Nak { req, nak } => {
-                w.u8(*req)?;
-                w.u8(nak.code as u8)?;
-                w.u16(nak.detail)?;
-                w.u8(nak.detail2)?;
-            }
-            Response::Info(i) => {
-                w.u8(i.protocol)?;
-                w.bytes(&i.firmware)?;
-                w.u8(i.axes)?;
-                w.u16(i.capacity_rows)?;
-                w.u8(i.max_chunk_rows)?;
-                w.u32(i.period_us)?;
-                w.u32(i.active_id)?;
-                w.u8(i.law_buffers)?;
-                w.u32(i.period_min_us)?;
-                w.u32(i.period_max_us)?;
-                w.u32(i.max_segment_counts)?;
-                w.i64(i.limits.master_speed_per_s)?;
-                for a in i.limits.axes.iter().take(usize::from(i.axes)) {
-                    w.i32(a.min_um)?;
-                    w.i32(a.max_um)?;
-                    w.i32(a.max_speed_um_per_s)?;
-                }
-            }
-            Response::Status(s) => {
-                w.u8(s.state)?;
-                w.u8(s.flags)?;
-                w.u16(s.fault_code)?;
-                w.u8(s.fault_axis)?;
-                w.u32(s.active_id)?;
-                w.u32(s.committed_id)?;
-                w.u32(s.saved_id)?;
-                w.u8(s.boot_slot)?;
-                w.u8(s.boot_reason)?;
-                w.u16(s.upload_rows)?;
-                w.u32(s.ticks)?;
-                w.u32(s.tick_max_ns)?;
-                w.u32(s.tick_mean_ns)?;
-                w.u32(s.overruns)?;
-                w.i64(s.master)?;
-                w.u8(u8::try_from(s.axes.len()).ok()?)?;
-                for a in &s.axes {
-                    w.i32(a.pos_um)?;
-                    w.i32(a.target_um)?;
-                    w.i32(a.error_um)?;
-                    w.i16(a.dac)?;
-                }
-            }
-            Response::Telemetry(t) => {
-                w.u32(t.tick)?;
-                w.i64(t.master)?;
-                w.u8(u8::try_from(t.axes.len()).ok()?)?;
-                for a in &t.axes {
-                    w.i32(a.target_um)?;
-                    w.i32(a.actual_um)?;
-                    w.i16(a.dac)?;
-                }
-            }
+            Response::Ack { req, flags } => put(&(req, flags), buf),
+            Response::Param { axis, param, value } => put(&(axis, param, value), buf),
+            Response::Nak { req, nak } => put(&(req, nak.code as u8, nak.detail, nak.detail2), buf),
+            Response::Info(i) => put(i, buf),
+            Response::Status(s) => put(s, buf),
+            Response::Telemetry(t) => put(t, buf),
         }
-        Some(w.len())
     }
 
     /// Decodes a response payload of type `t` (`None`: malformed).
     pub fn decode(t: u8, payload: &[u8]) -> Option<Self> {
-        let mut r = Reader::new(payload);
-        let resp = match t {
-            ty::ACK => Response::Ack {
-                req: r.u8()?,
-                flags: r.u8()?,
-            },
-            ty::PARAM => Response::Param {
-                axis: r.u8()?,
-                param: r.u8()?,
-                value: r.f32()?,
-            },
-            ty::NAK => Response::Nak {
-                req: r.u8()?,
-                nak: Nak {
-                    code: NakCode::from_u8(r.u8()?)?,
-                    detail: r.u16()?,
-                    detail2: r.u8()?,
-                },
-            },
-            ty::INFO => {
-                let protocol = r.u8()?;
-                if protocol != PROTOCOL_VERSION {
-                    // Another version: its first fields (the layout every version keeps),
-                    // so the host can say which version the board speaks.
-                    return Some(Response::Info(Info {
-                        protocol,
-                        firmware: r.bytes(3)?.try_into().ok()?,
-                        ..Info::default()
-                    }));
-                }
-                let mut i = Info {
-                    protocol,
-                    firmware: r.bytes(3)?.try_into().ok()?,
-                    axes: r.u8()?,
-                    capacity_rows: r.u16()?,
-                    max_chunk_rows: r.u8()?,
-                    period_us: r.u32()?,
-                    active_id: r.u32()?,
-                    law_buffers: r.u8()?,
-                    period_min_us: r.u32()?,
-                    period_max_us: r.u32()?,
-                    max_segment_counts: r.u32()?,
-                    limits: InfoLimits {
-                        master_speed_per_s: r.i64()?,
-                        ..InfoLimits::default()
-                    },
-                };
-                if usize::from(i.axes) > MAX_AXES {
-                    return None;
-                }
-                for a in i.limits.axes.iter_mut().take(usize::from(i.axes)) {
-                    *a = AxisLimitsMsg {
-                        min_um: r.i32()?,
-                        max_um: r.i32()?,
-                        max_speed_um_per_s: r.i32()?,
-                    };
-                }
-                Response::Info(i)
+        let ok = |r: Result<Self, NakCode>| r.ok();
+        match t {
+            ty::ACK => ok(body(payload).map(|(req, flags)| Response::Ack { req, flags })),
+            ty::PARAM => {
+                ok(
+                    body(payload).map(|(axis, param, value)| Response::Param {
+                        axis,
+                        param,
+                        value,
+                    }),
+                )
             }
-            ty::STATUS => {
-                let mut s = StatusMsg {
-                    state: r.u8()?,
-                    flags: r.u8()?,
-                    fault_code: r.u16()?,
-                    fault_axis: r.u8()?,
-                    active_id: r.u32()?,
-                    committed_id: r.u32()?,
-                    saved_id: r.u32()?,
-                    boot_slot: r.u8()?,
-                    boot_reason: r.u8()?,
-                    upload_rows: r.u16()?,
-                    ticks: r.u32()?,
-                    tick_max_ns: r.u32()?,
-                    tick_mean_ns: r.u32()?,
-                    overruns: r.u32()?,
-                    master: r.i64()?,
-                    axes: Vec::new(),
+            ty::NAK => {
+                let (req, code, detail, detail2): (u8, u8, u16, u8) = body(payload).ok()?;
+                let nak = Nak {
+                    code: NakCode::from_u8(code)?,
+                    detail,
+                    detail2,
                 };
-                for _ in 0..r.u8()? {
-                    s.axes
-                        .push(AxisStatus {
-                            pos_um: r.i32()?,
-                            target_um: r.i32()?,
-                            error_um: r.i32()?,
-                            dac: r.i16()?,
-                        })
-                        .ok()?;
-                }
-                Response::Status(s)
+                Some(Response::Nak { req, nak })
             }
-            ty::TELEMETRY => {
-                let mut s = Telemetry {
-                    tick: r.u32()?,
-                    master: r.i64()?,
-                    axes: Vec::new(),
-                };
-                for _ in 0..r.u8()? {
-                    s.axes
-                        .push(AxisSample {
-                            target_um: r.i32()?,
-                            actual_um: r.i32()?,
-                            dac: r.i16()?,
-                        })
-                        .ok()?;
+            ty::INFO => match payload.first() {
+                // Another version: only its first byte (the version, a postcard u8 in
+                // every version), so the host can say which version the board speaks.
+                Some(&v) if v != PROTOCOL_VERSION => Some(Response::Info(Info {
+                    protocol: v,
+                    ..Info::default()
+                })),
+                _ => {
+                    let i: Info = body(payload).ok()?;
+                    (usize::from(i.axes) <= MAX_AXES).then_some(Response::Info(i))
                 }
-                Response::Telemetry(s)
-            }
-            _ => return None,
-        };
-        (r.remaining() == 0).then_some(resp)
+            },
+            ty::STATUS => ok(body(payload).map(Response::Status)),
+            ty::TELEMETRY => ok(body(payload).map(Response::Telemetry)),
+            _ => None,
+        }
     }
 }
 
@@ -909,7 +778,9 @@ mod tests {
         assert_eq!(NakCode::from_u8(31), Some(NakCode::NotReferenced));
         assert_eq!(NakCode::from_u8(32), Some(NakCode::NoAxis));
         assert_eq!(NakCode::from_u8(33), Some(NakCode::ReadOnly));
-        assert_eq!(NakCode::from_u8(34), None);
+        assert_eq!(NakCode::from_u8(34), Some(NakCode::Version));
+        assert_eq!(NakCode::from_u8(35), Some(NakCode::Malformed));
+        assert_eq!(NakCode::from_u8(36), None);
     }
 
     #[test]
@@ -942,17 +813,31 @@ mod tests {
             let mut b = [0u8; 64];
             let n = q.encode(&mut b).unwrap();
             assert_eq!(Request::decode(q.ty(), &b[..n]), Ok(q));
-            if n > 0 && !matches!(q, Request::TableChunk { .. }) {
-                assert_eq!(
-                    Request::decode(q.ty(), &b[..n - 1]),
-                    Err(NakCode::Truncated)
-                );
+            // Hello: anything but this version's byte is another version.
+            let short = if matches!(q, Request::Hello) {
+                NakCode::Version
+            } else {
+                NakCode::Truncated
+            };
+            if n > 0 {
+                assert_eq!(Request::decode(q.ty(), &b[..n - 1]), Err(short), "{q:?}");
             }
-            if !matches!(q, Request::TableChunk { .. }) {
-                assert_eq!(Request::decode(q.ty(), &b[..n + 1]), Err(NakCode::Length));
-            }
+            let long = if matches!(q, Request::Hello) {
+                NakCode::Version
+            } else {
+                NakCode::Length
+            };
+            assert_eq!(Request::decode(q.ty(), &b[..n + 1]), Err(long), "{q:?}");
         }
         assert_eq!(Request::decode(0x7F, &[]), Err(NakCode::UnknownType));
+        // A version-2 host's Hello (empty) and a future version's are refused as such.
+        assert_eq!(Request::decode(ty::HELLO, &[]), Err(NakCode::Version));
+        assert_eq!(Request::decode(ty::HELLO, &[9]), Err(NakCode::Version));
+        // A varint longer than its integer is not a body of its type.
+        assert_eq!(
+            Request::decode(ty::ACTIVATE, &[0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x01]),
+            Err(NakCode::Malformed)
+        );
     }
 
     #[test]
@@ -1026,14 +911,12 @@ mod tests {
             Response::Status(st),
             Response::Telemetry(tm),
         ];
-        // A version-1 board's Info (19 bytes): the version and firmware are read, so the
-        // host can say which version the board speaks.
-        let v1 = [
-            1u8, 0, 3, 7, 1, 0, 4, 20, 0xE8, 3, 0, 0, 0xFF, 0xFF, 0xFF, 0xFF,
-        ];
-        match Response::decode(ty::INFO, &v1) {
+        // Another version's Info: only its version byte is read, so the host can say
+        // which version the board speaks (version 2's first bytes here).
+        let v2 = [2u8, 0, 3, 7, 1, 0, 4, 20, 0xE8, 3, 0, 0];
+        match Response::decode(ty::INFO, &v2) {
             Some(Response::Info(i)) => {
-                assert_eq!((i.protocol, i.firmware), (1, [0, 3, 7]));
+                assert_eq!(i.protocol, 2);
                 assert_eq!(i.axes, 0, "nothing else is taken from another version");
             }
             r => panic!("{r:?}"),

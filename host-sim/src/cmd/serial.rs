@@ -146,6 +146,18 @@ impl Link {
                 "{path}: the board speaks protocol version {}, this host {PROTOCOL_VERSION}",
                 i.protocol
             ),
+            Response::Nak { nak, .. } if nak.code == hydra_core::protocol::NakCode::Version => {
+                anyhow::bail!(
+                    "{path}: the board speaks protocol version {}, this host {PROTOCOL_VERSION}",
+                    nak.detail
+                )
+            }
+            // A board of version 2 refuses this version's Hello (it carries the version).
+            Response::Nak { nak, .. } => anyhow::bail!(
+                "{path}: the board refused Hello ({:?}): it speaks a protocol version older \
+                 than this host's {PROTOCOL_VERSION}",
+                nak.code
+            ),
             r => anyhow::bail!("Hello answered {r:?}"),
         }
         Ok(l)
