@@ -50,6 +50,8 @@ pub use params::{
 pub use store::{SlotHeader, Store, StoreError};
 
 #[cfg(test)]
+mod golden_tests;
+#[cfg(test)]
 mod handler_tests;
 #[cfg(test)]
 mod powercut_tests;

@@ -1,0 +1,206 @@
+//! Golden frames: `PROTOCOL.md`'s section "Golden frames" pinned byte for byte. Every
+//! message there is built here, encoded (COBS frame, delimiter included) and compared
+//! with the hex the document shows, and the document's bytes decode back to the same
+//! message. A change to the wire format fails here until the document shows it.
+
+use super::frame::{self, FrameDecoder, MAX_WIRE};
+use super::handler::encode_request;
+use super::msg::{
+    AxisLimitsMsg, AxisSample, AxisStatus, Info, InfoLimits, Nak, NakCode, Request,
+    Response, StatusMsg, Telemetry, MAX_AXES, NO_TABLE, PROTOCOL_VERSION,
+};
+use std::string::{String, ToString};
+use std::vec::Vec;
+
+const DOC: &str = include_str!("../../../PROTOCOL.md");
+
+/// One table row of the golden TableChunk: master 1000 counts (1°), slaves 250 mm and
+/// 10 mm (I48F16 / I24F8 raw, little-endian).
+fn row() -> Vec<u8> {
+    let mut r = (1000i64 << 16).to_le_bytes().to_vec();
+    r.extend_from_slice(&(250_000i32 << 8).to_le_bytes());
+    r.extend_from_slice(&(10_000i32 << 8).to_le_bytes());
+    r
+}
+
+fn status() -> StatusMsg {
+    let mut s = StatusMsg {
+        state: 1,
+        flags: 0x10,
+        fault_code: 0,
+        fault_axis: 0xFF,
+        active_id: 7,
+        committed_id: NO_TABLE,
+        saved_id: 7,
+        boot_slot: 0,
+        boot_reason: 1,
+        upload_rows: 0,
+        ticks: 123_456,
+        tick_max_ns: 18_000,
+        tick_mean_ns: 9_400,
+        overruns: 0,
+        master: 45_000 << 16,
+        ..StatusMsg::default()
+    };
+    let _ = s.axes.push(AxisStatus {
+        pos_um: 250_000 << 8,
+        target_um: (250_000 << 8) + 2,
+        error_um: 2,
+        dac: -35,
+    });
+    s
+}
+
+fn info() -> Info {
+    let mut axes = [AxisLimitsMsg::default(); MAX_AXES];
+    axes[0] = AxisLimitsMsg {
+        min_um: 0,
+        max_um: 500_000 << 8,
+        max_speed_um_per_s: 200_000 << 8,
+    };
+    Info {
+        protocol: PROTOCOL_VERSION,
+        firmware: [0, 1, 0],
+        axes: 1,
+        capacity_rows: 256,
+        max_chunk_rows: 28,
+        period_us: 1000,
+        active_id: NO_TABLE,
+        law_buffers: 2,
+        period_min_us: 100,
+        period_max_us: 100_000,
+        max_segment_counts: 65_535,
+        limits: InfoLimits {
+            master_speed_per_s: 10_000 << 16,
+            axes,
+        },
+    }
+}
+
+fn telemetry() -> Telemetry {
+    let mut t = Telemetry {
+        tick: 1000,
+        master: -(1 << 16),
+        ..Telemetry::default()
+    };
+    let _ = t.axes.push(AxisSample {
+        target_um: 256,
+        actual_um: 255,
+        dac: 12,
+    });
+    t
+}
+
+/// Every golden frame by its name in the document: the request or response and its seq.
+enum Msg {
+    Req(u16, Request<'static>),
+    Resp(u16, Response),
+}
+
+fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
+    use Msg::{Req, Resp};
+    std::vec![
+        ("hello", Req(0, Request::Hello)),
+        ("get_status", Req(1, Request::GetStatus)),
+        ("table_begin", Req(2, Request::TableBegin { id: 7, columns: 2, rows: 300 })),
+        ("table_chunk", Req(3, Request::TableChunk { offset: 0, count: 1, data: chunk })),
+        ("table_commit", Req(4, Request::TableCommit { crc: 0xCBF4_3926 })),
+        ("activate", Req(5, Request::Activate { id: 7 })),
+        ("set_position", Req(6, Request::SetPosition { axis: 1, pos_um: -(20_500 << 8) })),
+        ("set_param", Req(7, Request::SetParam { axis: 0, param: 1, value: 1.5 })),
+        ("get_param", Req(8, Request::GetParam { axis: 0, param: 14 })),
+        ("save", Req(9, Request::Save)),
+        ("ack", Resp(5, Response::Ack { req: 0x14, flags: 1 })),
+        ("nak", Resp(4, Response::Nak {
+            req: 0x12,
+            nak: Nak::with(NakCode::TableTooSteep, 4, 1),
+        })),
+        ("nak_version", Resp(0, Response::Nak {
+            req: 0x01,
+            nak: Nak::with(NakCode::Version, u16::from(PROTOCOL_VERSION), 0),
+        })),
+        ("param", Resp(8, Response::Param { axis: 0, param: 14, value: 0.015 })),
+        ("info", Resp(0, Response::Info(info()))),
+        ("status", Resp(1, Response::Status(status()))),
+        ("telemetry", Resp(42, Response::Telemetry(telemetry()))),
+    ]
+}
+
+fn wire(m: &Msg) -> Vec<u8> {
+    let mut out = [0u8; MAX_WIRE + 1];
+    let n = match m {
+        Msg::Req(seq, q) => encode_request(*seq, q, &mut out),
+        Msg::Resp(seq, r) => {
+            let mut p = [0u8; frame::MAX_PAYLOAD];
+            let k = r.encode(&mut p).unwrap();
+            frame::encode(*seq, r.ty(), &p[..k], &mut out)
+        }
+    };
+    out[..n.unwrap()].to_vec()
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| std::format!("{x:02x}")).collect::<Vec<_>>().join(" ")
+}
+
+/// The document's golden block: `name: hex bytes` lines (a line may continue on the
+/// next one, indented).
+fn doc_frames() -> Vec<(String, Vec<u8>)> {
+    let start = DOC.find("```golden\n").expect("PROTOCOL.md has a ```golden block");
+    let body = &DOC[start + 10..];
+    let body = &body[..body.find("```").expect("the golden block ends")];
+    let mut out: Vec<(String, Vec<u8>)> = Vec::new();
+    for line in body.lines().filter(|l| !l.trim().is_empty()) {
+        let (name, bytes) = match line.split_once(':') {
+            Some((n, b)) if !line.starts_with(' ') => (Some(n.trim().to_string()), b),
+            _ => (None, line),
+        };
+        let bytes: Vec<u8> = bytes
+            .split_whitespace()
+            .map(|h| u8::from_str_radix(h, 16).expect("hex byte"))
+            .collect();
+        match name {
+            Some(n) => out.push((n, bytes)),
+            None => out.last_mut().expect("a name first").1.extend(bytes),
+        }
+    }
+    out
+}
+
+#[test]
+fn the_document_shows_every_frame_byte_for_byte() {
+    let chunk: &'static [u8] = std::boxed::Box::leak(row().into_boxed_slice());
+    let doc = doc_frames();
+    let msgs = messages(chunk);
+    let names: Vec<_> = msgs.iter().map(|(n, _)| *n).collect();
+    let doc_names: Vec<_> = doc.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(doc_names, names, "PROTOCOL.md's golden frames and this test's list");
+    let mut wrong = String::new();
+    for ((name, m), (_, bytes)) in msgs.iter().zip(&doc) {
+        let w = wire(m);
+        if &w != bytes {
+            wrong.push_str(&std::format!("{name}: {}\n", hex(&w)));
+            continue;
+        }
+        // And back: the document's bytes decode to the message.
+        let mut d = FrameDecoder::new();
+        let mut got = None;
+        for &b in bytes {
+            if let Some(f) = d.push(b) {
+                let f = f.expect("a valid frame");
+                got = Some(match m {
+                    Msg::Req(seq, q) => {
+                        assert_eq!(Request::decode(f.ty, f.payload), Ok(*q), "{name}");
+                        f.seq == *seq
+                    }
+                    Msg::Resp(seq, r) => {
+                        assert_eq!(Response::decode(f.ty, f.payload).as_ref(), Some(r), "{name}");
+                        f.seq == *seq
+                    }
+                });
+            }
+        }
+        assert_eq!(got, Some(true), "{name}: one frame with its seq");
+    }
+    assert!(wrong.is_empty(), "PROTOCOL.md shows other bytes; these are the encoder's:\n{wrong}");
+}
