@@ -6,8 +6,8 @@
 use super::frame::{self, FrameDecoder, MAX_WIRE};
 use super::handler::encode_request;
 use super::msg::{
-    AxisLimitsMsg, AxisSample, AxisStatus, Info, InfoLimits, Nak, NakCode, Request,
-    Response, StatusMsg, Telemetry, MAX_AXES, NO_TABLE, PROTOCOL_VERSION,
+    AxisLimitsMsg, AxisSample, AxisStatus, Info, InfoLimits, Nak, NakCode, Request, Response,
+    StatusMsg, Telemetry, MAX_AXES, NO_TABLE, PROTOCOL_VERSION,
 };
 use std::string::{String, ToString};
 use std::vec::Vec;
@@ -102,24 +102,100 @@ fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
     std::vec![
         ("hello", Req(0, Request::Hello)),
         ("get_status", Req(1, Request::GetStatus)),
-        ("table_begin", Req(2, Request::TableBegin { id: 7, columns: 2, rows: 300 })),
-        ("table_chunk", Req(3, Request::TableChunk { offset: 0, count: 1, data: chunk })),
-        ("table_commit", Req(4, Request::TableCommit { crc: 0xCBF4_3926 })),
+        (
+            "table_begin",
+            Req(
+                2,
+                Request::TableBegin {
+                    id: 7,
+                    columns: 2,
+                    rows: 300
+                }
+            )
+        ),
+        (
+            "table_chunk",
+            Req(
+                3,
+                Request::TableChunk {
+                    offset: 0,
+                    count: 1,
+                    data: chunk
+                }
+            )
+        ),
+        (
+            "table_commit",
+            Req(4, Request::TableCommit { crc: 0xCBF4_3926 })
+        ),
         ("activate", Req(5, Request::Activate { id: 7 })),
-        ("set_position", Req(6, Request::SetPosition { axis: 1, pos_um: -(20_500 << 8) })),
-        ("set_param", Req(7, Request::SetParam { axis: 0, param: 1, value: 1.5 })),
-        ("get_param", Req(8, Request::GetParam { axis: 0, param: 14 })),
+        (
+            "set_position",
+            Req(
+                6,
+                Request::SetPosition {
+                    axis: 1,
+                    pos_um: -(20_500 << 8)
+                }
+            )
+        ),
+        (
+            "set_param",
+            Req(
+                7,
+                Request::SetParam {
+                    axis: 0,
+                    param: 1,
+                    value: 1.5
+                }
+            )
+        ),
+        (
+            "get_param",
+            Req(8, Request::GetParam { axis: 0, param: 14 })
+        ),
         ("save", Req(9, Request::Save)),
-        ("ack", Resp(5, Response::Ack { req: 0x14, flags: 1 })),
-        ("nak", Resp(4, Response::Nak {
-            req: 0x12,
-            nak: Nak::with(NakCode::TableTooSteep, 4, 1),
-        })),
-        ("nak_version", Resp(0, Response::Nak {
-            req: 0x01,
-            nak: Nak::with(NakCode::Version, u16::from(PROTOCOL_VERSION), 0),
-        })),
-        ("param", Resp(8, Response::Param { axis: 0, param: 14, value: 0.015 })),
+        (
+            "ack",
+            Resp(
+                5,
+                Response::Ack {
+                    req: 0x14,
+                    flags: 1
+                }
+            )
+        ),
+        (
+            "nak",
+            Resp(
+                4,
+                Response::Nak {
+                    req: 0x12,
+                    nak: Nak::with(NakCode::TableTooSteep, 4, 1),
+                }
+            )
+        ),
+        (
+            "nak_version",
+            Resp(
+                0,
+                Response::Nak {
+                    req: 0x01,
+                    nak: Nak::with(NakCode::Version, u16::from(PROTOCOL_VERSION), 0),
+                }
+            )
+        ),
+        (
+            "param",
+            Resp(
+                8,
+                Response::Param {
+                    axis: 0,
+                    param: 14,
+                    value: 0.015
+                }
+            )
+        ),
         ("info", Resp(0, Response::Info(info()))),
         ("status", Resp(1, Response::Status(status()))),
         ("telemetry", Resp(42, Response::Telemetry(telemetry()))),
@@ -140,13 +216,18 @@ fn wire(m: &Msg) -> Vec<u8> {
 }
 
 fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| std::format!("{x:02x}")).collect::<Vec<_>>().join(" ")
+    b.iter()
+        .map(|x| std::format!("{x:02x}"))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// The document's golden block: `name: hex bytes` lines (a line may continue on the
 /// next one, indented).
 fn doc_frames() -> Vec<(String, Vec<u8>)> {
-    let start = DOC.find("```golden\n").expect("PROTOCOL.md has a ```golden block");
+    let start = DOC
+        .find("```golden\n")
+        .expect("PROTOCOL.md has a ```golden block");
     let body = &DOC[start + 10..];
     let body = &body[..body.find("```").expect("the golden block ends")];
     let mut out: Vec<(String, Vec<u8>)> = Vec::new();
@@ -174,7 +255,10 @@ fn the_document_shows_every_frame_byte_for_byte() {
     let msgs = messages(chunk);
     let names: Vec<_> = msgs.iter().map(|(n, _)| *n).collect();
     let doc_names: Vec<_> = doc.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(doc_names, names, "PROTOCOL.md's golden frames and this test's list");
+    assert_eq!(
+        doc_names, names,
+        "PROTOCOL.md's golden frames and this test's list"
+    );
     let mut wrong = String::new();
     for ((name, m), (_, bytes)) in msgs.iter().zip(&doc) {
         let w = wire(m);
@@ -194,7 +278,11 @@ fn the_document_shows_every_frame_byte_for_byte() {
                         f.seq == *seq
                     }
                     Msg::Resp(seq, r) => {
-                        assert_eq!(Response::decode(f.ty, f.payload).as_ref(), Some(r), "{name}");
+                        assert_eq!(
+                            Response::decode(f.ty, f.payload).as_ref(),
+                            Some(r),
+                            "{name}"
+                        );
                         f.seq == *seq
                     }
                 });
@@ -202,5 +290,8 @@ fn the_document_shows_every_frame_byte_for_byte() {
         }
         assert_eq!(got, Some(true), "{name}: one frame with its seq");
     }
-    assert!(wrong.is_empty(), "PROTOCOL.md shows other bytes; these are the encoder's:\n{wrong}");
+    assert!(
+        wrong.is_empty(),
+        "PROTOCOL.md shows other bytes; these are the encoder's:\n{wrong}"
+    );
 }

@@ -1,4 +1,6 @@
-//! Little-endian field writer and reader over byte slices (no panics, typed shortfall).
+//! Little-endian field writer and reader over byte slices (no panics, typed shortfall),
+//! for the fixed layouts: table rows and the flash slot. Message bodies are postcard
+//! ([`super::msg`]).
 
 /// Appends little-endian fields to a buffer; every write fails with `None` when full.
 #[derive(Debug)]
