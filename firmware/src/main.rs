@@ -81,6 +81,11 @@ async fn main(spawner: Spawner) {
             Err(e) => defmt::panic!("table slots: {}", e),
         };
         match fr.boot() {
+            Some(h) if h.rows == 0 => defmt::info!(
+                "settings without a table from slot {=u8}, generation {=u32}",
+                h.slot,
+                h.generation
+            ),
             Some(h) => defmt::info!(
                 "table {=u32} ({=u16} rows) from slot {=u8}, generation {=u32}",
                 h.id,

@@ -1,5 +1,6 @@
 //! The settings tree from the command line, against `host-sim serve --pty --flash FILE`
-//! run as a user runs it (every step a `host-sim` process): settings set in any order,
+//! run as a user runs it (every step a `host-sim` process): settings saved alone before
+//! any table and back after a restart; settings set in any order,
 //! saved and read back exactly after a restart of `serve` on the same flash file; every
 //! path of `param list` read back with `param get`; a committed table that the settings
 //! in force make invalid cannot be activated; bad paths and values are refused naming
@@ -95,6 +96,23 @@ fn settings_survive_a_restart_exactly_and_every_path_reads_back() {
         assert_eq!(g["path"], r["path"]);
         assert_eq!(g["value"], r["value"], "{path}");
     }
+
+    // Settings alone, before any table (a valve calibration at commissioning): saved,
+    // and back after a restart with no table running.
+    ok(&b, &["param", "set", "axis/1/valve/null_lsb", "-12.5"]);
+    ok(&b, &["param", "save"]);
+    drop(b);
+    let b = serve(&flash);
+    let v = json(&ok(
+        &b,
+        &["param", "get", "axis/1/valve/null_lsb", "--json"],
+    ));
+    assert_eq!(v["value"], -12.5);
+    let st = json(&ok(&b, &["status", "--json"]));
+    assert_eq!(
+        (st["active_id"].is_null(), st["boot_reason"].as_str()),
+        (true, Some("newest"))
+    );
 
     // Settings in any order: min 100 mm, max 700 mm, then min 250 mm (validated as a
     // set, never replayed one by one); the two Kv set separately; a boolean by name.

@@ -320,13 +320,15 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         Ok(())
     }
 
-    /// Loads the newest valid flash slot: applies its parameters through
-    /// [`Device::set_param`] (a record the device refuses now is skipped), then installs its
-    /// table if it passes the [`CamTable`] rules with the resulting limits; otherwise it
-    /// undoes that slot's parameters ([`Device::reset_params`]) and tries the older slot
+    /// Loads the newest valid flash slot: applies its parameters as one set
+    /// ([`Device::set_params`]; a set refused as a whole refuses the slot), then installs
+    /// its table if it passes the [`CamTable`] rules with the resulting limits; otherwise
+    /// it undoes that slot's parameters ([`Device::reset_params`]) and tries the older slot
     /// the same way — a slot is a table *and* its parameters, never half of one. Returns
-    /// the header of the slot whose table runs (`None`: no table, boot configuration —
-    /// also if the device cannot undo a refused slot's parameters). Finally the slot that
+    /// the header of the slot that booted (`rows` 0: settings saved without a table, which
+    /// apply with no table running; `None`: nothing booted, boot configuration — also if
+    /// the device cannot undo a refused slot's parameters); [`Handler::boot_report`] says
+    /// which and why. Finally the slot that
     /// booted is confirmed and a slot that did not read as valid is revoked
     /// ([`Store::confirm`], [`Store::revoke`]), so every later boot of this flash boots the
     /// same.
@@ -403,6 +405,13 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 continue;
             }
             self.link.timeout_ms = timeout.unwrap_or(0);
+            if h.rows == 0 {
+                // Settings saved before any table: they apply, no table runs.
+                self.saved = Some(h);
+                self.boot_slot = Some(h.slot);
+                self.boot_reason = refused.unwrap_or(BootReason::Newest);
+                return Some(h);
+            }
             // Built in place in the committed table's buffer (nothing is committed at boot).
             self.committed_id = None;
             let t = self
@@ -801,7 +810,11 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         if !dev.all_idle() {
             return Err(Nak::new(NakCode::NotIdle));
         }
-        let t = dev.active_table().ok_or(Nak::new(NakCode::NothingToSave))?;
+        // The active table and the settings, or the settings alone before any table.
+        let t = dev.active_table();
+        if t.is_none() && self.overrides.is_empty() {
+            return Err(Nak::new(NakCode::NothingToSave));
+        }
         // Never erase the slot that booted or was saved last (the one that boots now),
         // even when the other slot is newer: after a fallback boot the newer slot is the
         // refused one (first-power-up review; settings issue 2b).

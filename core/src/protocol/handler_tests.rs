@@ -353,6 +353,45 @@ fn upload_activate_save_boot() {
     assert_eq!(h3.boot_report(), (None, BootReason::NoSave));
 }
 
+/// Settings saved before any table come back at boot with no table running; with
+/// neither a table nor a changed setting there is nothing to save.
+#[test]
+fn settings_alone_are_saved_and_come_back_without_a_table() {
+    let mut r = Rig::new();
+    assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
+    assert_eq!(nak_code(&r.req(&Request::Save)), NakCode::NothingToSave);
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: 0.5,
+    });
+    r.ack(&Request::Save);
+    let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
+    let mut h2 = Handler::<S, N>::new(store);
+    let mut dev2 = Mock::default();
+    let hd = h2.boot(&mut dev2, &mut r.flash).unwrap();
+    assert_eq!((hd.rows, hd.params, hd.id), (0, 1, NO_TABLE));
+    assert_eq!(dev2.kp, 0.5);
+    assert!(dev2.table.is_none());
+    assert_eq!(h2.boot_report(), (Some(hd.slot), BootReason::Newest));
+    // Then a table and the same settings: the next boot runs both.
+    let mut r2 = Rig {
+        h: h2,
+        dev: dev2,
+        flash: r.flash.clone(),
+        seq: 0,
+    };
+    assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
+    r2.upload(3, &nodes(10, 100)).unwrap();
+    r2.ack(&Request::Activate { id: 3 });
+    r2.ack(&Request::Save);
+    let mut dev3 = Mock::default();
+    let hd = Handler::<S, N>::new(store)
+        .boot(&mut dev3, &mut r2.flash)
+        .unwrap();
+    assert_eq!((hd.id, hd.rows, dev3.kp), (3, 10, 0.5));
+}
+
 /// GetParam reads what SetParam set (and the handler's own link timeout); read-only and
 /// unknown parameters are typed refusals; Status reports the boot.
 #[test]

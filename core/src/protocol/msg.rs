@@ -129,7 +129,7 @@ pub enum NakCode {
     UnknownParam = 26,
     /// SetParam: value outside its valid range (`detail` = axis, `detail2` = param id).
     ParamRange = 27,
-    /// Save: no active table to save.
+    /// Save: no active table and no changed setting to save.
     NothingToSave = 28,
     /// Save: flash erase/write/verify failed.
     Flash = 29,

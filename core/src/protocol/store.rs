@@ -204,7 +204,8 @@ impl Store {
         let params = r.u16()?;
         if usize::from(columns) != S
             || usize::from(rows) > N
-            || rows < 2
+            // 0 rows: settings saved without a table; 1 row is never a table.
+            || rows == 1
             || usize::from(params) > max_records(S)
         {
             return None;
@@ -306,19 +307,20 @@ impl Store {
         table: &CamTable<S, N>,
         params: &ParamOverrides,
     ) -> Result<SlotHeader, StoreError> {
-        self.save_keeping(flash, None, id, table, params)
+        self.save_keeping(flash, None, id, Some(table), params)
     }
 
     /// [`Store::save`], but never into slot `keep` (the slot that booted, or the last one
     /// saved: the one that boots now); `None`: into the slot not holding the newest valid
     /// table. The generation is one above the newest valid slot's either way, so the new
-    /// slot is the one the next boot tries first.
+    /// slot is the one the next boot tries first. `table: None` saves the settings alone
+    /// (a slot of 0 rows, id [`super::msg::NO_TABLE`]: settings saved before any table).
     pub fn save_keeping<F: NorFlash, const S: usize, const N: usize>(
         &self,
         flash: &mut F,
         keep: Option<u8>,
         id: u32,
-        table: &CamTable<S, N>,
+        table: Option<&CamTable<S, N>>,
         params: &ParamOverrides,
     ) -> Result<SlotHeader, StoreError> {
         if self.slot_size == 0 {
@@ -332,7 +334,7 @@ impl Store {
             (None, _) => 0,
         };
         let generation = newest.map_or(1, |h| h.generation.saturating_add(1));
-        let rows = u16::try_from(table.len()).map_err(|_| StoreError::Geometry)?;
+        let rows = u16::try_from(table.map_or(0, |t| t.len())).map_err(|_| StoreError::Geometry)?;
         let n_params = u16::try_from(params.len()).map_err(|_| StoreError::Geometry)?;
         if params.len() > max_records(S) {
             return Err(StoreError::Geometry);
@@ -364,8 +366,11 @@ impl Store {
                 .ok_or(StoreError::Geometry)?;
             out.put(flash, &rec, true)?;
         }
-        for i in 0..table.len() {
-            let n = table.node(i).ok_or(StoreError::Geometry)?;
+        for n in table
+            .into_iter()
+            .flat_map(|t| (0..t.len()).map(|i| t.node(i)))
+        {
+            let n = n.ok_or(StoreError::Geometry)?;
             let mut row = [0u8; super::msg::row_len(super::msg::MAX_AXES)];
             let mut w = Writer::new(&mut row);
             super::msg::write_row(&mut w, &n).ok_or(StoreError::Geometry)?;

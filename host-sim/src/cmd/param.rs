@@ -7,7 +7,7 @@
 //! - `set PATH VALUE`: sets it (the board validates the value, then the whole set with
 //!   the active table; nothing changes on a refusal) and prints the value read back;
 //! - `save`: persists the settings with the active table (both, validated together, are
-//!   what the next boot runs).
+//!   what the next boot runs), or the settings alone before any table.
 //!
 //! A value is a number in the path's unit; a boolean may be written `true` / `false`.
 
@@ -24,7 +24,7 @@ pub enum What {
     Get,
     /// Set one setting (validated by the board as a whole set).
     Set,
-    /// Persist the settings with the active table to flash.
+    /// Persist the settings (with the active table, if any) to flash.
     Save,
 }
 
@@ -111,6 +111,16 @@ pub fn set(link: &mut Link, pp: ParamPath, value: f32) -> anyhow::Result<()> {
     .map_err(|e| anyhow::anyhow!("{pp} = {value}: {e}"))
 }
 
+/// Prints one value: `PATH = VALUE UNIT`, or `{"path", "value"}` with `json`.
+fn show(pp: ParamPath, v: f32, json: bool) {
+    if json {
+        let j = serde_json::json!({"path": pp.to_string(), "value": json_value(v)});
+        println!("{j}");
+    } else {
+        println!("{pp} = {v} {}", pp.id.info().unit);
+    }
+}
+
 /// Runs `param`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let mut link = Link::open(&args.port)?;
@@ -153,15 +163,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
         What::Get => {
             let pp = resolve(path()?, axes)?;
-            let v = get(&mut link, pp)?;
-            if args.json {
-                println!(
-                    "{}",
-                    serde_json::json!({"path": pp.to_string(), "value": json_value(v)})
-                );
-            } else {
-                println!("{pp} = {v} {}", pp.id.info().unit);
-            }
+            show(pp, get(&mut link, pp)?, args.json);
         }
         What::Set => {
             let pp = resolve(path()?, axes)?;
@@ -179,22 +181,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             })?;
             let v = parse_value(pp, text)?;
             set(&mut link, pp, v)?;
-            let back = get(&mut link, pp)?;
-            if args.json {
-                println!(
-                    "{}",
-                    serde_json::json!({"path": pp.to_string(), "value": json_value(back)})
-                );
-            } else {
-                println!("{pp} = {back} {}", pp.id.info().unit);
-            }
+            show(pp, get(&mut link, pp)?, args.json);
         }
         What::Save => {
             eprintln!(
                 "saving to flash: the board erases a sector (up to 2 s, its tick paused, axes idle) …"
             );
             link.expect_ack(&Request::Save)?;
-            eprintln!("settings and the active table saved");
+            eprintln!("saved to flash");
         }
     }
     Ok(())
