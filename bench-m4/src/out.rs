@@ -20,17 +20,22 @@ impl Out {
     }
 
     fn flush(&mut self) {
-        // Whole UTF-8 characters only reach the buffer when a line is shorter than it;
-        // a longer one is cut at the last complete character.
+        // Up to the last complete UTF-8 character: the bytes of a character a full buffer
+        // cut (at most 3) stay for the next write.
         let bytes = self.buf.get(..self.len).unwrap_or(&[]);
-        let text = match core::str::from_utf8(bytes) {
-            Ok(t) => t,
-            Err(e) => {
-                core::str::from_utf8(bytes.get(..e.valid_up_to()).unwrap_or(&[])).unwrap_or("")
-            }
+        let valid = match core::str::from_utf8(bytes) {
+            Ok(t) => t.len(),
+            Err(e) => e.valid_up_to(),
         };
-        semihost::write(text);
-        self.len = 0;
+        semihost::write(core::str::from_utf8(bytes.get(..valid).unwrap_or(&[])).unwrap_or(""));
+        let rest = self.len.saturating_sub(valid);
+        if rest <= 3 {
+            self.buf.copy_within(valid..self.len, 0);
+            self.len = rest;
+        } else {
+            // Not a cut character: bytes that are no text are dropped.
+            self.len = 0;
+        }
     }
 }
 

@@ -118,3 +118,48 @@ fn a_flash_file_makes_a_restart_a_power_cycle() {
         .to_string();
     assert!(e.contains("board.flash") && e.contains("10 bytes"), "{e}");
 }
+
+/// The both-direction Kv (id 4) is saved as the two it set: Kv 0.02, Kv− 0.03, Kv 0.05
+/// leave both at 0.05, and after a power cycle both are 0.05 again (replaying an id-4
+/// record after Kv− would give Kv− 0.03). A board-wide parameter set with a non-zero axis
+/// byte is one setting (the last value), not one per axis byte.
+#[test]
+fn both_kv_and_board_wide_settings_come_back_as_they_were_set() {
+    let scn = Scenario::default();
+    let mut b = VBoard::new(&scn).unwrap();
+    let mut h = Host(VbHost::new(5));
+    assert!(matches!(h.req(&mut b, &Request::Hello), Response::Info(_)));
+    h.param(&mut b, ParamId::KvLsbPerUmS, 0.02);
+    h.param(&mut b, ParamId::KvNegLsbPerUmS, 0.03);
+    h.param(&mut b, ParamId::KvLsbPerUmS, 0.05);
+    for (axis, hz) in [(1u8, 12.0f32), (0, 9.0)] {
+        h.ack(
+            &mut b,
+            &Request::SetParam {
+                axis,
+                param: ParamId::MasterFilterHz as u8,
+                value: hz,
+            },
+        );
+    }
+    h.ack(&mut b, &Request::Save);
+    let mut b2 = VBoard::with_flash(&scn, b.flash.clone()).unwrap();
+    let mut h2 = Host(VbHost::new(60));
+    assert!(matches!(
+        h2.req(&mut b2, &Request::Hello),
+        Response::Info(_)
+    ));
+    let mut get = |p: ParamId| match h2.req(
+        &mut b2,
+        &Request::GetParam {
+            axis: 0,
+            param: p as u8,
+        },
+    ) {
+        Response::Param { value, .. } => value,
+        r => panic!("{p:?}: {r:?}"),
+    };
+    assert_eq!(get(ParamId::KvPosLsbPerUmS), 0.05);
+    assert_eq!(get(ParamId::KvNegLsbPerUmS), 0.05);
+    assert_eq!(get(ParamId::MasterFilterHz), 9.0);
+}

@@ -5,7 +5,7 @@
 //! | 0 | 2 | `seq`, u16 little-endian |
 //! | 2 | 1 | `type`, message type (see [`super::msg`]) |
 //! | 3 | n | payload, 0 ≤ n ≤ [`MAX_PAYLOAD`] |
-//! | 3 + n | 4 | CRC-32 ([`super::crc`]) of bytes 0 … 3 + n − 1, little-endian |
+//! | 3 + n | 4 | CRC-32 ([`CRC32`]) of bytes 0 … 3 + n − 1, little-endian |
 //!
 //! The decoded frame is 7 … [`MAX_FRAME`] bytes; COBS-encoded it is at most
 //! [`MAX_WIRE`] bytes, then one 0x00 delimiter. An empty frame (two delimiters in a row)

@@ -121,18 +121,19 @@ pub trait Device<const S: usize, const N: usize> {
     }
 }
 
-/// A host-link timeout from its SetParam value: 0 (off) or 10 … 60 000 ms, else
+/// A host-link timeout from its SetParam value: 0 (off) or 10 … 60 000 whole ms, else
 /// `ParamRange` naming [`ParamId::LinkTimeoutMs`].
 fn link_timeout_ms(value: f32) -> Result<u32, Nak> {
     let ok = value == 0.0 || (10.0..=60_000.0).contains(&value);
-    if !ok || !value.is_finite() {
+    let whole = ParamId::LinkTimeoutMs.check(0, value).is_ok();
+    if !ok || !whole {
         return Err(Nak::with(
             NakCode::ParamRange,
             0,
             ParamId::LinkTimeoutMs as u8,
         ));
     }
-    // In range: the cast is exact for whole ms and truncates a fraction.
+    // A whole number in 0 … 60 000: the cast is exact.
     Ok(value as u32)
 }
 
@@ -141,11 +142,11 @@ fn link_timeout_ms(value: f32) -> Result<u32, Nak> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum BootReason {
-    /// No flash slot held a save (never saved, or both slots blank or unreadable): the
-    /// boot configuration runs, no table.
+    /// No flash slot held a save (never saved, or no slot's header reads as a complete
+    /// save): the boot configuration runs, no table.
     #[default]
     NoSave = 0,
-    /// The newest complete save booted (table and settings).
+    /// The newest complete save booted (its table and settings, or its settings alone).
     Newest = 1,
     /// The newest slot's rows did not read back (CRC): the previous complete save booted.
     FallbackUnreadable = 2,
@@ -398,8 +399,9 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             }
             let ok = timeout.is_ok() && dev.set_params(self.overrides.as_slice()).is_ok();
             if !ok {
-                dev.reset_params().ok()?;
+                // Cleared first: a reset that fails ends the boot with none of them.
                 self.overrides.clear();
+                dev.reset_params().ok()?;
                 self.link.timeout_ms = 0;
                 refused.get_or_insert(BootReason::FallbackSettings);
                 continue;
@@ -428,8 +430,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 return Some(h);
             }
             // Refused: back to the boot configuration before the older slot.
-            dev.reset_params().ok()?;
             self.overrides.clear();
+            dev.reset_params().ok()?;
             self.link.timeout_ms = 0;
             refused.get_or_insert(BootReason::FallbackTable);
         }
@@ -657,6 +659,13 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 Some(p) if p.info().read_only => {
                     Err(Nak::with(NakCode::ReadOnly, u16::from(axis), param))
                 }
+                // Both Kv: recorded as the two, so the saved set replays in any order.
+                Some(ParamId::KvLsbPerUmS) => {
+                    dev.set_param(axis, ParamId::KvLsbPerUmS, value).map(|()| {
+                        self.overrides.record(axis, ParamId::KvPosLsbPerUmS, value);
+                        self.overrides.record(axis, ParamId::KvNegLsbPerUmS, value);
+                    })
+                }
                 Some(ParamId::LinkTimeoutMs) => self.set_link_timeout(value).map(|()| {
                     self.overrides.record(0, ParamId::LinkTimeoutMs, value);
                 }),
@@ -814,6 +823,11 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         let t = dev.active_table();
         if t.is_none() && self.overrides.is_empty() {
             return Err(Nak::new(NakCode::NothingToSave));
+        }
+        // Settings alone would become the newest save and boot without the saved table
+        // that did not run (its install was refused): refused (detail 1), nothing changes.
+        if t.is_none() && self.saved.is_some_and(|h| h.rows > 0) {
+            return Err(Nak::with(NakCode::NothingToSave, 1, 0));
         }
         // Never erase the slot that booted or was saved last (the one that boots now),
         // even when the other slot is newer: after a fallback boot the newer slot is the

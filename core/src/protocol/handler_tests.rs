@@ -392,6 +392,54 @@ fn settings_alone_are_saved_and_come_back_without_a_table() {
     assert_eq!((hd.id, hd.rows, dev3.kp), (3, 10, 0.5));
 }
 
+/// A saved slot that cannot boot and no older one: nothing runs, and the board says
+/// every saved slot was refused. A table whose install the device refuses at boot: the
+/// settings alone cannot be saved over it (it would stop booting), nothing changes.
+#[test]
+fn none_bootable_is_reported_and_a_saved_table_is_not_replaced_by_settings_alone() {
+    let mut r = loaded_rig();
+    r.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: 0.5,
+    });
+    r.ack(&Request::Save);
+    let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
+    let mut narrow = Mock {
+        max_um: 1_000,
+        ..Mock::default()
+    };
+    let mut h = Handler::<S, N>::new(store);
+    assert!(h.boot(&mut narrow, &mut r.flash).is_none());
+    assert_eq!(h.boot_report(), (None, BootReason::NoneBootable));
+    assert_eq!(narrow.kp, 0.0, "the refused slot's kp is undone");
+    // The device refuses the table's install at boot: it is the saved one, not running.
+    let mut refusing = Mock {
+        refuse: true,
+        ..Mock::default()
+    };
+    let mut h = Handler::<S, N>::new(store);
+    let _ = h.boot(&mut refusing, &mut r.flash);
+    let mut r2 = Rig {
+        h,
+        dev: refusing,
+        flash: r.flash.clone(),
+        seq: 0,
+    };
+    assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
+    r2.ack(&Request::SetParam {
+        axis: 0,
+        param: ParamId::KpLsbPerUm as u8,
+        value: 0.25,
+    });
+    match r2.req(&Request::Save) {
+        Response::Nak { nak, .. } => {
+            assert_eq!(nak, Nak::with(NakCode::NothingToSave, 1, 0));
+        }
+        x => panic!("{x:?}"),
+    }
+}
+
 /// GetParam reads what SetParam set (and the handler's own link timeout); read-only and
 /// unknown parameters are typed refusals; Status reports the boot.
 #[test]

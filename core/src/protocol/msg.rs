@@ -734,7 +734,16 @@ impl Response {
                 )
             }
             ty::NAK => {
-                let (req, code, detail, detail2): (u8, u8, u16, u8) = body(payload).ok()?;
+                let (req, code, detail, detail2): (u8, u8, u16, u8) = match body(payload) {
+                    Ok(n) => n,
+                    // A version-2 board's Nak (its fixed layout: req, code, detail u16 LE,
+                    // detail2), so a host of this version can say why an old board refused
+                    // its Hello.
+                    Err(_) => match *payload {
+                        [req, code, d0, d1, d2] => (req, code, u16::from_le_bytes([d0, d1]), d2),
+                        _ => return None,
+                    },
+                };
                 let nak = Nak {
                     code: NakCode::from_u8(code)?,
                     detail,
@@ -911,6 +920,15 @@ mod tests {
             Response::Status(st),
             Response::Telemetry(tm),
         ];
+        // A version-2 board's answer to this version's Hello (its fixed-layout Nak Length:
+        // the Hello had a byte it did not expect) is read as such.
+        assert_eq!(
+            Response::decode(ty::NAK, &[ty::HELLO, 8, 0, 0, 0]),
+            Some(Response::Nak {
+                req: ty::HELLO,
+                nak: Nak::new(NakCode::Length)
+            })
+        );
         // Another version's Info: only its version byte is read, so the host can say
         // which version the board speaks (version 2's first bytes here).
         let v2 = [2u8, 0, 3, 7, 1, 0, 4, 20, 0xE8, 3, 0, 0];

@@ -2,7 +2,7 @@
 //! the table and boot can apply them again.
 //!
 //! A record is `(axis, param, value)`; a later SetParam of the same `(axis, param)`
-//! replaces the earlier value (MasterSpeedPerS ignores the axis byte: it is kept under
+//! replaces the earlier value (a board-wide parameter ignores the axis byte: it is kept under
 //! axis 0). On flash a record is 6 bytes: `u8 axis · u8 param id · f32 value` (LE).
 
 use super::msg::{ParamId, MAX_AXES};
@@ -58,10 +58,10 @@ impl ParamOverrides {
     /// Returns `false` only if the set is full with other parameters (it cannot be with
     /// axes below [`MAX_AXES`]).
     pub fn record(&mut self, axis: u8, param: ParamId, value: f32) -> bool {
-        let axis = if param == ParamId::MasterSpeedPerS {
-            0
-        } else {
-            axis
+        // A board-wide parameter ignores the axis byte: one record, under axis 0.
+        let axis = match param.info().scope {
+            super::settings::Scope::Board => 0,
+            super::settings::Scope::Axis => axis,
         };
         let rec = ParamRecord { axis, param, value };
         match self
@@ -106,6 +106,22 @@ impl ParamOverrides {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_board_wide_parameter_is_one_record_whatever_the_axis_byte() {
+        let mut o = ParamOverrides::new();
+        assert!(o.record(1, ParamId::MasterFilterHz, 12.0));
+        assert!(o.record(7, ParamId::MasterFilterHz, 9.0));
+        assert!(o.record(1, ParamId::KpLsbPerUm, 0.5));
+        let recs: std::vec::Vec<_> = o.iter().map(|r| (r.axis, r.param, r.value)).collect();
+        assert_eq!(
+            recs,
+            [
+                (0, ParamId::MasterFilterHz, 9.0),
+                (1, ParamId::KpLsbPerUm, 0.5)
+            ]
+        );
+    }
 
     #[test]
     fn a_later_value_replaces_an_earlier_one() {
@@ -153,7 +169,12 @@ mod tests {
                 }
             }
         }
-        // MasterSpeedPerS is kept once.
-        assert_eq!(o.len(), MAX_AXES * (ParamId::COUNT - 1) + 1);
+        // A board-wide parameter is kept once.
+        let board = super::super::settings::PARAMS
+            .iter()
+            .filter(|i| i.scope == super::super::settings::Scope::Board)
+            .count();
+        assert_eq!(board, 4);
+        assert_eq!(o.len(), MAX_AXES * (ParamId::COUNT - board) + board);
     }
 }

@@ -143,6 +143,10 @@ pub(super) fn assign_axis(a: &mut AxisConfig, param: ParamId, value: f32) -> boo
         ParamId::KdLsbSPerUm => g.kd_lsb_s_per_um = value,
         ParamId::IZoneUm => g.i_zone_um = value,
         ParamId::ILimitLsb => g.i_limit_lsb = value,
+        ParamId::KvLsbPerUmS => {
+            g.kv_pos_lsb_per_um_s = value;
+            g.kv_neg_lsb_per_um_s = value;
+        }
         ParamId::KvPosLsbPerUmS => g.kv_pos_lsb_per_um_s = value,
         ParamId::KvNegLsbPerUmS => g.kv_neg_lsb_per_um_s = value,
         ParamId::KaLsbPerUmS2 => g.ka_lsb_per_um_s2 = value,
@@ -189,7 +193,7 @@ pub fn read_param<const S: usize>(
         ParamId::KdLsbSPerUm => g.kd_lsb_s_per_um,
         ParamId::IZoneUm => g.i_zone_um,
         ParamId::ILimitLsb => g.i_limit_lsb,
-        ParamId::KvPosLsbPerUmS => g.kv_pos_lsb_per_um_s,
+        ParamId::KvLsbPerUmS | ParamId::KvPosLsbPerUmS => g.kv_pos_lsb_per_um_s,
         ParamId::KvNegLsbPerUmS => g.kv_neg_lsb_per_um_s,
         ParamId::KaLsbPerUmS2 => g.ka_lsb_per_um_s2,
         ParamId::ValveLagUs => g.valve_lag_us,

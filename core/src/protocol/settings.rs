@@ -37,8 +37,11 @@ pub enum ParamId {
     KiLsbPerUmS = 2,
     /// Derivative gain, DAC LSB per (µm/s).
     KdLsbSPerUm = 3,
-    /// Velocity feed-forward for extending (positive) target speed, LSB per (µm/s).
-    KvPosLsbPerUmS = 4,
+    /// Velocity feed-forward for both directions, LSB per (µm/s): sets the extending and
+    /// the retracting one (reads the extending one). Its meaning since version 1; the
+    /// handler records it as the two ([`ParamId::KvPosLsbPerUmS`],
+    /// [`ParamId::KvNegLsbPerUmS`]), so a saved set replays in any order.
+    KvLsbPerUmS = 4,
     /// Acceleration feed-forward, LSB per (µm/s²).
     KaLsbPerUmS2 = 5,
     /// Following-error fault limit, µm.
@@ -87,6 +90,8 @@ pub enum ParamId {
     MasterFilterHz = 25,
     /// The control period, µs (axis byte ignored; read-only: the firmware's tick).
     PeriodUs = 26,
+    /// Velocity feed-forward for extending (positive) target speed, LSB per (µm/s).
+    KvPosLsbPerUmS = 27,
 }
 
 /// Whether a parameter belongs to each slave or to the board.
@@ -162,6 +167,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
     p(P::KdLsbSPerUm, A, "kd_lsb_s_per_um", "LSB·s/µm", 0.0, 10.0),
     p(P::IZoneUm, A, "i_zone_um", "µm", 1e-3, 1e6),
     p(P::ILimitLsb, A, "i_limit_lsb", "LSB", 0.0, 2047.0),
+    p(P::KvLsbPerUmS, A, "kv_lsb_per_um_s", "LSB·s/µm", 0.0, 100.0),
     p(
         P::KvPosLsbPerUmS,
         A,
@@ -278,7 +284,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 26;
+    pub const COUNT: usize = 27;
 
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
@@ -395,7 +401,7 @@ mod tests {
                 assert_eq!(id.info().id, id);
             }
         }
-        assert_eq!(all_paths(2).count(), 22 * 2 + 4);
+        assert_eq!(all_paths(2).count(), 23 * 2 + 4);
         for pp in all_paths(3) {
             let s = pp.to_string();
             let (axis, id) = parse_path(&s, 3).unwrap();
@@ -408,7 +414,7 @@ mod tests {
         let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
         paths.sort();
         paths.dedup();
-        assert_eq!(paths.len(), 48, "two parameters share a path");
+        assert_eq!(paths.len(), 50, "two parameters share a path");
     }
 
     #[test]
@@ -466,6 +472,7 @@ mod tests {
             P::KdLsbSPerUm,
             P::IZoneUm,
             P::ILimitLsb,
+            P::KvLsbPerUmS,
             P::KvPosLsbPerUmS,
             P::KvNegLsbPerUmS,
             P::KaLsbPerUmS2,

@@ -89,7 +89,12 @@ pub fn explain(nak: &Nak) -> String {
             "{}: read-only (the board sets it itself)",
             param_path(d, d2)
         ),
-        C::NothingToSave => "no active table to save".into(),
+        C::NothingToSave if d == 1 => {
+            "the saved table is not running (its install was refused at boot): saving the \
+             settings alone would stop it booting; activate a table first"
+                .into()
+        }
+        C::NothingToSave => "no active table and no changed setting to save".into(),
         C::Flash => "the flash erase, write or verify failed".into(),
         C::Refused if d == 0 => {
             "the table's law cannot be built with the present parameters".into()

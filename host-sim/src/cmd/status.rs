@@ -57,7 +57,7 @@ pub struct Report {
     pub committed_id: Option<u32>,
     /// Table id in flash.
     pub saved_id: Option<u32>,
-    /// The flash slot the board booted (none: it booted without a saved table).
+    /// The flash slot the board booted (none: nothing saved booted).
     pub boot_slot: Option<u8>,
     /// Why (`newest`, `fallback_unreadable`, `fallback_settings`, `fallback_table`,
     /// `no_save`, `none_bootable`; [`boot_words`] says it in words).
@@ -150,7 +150,7 @@ pub fn boot_words(r: &Report) -> String {
         .map_or_else(String::new, |s| format!("slot {s}: "));
     let why = match r.boot_reason.as_str() {
         "no_save" => "nothing saved, boot configuration",
-        "newest" => "the last save (table and settings)",
+        "newest" => "the last save",
         "fallback_unreadable" => "the save before the last (the last one did not read back)",
         "fallback_settings" => "the save before the last (the last one's settings were refused)",
         "fallback_table" => "the save before the last (the last one's table breaks its rules)",
