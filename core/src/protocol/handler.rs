@@ -371,7 +371,13 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         // Why the newest slot did not boot (the reason a later slot boots instead).
         let mut refused: Option<BootReason> = None;
         self.boot_slot = None;
-        self.boot_reason = BootReason::NoSave;
+        // A slot whose header reads as a complete save: a save exists, so booting nothing
+        // means every save was refused.
+        self.boot_reason = if slots.iter().any(Option::is_some) {
+            BootReason::NoneBootable
+        } else {
+            BootReason::NoSave
+        };
         for h in slots.into_iter().flatten() {
             // The slot's records go straight into the handler's own set (what the next
             // Save stores): no copy of them on the stack.
@@ -387,7 +393,6 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 refused.get_or_insert(BootReason::FallbackUnreadable);
                 continue;
             }
-            self.boot_reason = BootReason::NoneBootable;
             // The slot's settings as one set: all apply, or the slot is refused like a
             // table that fails its rules (the older slot is tried). The link timeout is
             // the handler's (at most one record); the device skips it.
@@ -434,11 +439,6 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             dev.reset_params().ok()?;
             self.link.timeout_ms = 0;
             refused.get_or_insert(BootReason::FallbackTable);
-        }
-        if refused == Some(BootReason::FallbackUnreadable) && self.boot_reason == BootReason::NoSave
-        {
-            // The only slot with a header did not read back: nothing bootable was saved.
-            self.boot_reason = BootReason::NoneBootable;
         }
         None
     }
@@ -658,13 +658,6 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             Request::SetParam { axis, param, value } => match ParamId::from_u8(param) {
                 Some(p) if p.info().read_only => {
                     Err(Nak::with(NakCode::ReadOnly, u16::from(axis), param))
-                }
-                // Both Kv: recorded as the two, so the saved set replays in any order.
-                Some(ParamId::KvLsbPerUmS) => {
-                    dev.set_param(axis, ParamId::KvLsbPerUmS, value).map(|()| {
-                        self.overrides.record(axis, ParamId::KvPosLsbPerUmS, value);
-                        self.overrides.record(axis, ParamId::KvNegLsbPerUmS, value);
-                    })
                 }
                 Some(ParamId::LinkTimeoutMs) => self.set_link_timeout(value).map(|()| {
                     self.overrides.record(0, ParamId::LinkTimeoutMs, value);

@@ -234,6 +234,15 @@ impl Rig {
         r[0].1.clone()
     }
 
+    /// SetParam of slave 0 (or a board-wide parameter), which must be acknowledged.
+    pub(super) fn set_param(&mut self, param: ParamId, value: f32) {
+        self.ack(&Request::SetParam {
+            axis: 0,
+            param: param as u8,
+            value,
+        });
+    }
+
     pub(super) fn ack(&mut self, q: &Request<'_>) -> u8 {
         match self.req(q) {
             Response::Ack { req, flags } => {
@@ -360,11 +369,7 @@ fn settings_alone_are_saved_and_come_back_without_a_table() {
     let mut r = Rig::new();
     assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
     assert_eq!(nak_code(&r.req(&Request::Save)), NakCode::NothingToSave);
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::KpLsbPerUm as u8,
-        value: 0.5,
-    });
+    r.set_param(ParamId::KpLsbPerUm, 0.5);
     r.ack(&Request::Save);
     let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
     let mut h2 = Handler::<S, N>::new(store);
@@ -398,11 +403,7 @@ fn settings_alone_are_saved_and_come_back_without_a_table() {
 #[test]
 fn none_bootable_is_reported_and_a_saved_table_is_not_replaced_by_settings_alone() {
     let mut r = loaded_rig();
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::KpLsbPerUm as u8,
-        value: 0.5,
-    });
+    r.set_param(ParamId::KpLsbPerUm, 0.5);
     r.ack(&Request::Save);
     let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
     let mut narrow = Mock {
@@ -427,11 +428,7 @@ fn none_bootable_is_reported_and_a_saved_table_is_not_replaced_by_settings_alone
         seq: 0,
     };
     assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
-    r2.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::KpLsbPerUm as u8,
-        value: 0.25,
-    });
+    r2.set_param(ParamId::KpLsbPerUm, 0.25);
     match r2.req(&Request::Save) {
         Response::Nak { nak, .. } => {
             assert_eq!(nak, Nak::with(NakCode::NothingToSave, 1, 0));
@@ -451,11 +448,7 @@ fn get_param_reads_back_and_read_only_params_are_refused() {
             param: p as u8,
         })
     };
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::KpLsbPerUm as u8,
-        value: 0.5,
-    });
+    r.set_param(ParamId::KpLsbPerUm, 0.5);
     assert_eq!(
         get(&mut r, 0, ParamId::KpLsbPerUm),
         Response::Param {
@@ -464,11 +457,7 @@ fn get_param_reads_back_and_read_only_params_are_refused() {
             value: 0.5
         }
     );
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::LinkTimeoutMs as u8,
-        value: 250.0,
-    });
+    r.set_param(ParamId::LinkTimeoutMs, 250.0);
     assert!(matches!(
         get(&mut r, 0, ParamId::LinkTimeoutMs),
         Response::Param { value, .. } if value == 250.0
@@ -507,16 +496,8 @@ fn get_param_reads_back_and_read_only_params_are_refused() {
 #[test]
 fn saved_parameters_come_back_at_boot() {
     let mut r = loaded_rig();
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::KpLsbPerUm as u8,
-        value: 0.5,
-    });
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::KpLsbPerUm as u8,
-        value: 0.75,
-    });
+    r.set_param(ParamId::KpLsbPerUm, 0.5);
+    r.set_param(ParamId::KpLsbPerUm, 0.75);
     // A refused value is not recorded.
     r.req(&Request::SetParam {
         axis: 0,
@@ -560,11 +541,7 @@ fn a_refused_slot_leaves_none_of_its_parameters() {
     r.ack(&Request::Activate { id: 1 });
     r.ack(&Request::Save);
     // Slot 2: kp 0.75 and table 2 (1 … 28 mm).
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::KpLsbPerUm as u8,
-        value: 0.75,
-    });
+    r.set_param(ParamId::KpLsbPerUm, 0.75);
     r.upload(2, &nodes(10, 3000)).unwrap();
     r.ack(&Request::Activate { id: 2 });
     r.ack(&Request::Save);
@@ -602,11 +579,7 @@ fn a_refused_slot_leaves_none_of_its_parameters() {
 fn set_param_and_telemetry() {
     let mut r = Rig::new();
     r.req(&Request::Hello);
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::KpLsbPerUm as u8,
-        value: 0.5,
-    });
+    r.set_param(ParamId::KpLsbPerUm, 0.5);
     assert_eq!(r.dev.kp, 0.5);
     let n = r.req(&Request::SetParam {
         axis: 0,
@@ -1107,11 +1080,7 @@ fn link_watchdog_holds_after_silence_only_when_set() {
         };
         assert_eq!(nak_code(&r.req(&q)), NakCode::ParamRange, "{bad}");
     }
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::LinkTimeoutMs as u8,
-        value: 100.0,
-    });
+    r.set_param(ParamId::LinkTimeoutMs, 100.0);
     // Not started from the link: silence is fine.
     assert!(!r.h.watch_link(&mut r.dev, 2_000_000));
     r.ack(&Request::Start);
@@ -1168,11 +1137,7 @@ fn set_position_offset_and_link_timeout_are_saved() {
         nak_code(&r.req(&Request::Home { axis: 3 })),
         NakCode::NoAxis
     );
-    r.ack(&Request::SetParam {
-        axis: 0,
-        param: ParamId::LinkTimeoutMs as u8,
-        value: 250.0,
-    });
+    r.set_param(ParamId::LinkTimeoutMs, 250.0);
     r.ack(&Request::Save);
     let store = Store::new::<_, S, N>(&r.flash, 0, SLOT).unwrap();
     let mut h2 = Handler::<S, N>::new(store);

@@ -58,6 +58,12 @@ impl ParamOverrides {
     /// Returns `false` only if the set is full with other parameters (it cannot be with
     /// axes below [`MAX_AXES`]).
     pub fn record(&mut self, axis: u8, param: ParamId, value: f32) -> bool {
+        // Both Kv (id 4) is kept as the two it sets, so a saved set replays in any order
+        // (Kv, Kv−, Kv again must leave Kv− at the last Kv).
+        if param == ParamId::KvLsbPerUmS {
+            return self.record(axis, ParamId::KvPosLsbPerUmS, value)
+                && self.record(axis, ParamId::KvNegLsbPerUmS, value);
+        }
         // A board-wide parameter ignores the axis byte: one record, under axis 0.
         let axis = match param.info().scope {
             super::settings::Scope::Board => 0,
@@ -175,6 +181,8 @@ mod tests {
             .filter(|i| i.scope == super::super::settings::Scope::Board)
             .count();
         assert_eq!(board, 4);
-        assert_eq!(o.len(), MAX_AXES * (ParamId::COUNT - board) + board);
+        // … and both Kv (id 4) as the two it sets, not a record of its own.
+        assert_eq!(o.len(), MAX_AXES * (ParamId::COUNT - board - 1) + board);
+        assert!(o.iter().all(|r| r.param != ParamId::KvLsbPerUmS));
     }
 }

@@ -129,18 +129,40 @@ pub fn report(s: &StatusMsg) -> Report {
     }
 }
 
+/// Each boot reason's JSON name and words (`Status.boot_reason`).
+const BOOT: [(hydra_core::protocol::BootReason, &str, &str); 6] = {
+    use hydra_core::protocol::BootReason as B;
+    [
+        (B::NoSave, "no_save", "nothing saved, boot configuration"),
+        (B::Newest, "newest", "the last save"),
+        (
+            B::FallbackUnreadable,
+            "fallback_unreadable",
+            "the save before the last (the last one did not read back)",
+        ),
+        (
+            B::FallbackSettings,
+            "fallback_settings",
+            "the save before the last (the last one's settings were refused)",
+        ),
+        (
+            B::FallbackTable,
+            "fallback_table",
+            "the save before the last (the last one's table breaks its rules)",
+        ),
+        (
+            B::NoneBootable,
+            "none_bootable",
+            "no save could boot, boot configuration",
+        ),
+    ]
+};
+
 /// The JSON name of a `Status.boot_reason` code.
 fn boot_name(code: u8) -> &'static str {
-    use hydra_core::protocol::BootReason as B;
-    match B::from_u8(code) {
-        Some(B::NoSave) => "no_save",
-        Some(B::Newest) => "newest",
-        Some(B::FallbackUnreadable) => "fallback_unreadable",
-        Some(B::FallbackSettings) => "fallback_settings",
-        Some(B::FallbackTable) => "fallback_table",
-        Some(B::NoneBootable) => "none_bootable",
-        None => "unknown",
-    }
+    BOOT.iter()
+        .find(|(r, _, _)| *r as u8 == code)
+        .map_or("unknown", |(_, name, _)| name)
 }
 
 /// What the board booted, in words.
@@ -148,15 +170,10 @@ pub fn boot_words(r: &Report) -> String {
     let slot = r
         .boot_slot
         .map_or_else(String::new, |s| format!("slot {s}: "));
-    let why = match r.boot_reason.as_str() {
-        "no_save" => "nothing saved, boot configuration",
-        "newest" => "the last save",
-        "fallback_unreadable" => "the save before the last (the last one did not read back)",
-        "fallback_settings" => "the save before the last (the last one's settings were refused)",
-        "fallback_table" => "the save before the last (the last one's table breaks its rules)",
-        "none_bootable" => "no save could boot, boot configuration",
-        _ => "unknown reason",
-    };
+    let why = BOOT
+        .iter()
+        .find(|(_, name, _)| *name == r.boot_reason)
+        .map_or("unknown reason", |(_, _, words)| words);
     format!("{slot}{why}")
 }
 
