@@ -182,6 +182,34 @@ pub struct FaultRecord {
     pub tick: u32,
 }
 
+/// Most events [`FaultHistory`] keeps.
+pub const FAULT_HISTORY_LEN: usize = 16;
+
+/// One fault as it was raised: the cause, the tick, and the value that tripped it with
+/// its limit. Units by kind: following error — I24F8 µm raw (|target − position| and the
+/// axis' limit); encoder jump — counts (the tick's step and the channel's plausible
+/// maximum); master stalled — ticks (how long the master stood still, and the timeout);
+/// controller fault — the axis' following error and its limit at that tick, I24F8 µm
+/// raw (for context); every other kind — 0 and 0 (a state, not a value: E-stop,
+/// watchdog, overrun, pressure input).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FaultEvent {
+    /// The cause.
+    pub fault: Fault,
+    /// Tick counter value when it was raised.
+    pub tick: u32,
+    /// The value that tripped it (unit by kind, above).
+    pub value: i32,
+    /// The limit it exceeded (unit by kind, above).
+    pub limit: i32,
+}
+
+/// The last [`FAULT_HISTORY_LEN`] fault events, oldest first when read: the latching
+/// cause of every fault, and each further kind seen while latched (a cause that stays
+/// present is one event, not one per tick). Cleared only by a power cycle.
+pub type FaultHistory = heapless::HistoryBuf<FaultEvent, FAULT_HISTORY_LEN>;
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -33,7 +33,7 @@
 use super::config::{MasterSource, RuntimeCoeffs};
 use super::controller::{ControlInputs, Controller, LawFault};
 use super::encoder::{plausible, step};
-use super::fault::{Fault, FaultRecord, FaultSet};
+use super::fault::{Fault, FaultEvent, FaultHistory, FaultRecord, FaultSet};
 use super::io::{Board, EncoderSample};
 use super::reference::{RefState, References};
 use super::stall::StallMonitor;
@@ -202,6 +202,7 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     state: State,
     fault: Option<FaultRecord>,
     fault_set: FaultSet,
+    history: FaultHistory,
     prev_enc: Option<EncoderSample<S>>,
     time_master: i64,
     held_master: Master,
@@ -232,6 +233,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             state: State::Idle,
             fault: None,
             fault_set: FaultSet::EMPTY,
+            history: FaultHistory::new(),
             prev_enc: None,
             time_master: 0,
             held_master: Master::ZERO,
@@ -260,7 +262,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         rt.status.reference = *rt.refs.states();
         rt.status.dac = rt.null_codes();
         if boot == BootCause::Watchdog {
-            rt.raise(Fault::Watchdog);
+            rt.raise(Fault::Watchdog, 0, 0);
             rt.status.state = rt.state;
             rt.status.fault = rt.fault;
             rt.status.fault_set = rt.fault_set;
@@ -276,6 +278,11 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
     /// The latched fault, if any.
     pub fn fault(&self) -> Option<FaultRecord> {
         self.fault
+    }
+
+    /// The last fault events ([`FaultHistory`]; `oldest_ordered()` reads them in order).
+    pub fn fault_history(&self) -> &FaultHistory {
+        &self.history
     }
 
     /// The latest status snapshot.
@@ -397,7 +404,18 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             .map_or([DacCode::NULL; S], Controller::null_codes)
     }
 
-    fn raise(&mut self, f: Fault) {
+    /// Latches `f` (if not latched already) and records it in the history if its kind is
+    /// new since the latch; `value` and `limit` as [`FaultEvent`] documents.
+    fn raise(&mut self, f: Fault, value: i32, limit: i32) {
+        let latched = self.state == State::Fault;
+        if !latched || !self.fault_set.contains(f.kind()) {
+            self.history.write(FaultEvent {
+                fault: f,
+                tick: self.status.tick,
+                value,
+                limit,
+            });
+        }
         self.fault_set.insert(f);
         if self.state != State::Fault {
             self.state = State::Fault;
@@ -425,25 +443,25 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
     /// Latches every instantaneous cause of this sample and returns the first one.
     fn latch_causes(&mut self, s: &Sample<S, P>) -> Option<Fault> {
         let mut first = None;
-        let mut cause = |rt: &mut Self, f: Fault| {
-            rt.raise(f);
+        let mut cause = |rt: &mut Self, f: Fault, value: i32, limit: u32| {
+            rt.raise(f, value, i32::try_from(limit).unwrap_or(i32::MAX));
             first.get_or_insert(f);
         };
         if s.estop {
-            cause(self, Fault::EStop);
+            cause(self, Fault::EStop, 0, 0);
         }
         if s.overrun {
-            cause(self, Fault::Overrun);
+            cause(self, Fault::Overrun, 0, 0);
         }
         if self.cfg.pressure_required && !self.pressure_ok {
-            cause(self, Fault::PressureInput);
+            cause(self, Fault::PressureInput, 0, 0);
         }
         if let Some(prev) = self.prev_enc {
             let master_used = self.cfg.master_source == MasterSource::Encoder;
-            if master_used
-                && !plausible(step(prev.master, s.enc.master), self.cfg.master_step_limit)
-            {
-                cause(self, Fault::EncoderJump { channel: 0 });
+            let m_step = step(prev.master, s.enc.master);
+            if master_used && !plausible(m_step, self.cfg.master_step_limit) {
+                let limit = self.cfg.master_step_limit;
+                cause(self, Fault::EncoderJump { channel: 0 }, m_step, limit);
             }
             let limits = self.cfg.slave_step_limit;
             let slaves = prev
@@ -452,9 +470,10 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 .zip(s.enc.slaves.iter())
                 .zip(limits.iter());
             for (i, ((&a, &b), &lim)) in slaves.enumerate() {
-                if !plausible(step(a, b), lim) {
+                let d = step(a, b);
+                if !plausible(d, lim) {
                     let channel = u8::try_from(i.saturating_add(1)).unwrap_or(u8::MAX);
-                    cause(self, Fault::EncoderJump { channel });
+                    cause(self, Fault::EncoderJump { channel }, d, lim);
                 }
             }
         }
@@ -627,7 +646,8 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                         )
                         && !self.near_table_end(fed_master)
                     {
-                        self.raise(Fault::MasterStalled);
+                        let t = i32::try_from(self.cfg.stall_timeout_ticks).unwrap_or(i32::MAX);
+                        self.raise(Fault::MasterStalled, t, t);
                     }
                 }
             }
@@ -677,25 +697,22 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             .iter()
             .zip(axis_fault.iter())
             .zip(self.cfg.following_error_limit_um.iter());
+        // The first following error and the first controller fault, each with the error
+        // that tripped it and the axis' limit (I24F8 µm raw).
         let mut raised = [None; 2];
         for (i, ((e, flt), lim)) in per_axis.enumerate() {
             let axis = u8::try_from(i).unwrap_or(u8::MAX);
             let [fe, ctl] = &mut raised;
-            if e.unsigned_abs() > lim.unsigned_abs() {
-                fe.get_or_insert(Fault::FollowingError { axis });
+            let ev = |f: Fault| (f, e.to_bits(), lim.to_bits());
+            if e.unsigned_abs() > lim.unsigned_abs() || *flt == Some(LawFault::FollowingError) {
+                fe.get_or_insert(ev(Fault::FollowingError { axis }));
             }
-            match flt {
-                Some(LawFault::FollowingError) => {
-                    fe.get_or_insert(Fault::FollowingError { axis });
-                }
-                Some(LawFault::Other) => {
-                    ctl.get_or_insert(Fault::Controller { axis });
-                }
-                None => {}
+            if *flt == Some(LawFault::Other) {
+                ctl.get_or_insert(ev(Fault::Controller { axis }));
             }
         }
-        for f in raised.into_iter().flatten() {
-            self.raise(f);
+        for (f, value, limit) in raised.into_iter().flatten() {
+            self.raise(f, value, limit);
         }
     }
 

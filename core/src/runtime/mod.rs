@@ -40,7 +40,9 @@ pub use config::{
     PERIOD_MAX_US, PERIOD_MIN_US,
 };
 pub use controller::{ControlInputs, ControlOutputs, Controller, LawFault};
-pub use fault::{Fault, FaultKind, FaultRecord, FaultSet};
+pub use fault::{
+    Fault, FaultEvent, FaultHistory, FaultKind, FaultRecord, FaultSet, FAULT_HISTORY_LEN,
+};
 pub use io::{Board, EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};
 pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,

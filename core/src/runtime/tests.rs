@@ -129,6 +129,46 @@ fn following_error_faults_in_the_same_tick() {
 }
 
 #[test]
+fn the_fault_history_keeps_each_cause_with_its_value_and_limit() {
+    let mut r = rt();
+    r.step(&sample(0, [0, 0]), Some(Command::Start));
+    r.step(&sample(0, [0, -1000]), None);
+    r.step(&sample(0, [0, -2000]), None);
+    r.step(&sample(0, [0, -2500]), None);
+    // An E-stop held for 5 ticks while latched: one event, not five.
+    let mut s = sample(0, [0, -2500]);
+    s.estop = true;
+    for _ in 0..5 {
+        r.step(&s, None);
+    }
+    let h: std::vec::Vec<FaultEvent> = r.fault_history().oldest_ordered().copied().collect();
+    assert_eq!(h.len(), 2, "{h:?}");
+    assert_eq!(h[0].fault, Fault::FollowingError { axis: 1 });
+    assert_eq!(h[0].tick, 4);
+    // 2 500 µm behind against the 2 000 µm limit, I24F8 raw.
+    assert_eq!((h[0].value, h[0].limit), (2500 << 8, 2000 << 8));
+    assert_eq!((h[1].fault, h[1].tick), (Fault::EStop, 5));
+    s.estop = false;
+    r.step(&s, Some(Command::ClearFault));
+    // A master jump of 61 counts against the limit of 60.
+    r.step(&sample(61, [0, -2500]), None);
+    let last = *r.fault_history().recent().unwrap();
+    assert_eq!(last.fault, Fault::EncoderJump { channel: 0 });
+    assert_eq!((last.value, last.limit), (61, 60));
+    // Only the last 16 are kept, oldest first.
+    let mut m = 61;
+    for _ in 0..20 {
+        r.step(&sample(m, [0, -2500]), Some(Command::ClearFault));
+        m += 100;
+        r.step(&sample(m, [0, -2500]), None);
+    }
+    let h: std::vec::Vec<FaultEvent> = r.fault_history().oldest_ordered().copied().collect();
+    assert_eq!(h.len(), FAULT_HISTORY_LEN);
+    assert!(h.windows(2).all(|w| w[0].tick < w[1].tick));
+    assert_eq!(h[15].value, 100);
+}
+
+#[test]
 fn estop_latches_and_clear_needs_release() {
     let mut r = rt();
     r.step(&sample(0, [0, 0]), Some(Command::Start));
