@@ -102,4 +102,10 @@ impl DeviceGlue<LawRef, SLAVES, PRESSURES> for FwGlue<'_, '_> {
         let ns = u64::from(c).saturating_mul(1_000_000_000) / u64::from(SYSCLK_HZ);
         u32::try_from(ns).unwrap_or(u32::MAX)
     }
+    fn capture<R>(
+        &mut self,
+        f: impl FnOnce(&mut hydra_core::runtime::Capture<'_, SLAVES>) -> R,
+    ) -> Option<R> {
+        tick::with_capture(|c| f(c))
+    }
 }

@@ -17,6 +17,7 @@
 
 mod board;
 mod boot_config;
+mod capture;
 #[cfg(feature = "console")]
 mod console;
 #[cfg(not(feature = "console"))]
@@ -159,6 +160,10 @@ async fn main(spawner: Spawner) {
             reply_tx,
             status_tx,
             sample_tx,
+            capture: match capture::take() {
+                Some(c) => c,
+                None => defmt::panic!("capture ring taken twice"),
+            },
         },
     ));
 

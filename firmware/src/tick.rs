@@ -51,7 +51,12 @@ pub struct FwHost {
     reply_tx: Producer<'static, Reply>,
     status_tx: Producer<'static, BoardStatus>,
     sample_tx: Producer<'static, TickSample>,
+    /// The loop-rate capture ring (`crate::capture`), recorded every tick.
+    capture: BoardCapture,
 }
+
+/// The capture ring of this board.
+pub type BoardCapture = hydra_core::runtime::Capture<'static, SLAVES>;
 
 impl TickHost<SLAVES, PRESSURES> for FwHost {
     #[inline(always)]
@@ -88,6 +93,7 @@ impl TickHost<SLAVES, PRESSURES> for FwHost {
     }
     #[inline(always)]
     fn sample(&mut self, s: &TickSample) {
+        self.capture.push(s);
         // A full queue means the link is behind: dropped.
         let _ = self.sample_tx.enqueue(*s);
     }
@@ -110,6 +116,8 @@ pub struct TickLinks {
     pub status_tx: Producer<'static, BoardStatus>,
     /// Per-tick telemetry samples out.
     pub sample_tx: Producer<'static, TickSample>,
+    /// The capture ring.
+    pub capture: BoardCapture,
 }
 
 /// The tick's state (≈ 9 KiB with the cam table) lives in `.bss`.
@@ -133,6 +141,7 @@ impl Tick {
                 reply_tx: links.reply_tx,
                 status_tx: links.status_tx,
                 sample_tx: links.sample_tx,
+                capture: links.capture,
             },
         }
     }
@@ -152,6 +161,17 @@ pub fn with_runtime<R>(f: impl FnOnce(&mut BoardRuntime) -> R) -> Option<R> {
         TICK.borrow_ref_mut(cs)
             .as_mut()
             .map(|t| f(t.tl.runtime_mut()))
+    })
+}
+
+#[cfg(not(feature = "console"))]
+/// Runs `f` on the tick's capture ring inside a critical section (as [`with_runtime`]:
+/// keep it short). `None` before [`start`].
+pub fn with_capture<R>(f: impl FnOnce(&mut BoardCapture) -> R) -> Option<R> {
+    critical_section::with(|cs| {
+        TICK.borrow_ref_mut(cs)
+            .as_mut()
+            .map(|t| f(&mut t.host.capture))
     })
 }
 

@@ -35,7 +35,8 @@ use hydra_core::protocol::ramflash::RamFlash;
 use hydra_core::protocol::{Handler, Store};
 use hydra_core::runtime::{
     BootCause, Command, CommandError, EncoderInput, EncoderSample, PressureInput, Reply, Runtime,
-    SafetyInput, Status, TickCommand, TickHost, TickLoop, TickSample, ValveOutput,
+    Capture, CaptureRow, SafetyInput, Status, TickCommand, TickHost, TickLoop, TickSample,
+    ValveOutput,
 };
 use hydra_core::table::CamTable;
 use hydra_core::units::{Counts, DacCode, PressureBar};
@@ -153,6 +154,8 @@ struct VHost {
     /// every queued sample.
     command_samples: Vec<TickSample<AXES>>,
     feeds: u64,
+    /// The loop-rate capture ring, as the board's ([`profile::CAPTURE_ROWS`] rows).
+    capture: Capture<'static, AXES>,
 }
 
 impl TickHost<AXES, PRESSURES> for VHost {
@@ -181,6 +184,7 @@ impl TickHost<AXES, PRESSURES> for VHost {
         // The handler reads the runtime's status directly (`Device::status`).
     }
     fn sample(&mut self, s: &TickSample<AXES>) {
+        self.capture.push(s);
         self.sample = Some(*s);
     }
 }
@@ -225,6 +229,11 @@ impl Machine {
                 sample: None,
                 command_samples: Vec::new(),
                 feeds: 0,
+                // Leaked: one ring (66 kB) per virtual board, for the life of the process.
+                capture: Capture::new(
+                    Vec::leak(vec![CaptureRow::ZERO; profile::CAPTURE_ROWS]),
+                    Vec::leak(vec![0; profile::CAPTURE_ROWS]),
+                ),
             },
             steps,
             period_s: f64::from(period_us) * 1e-6,
@@ -315,6 +324,9 @@ impl DeviceGlue<Law, AXES, PRESSURES> for Machine {
     fn cycles_to_ns(&self, cycles: u32) -> u32 {
         // The clock counts ns.
         cycles
+    }
+    fn capture<R>(&mut self, f: impl FnOnce(&mut Capture<'_, AXES>) -> R) -> Option<R> {
+        Some(f(&mut self.host.capture))
     }
 }
 

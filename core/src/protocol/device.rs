@@ -27,7 +27,12 @@ use super::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
 use crate::follower::{Follower, FollowerConfig};
-use crate::runtime::{BootCause, Command, CommandError, Controller, Runtime, RuntimeCoeffs, State};
+use super::diag::{phase_code, put_capture_row, CaptureMsg, FaultEventMsg, CAPTURE_DATA_MAX};
+use super::wire::Writer;
+use crate::runtime::{
+    BootCause, Capture, CaptureError, Command, CommandError, Controller, Runtime, RuntimeCoeffs,
+    State, Trigger, FAULT_HISTORY_LEN,
+};
 use crate::table::{CamTable, TableLimits};
 use crate::units::{DacCode, PosUm};
 
@@ -58,6 +63,11 @@ pub trait DeviceGlue<L, const S: usize, const P: usize> {
     fn publish_nulls(_nulls: &[DacCode; S]) {}
     /// Tick timing in the runtime's status (host clock cycles) → ns.
     fn cycles_to_ns(&self, cycles: u32) -> u32;
+    /// Runs `f` on the board's capture ring (briefly, as [`DeviceGlue::write`]: the tick
+    /// records into it); `None` if the board keeps none (the default).
+    fn capture<R>(&mut self, _f: impl FnOnce(&mut Capture<'_, S>) -> R) -> Option<R> {
+        None
+    }
 }
 
 /// The link side's state (see the module docs). `T` holds the copy of the active table.
@@ -373,6 +383,60 @@ where
         if let Some(st) = self.glue.read(|rt| *rt.status()) {
             fill_status::<S, P>(&st, |c| self.glue.cycles_to_ns(c), out);
         }
+    }
+    fn fault_history(&self, out: &mut heapless::Vec<FaultEventMsg, FAULT_HISTORY_LEN>) {
+        self.glue.read(|rt| {
+            for e in rt.fault_history().oldest_ordered() {
+                // Both hold FAULT_HISTORY_LEN: never full.
+                let _ = out.push(FaultEventMsg::from(e));
+            }
+        });
+    }
+    fn capture_arm(&mut self, trigger: Trigger, pre: u32, post: u32) -> Result<(), Nak> {
+        match self.glue.capture(|c| c.arm(trigger, pre, post)) {
+            None => Err(Nak::new(NakCode::CaptureTrigger)),
+            Some(Ok(())) => Ok(()),
+            Some(Err(CaptureError::TooLong { capacity })) => Err(Nak::with(
+                NakCode::CaptureTooLong,
+                u16::try_from(capacity).unwrap_or(u16::MAX),
+                0,
+            )),
+            Some(Err(CaptureError::NoChannel)) => {
+                let axis = match trigger {
+                    Trigger::Above { channel, .. } | Trigger::Below { channel, .. } => {
+                        channel.to_wire().1
+                    }
+                    _ => 0,
+                };
+                Err(Nak::with(NakCode::NoAxis, u16::from(axis), 0))
+            }
+        }
+    }
+    fn capture_read(&mut self, offset: u32, count: u8, out: &mut CaptureMsg) {
+        self.glue.capture(|c| {
+            let info = c.info();
+            out.phase = phase_code(info.phase);
+            out.pre = info.pre;
+            out.rows = info.rows;
+            out.trigger_tick = info.trigger_tick;
+            out.capacity = info.capacity;
+            out.offset = offset;
+            out.data.clear();
+            let _ = out.data.resize(CAPTURE_DATA_MAX, 0);
+            let mut w = Writer::new(&mut out.data);
+            let row_len = super::diag::capture_row_len(S);
+            for k in (0..u32::from(count)).map_while(|i| offset.checked_add(i)) {
+                let Some((row, flags)) = c.row(k) else { break };
+                if w.len().saturating_add(row_len) > CAPTURE_DATA_MAX {
+                    break;
+                }
+                if put_capture_row(&mut w, &row, flags).is_none() {
+                    break;
+                }
+            }
+            let n = w.len();
+            out.data.truncate(n);
+        });
     }
 }
 

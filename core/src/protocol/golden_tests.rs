@@ -9,6 +9,9 @@ use super::msg::{
     AxisLimitsMsg, AxisSample, AxisStatus, Info, InfoLimits, Nak, NakCode, Request, Response,
     StatusMsg, Telemetry, MAX_AXES, NO_TABLE, PROTOCOL_VERSION,
 };
+use super::diag::{put_capture_row, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats};
+use super::wire::Writer;
+use crate::runtime::CaptureRow;
 use std::string::{String, ToString};
 use std::vec::Vec;
 
@@ -29,7 +32,10 @@ fn status() -> StatusMsg {
         flags: 0x10,
         fault_code: 0,
         fault_axis: 0xFF,
+        inputs: 2,
         active_id: 7,
+        active_rows: 181,
+        active_crc: 0x1234_5678,
         committed_id: NO_TABLE,
         saved_id: 7,
         boot_slot: 0,
@@ -47,6 +53,7 @@ fn status() -> StatusMsg {
         target_um: (250_000 << 8) + 2,
         error_um: 2,
         dac: -35,
+        reference: 2,
     });
     s
 }
@@ -89,6 +96,50 @@ fn telemetry() -> Telemetry {
         dac: 12,
     });
     t
+}
+
+/// One following error of slave 0 (2 500 µm against 2 000 µm at tick 70 000), 300
+/// frames received, 1 bad, 2 Naks.
+fn faults() -> FaultsMsg {
+    let mut f = FaultsMsg {
+        link: LinkStats {
+            frames: 300,
+            bad_frames: 1,
+            naks: 2,
+        },
+        ..FaultsMsg::default()
+    };
+    let _ = f.events.push(FaultEventMsg {
+        code: 0x0600,
+        tick: 70_000,
+        value: 2500 << 8,
+        limit: 2000 << 8,
+    });
+    f
+}
+
+/// A finished one-slave capture (500 + 1 + 1500 rows of 2 000), its first row: master
+/// 45 000 counts, Following with valve power, target 250 mm, actual 249.95 mm, DAC −35,
+/// 120.00 / 80.50 bar.
+fn capture() -> CaptureMsg {
+    let row = CaptureRow::<1> {
+        master: 45_000,
+        target_um: [250_000 << 8],
+        actual_um: [249_950 << 8],
+        dac: [-35],
+        pressure_cbar: [[12_000, 8_050]],
+    };
+    let mut buf = [0u8; 19];
+    let _ = put_capture_row(&mut Writer::new(&mut buf), &row, 0x09);
+    CaptureMsg {
+        phase: 3,
+        pre: 500,
+        rows: 2001,
+        trigger_tick: 70_000,
+        capacity: 2000,
+        offset: 0,
+        data: heapless::Vec::from_slice(&buf).unwrap(),
+    }
 }
 
 /// Every golden frame by its name in the document: the request or response and its seq.
@@ -155,6 +206,31 @@ fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
             Req(8, Request::GetParam { axis: 0, param: 14 })
         ),
         ("save", Req(9, Request::Save)),
+        ("get_faults", Req(10, Request::GetFaults)),
+        (
+            "capture_arm",
+            Req(
+                11,
+                Request::CaptureArm {
+                    trigger: 4,
+                    channel: 3,
+                    axis: 0,
+                    value: 50 << 8,
+                    pre: 500,
+                    post: 1500
+                }
+            )
+        ),
+        (
+            "get_capture",
+            Req(
+                12,
+                Request::GetCapture {
+                    offset: 0,
+                    count: 7
+                }
+            )
+        ),
         (
             "ack",
             Resp(
@@ -199,6 +275,8 @@ fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
         ("info", Resp(0, Response::Info(info()))),
         ("status", Resp(1, Response::Status(status()))),
         ("telemetry", Resp(42, Response::Telemetry(telemetry()))),
+        ("faults", Resp(10, Response::Faults(faults()))),
+        ("capture", Resp(12, Response::Capture(capture()))),
     ]
 }
 

@@ -31,8 +31,12 @@ use super::msg::{
     read_row, row_len, ty, Info, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
     FLAG_LINK_LOST, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, NO_TABLE, PROTOCOL_VERSION,
 };
+use super::diag::{
+    trigger_from_wire, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats,
+};
 use super::overrides::ParamOverrides;
 use super::store::{SlotHeader, Store};
+use crate::runtime::{Trigger, FAULT_HISTORY_LEN};
 use crate::table::{CamTable, Node, TableLimits};
 use embedded_storage::nor_flash::NorFlash;
 use heapless::Vec;
@@ -119,6 +123,16 @@ pub trait Device<const S: usize, const N: usize> {
     fn persisted_offset_um(&self, _axis: u8) -> Option<f32> {
         None
     }
+    /// The fault history, oldest first (default: the device keeps none).
+    fn fault_history(&self, _out: &mut heapless::Vec<FaultEventMsg, FAULT_HISTORY_LEN>) {}
+    /// Arms the loop-rate capture. Default: the device keeps no capture ring
+    /// ([`NakCode::CaptureTrigger`]).
+    fn capture_arm(&mut self, _trigger: Trigger, _pre: u32, _post: u32) -> Result<(), Nak> {
+        Err(Nak::new(NakCode::CaptureTrigger))
+    }
+    /// The capture's state and up to `count` rows from `offset` (whole rows that fit
+    /// [`super::diag::CAPTURE_DATA_MAX`]). Default: never armed, no ring.
+    fn capture_read(&mut self, _offset: u32, _count: u8, _out: &mut CaptureMsg) {}
 }
 
 /// A host-link timeout from its SetParam value: 0 (off) or 10 … 60 000 whole ms, else
@@ -211,6 +225,9 @@ pub struct Handler<const S: usize, const N: usize> {
     pending: bool,
     /// The active table's id (`None`: no table; all-zero, so a static handler is `.bss`).
     active_id: Option<u32>,
+    /// The active table's rows and their CRC-32 (Status), worked out when it is installed.
+    active_rows: u16,
+    active_crc: u32,
     saved: Option<SlotHeader>,
     /// The slot [`Handler::boot`] booted, and why.
     boot_slot: Option<u8>,
@@ -230,6 +247,10 @@ struct LinkWatch {
     timeout_ms: u32,
     /// Valid frames received (wrapping), and the count at the last watch.
     frames: u32,
+    /// Frames that failed COBS, length or CRC checks (wrapping).
+    bad_frames: u32,
+    /// Requests answered with a Nak (wrapping).
+    naks: u32,
     seen: u32,
     last_ms: u32,
     /// A Start from this link is in force (cleared by Stop, Hold, a trip).
@@ -267,6 +288,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             committed_id: None,
             pending: false,
             active_id: None,
+            active_rows: 0,
+            active_crc: 0,
             saved: None,
             boot_slot: None,
             boot_reason: BootReason::NoSave,
@@ -277,6 +300,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             link: LinkWatch {
                 timeout_ms: 0,
                 frames: 0,
+                bad_frames: 0,
+                naks: 0,
                 seen: 0,
                 last_ms: 0,
                 host_started: false,
@@ -429,7 +454,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 // The slot stays the saved one even if the device refuses its table.
                 self.saved = Some(h);
                 dev.install_table(&self.committed).ok()?;
-                self.active_id = Some(h.id);
+                self.set_active(h.id);
                 self.boot_slot = Some(h.slot);
                 self.boot_reason = refused.unwrap_or(BootReason::Newest);
                 return Some(h);
@@ -454,6 +479,15 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         (self.boot_slot, self.boot_reason)
     }
 
+    /// Table `id`, just installed from the committed buffer, is the active one.
+    fn set_active(&mut self, id: u32) {
+        let t = &self.committed;
+        self.active_id = Some(id);
+        self.active_rows = u16::try_from(t.len()).unwrap_or(u16::MAX);
+        let nodes = (0..t.len()).map_while(|i| t.node(i));
+        self.active_crc = super::upload::rows_crc(nodes).unwrap_or(0);
+    }
+
     /// Id of the active table ([`NO_TABLE`] if none).
     pub fn active_id(&self) -> u32 {
         self.active_id.unwrap_or(NO_TABLE)
@@ -470,7 +504,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 self.committed.check_limits(&dev.table_limits())?;
                 dev.install_table(&self.committed)?;
                 self.committed_id = None;
-                self.active_id = Some(id);
+                self.set_active(id);
             }
         }
         Ok(())
@@ -502,6 +536,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             let (seq, resp) = match self.dec.push(b) {
                 None => continue,
                 Some(Err(e)) => {
+                    self.link.bad_frames = self.link.bad_frames.wrapping_add(1);
                     let code = match e {
                         FrameError::Cobs => NakCode::Framing,
                         FrameError::Truncated => NakCode::Truncated,
@@ -529,6 +564,9 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                     (seq, self.request(dev, flash, seq, t, payload))
                 }
             };
+            if matches!(resp, Response::Nak { .. }) {
+                self.link.naks = self.link.naks.wrapping_add(1);
+            }
             send(tx, seq, &resp);
             // A refused deferred activation leaves the active id as it was; the host sees
             // that in Status.
@@ -673,6 +711,32 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 self.tick_count = 0;
                 Ok(())
             }
+            Request::GetFaults => {
+                let mut f = FaultsMsg::default();
+                dev.fault_history(&mut f.events);
+                f.link = LinkStats {
+                    frames: self.link.frames,
+                    bad_frames: self.link.bad_frames,
+                    naks: self.link.naks,
+                };
+                return Response::Faults(f);
+            }
+            Request::CaptureArm {
+                trigger,
+                channel,
+                axis,
+                value,
+                pre,
+                post,
+            } => match trigger_from_wire(trigger, channel, axis, value) {
+                Some(t) => dev.capture_arm(t, pre, post),
+                None => Err(Nak::with(NakCode::CaptureTrigger, u16::from(trigger), channel)),
+            },
+            Request::GetCapture { offset, count } => {
+                let mut c = CaptureMsg::default();
+                dev.capture_read(offset, count, &mut c);
+                return Response::Capture(c);
+            }
         };
         match r {
             Ok(()) => ack,
@@ -718,6 +782,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         }
         s.flags = flags;
         s.active_id = self.active_id();
+        s.active_rows = self.active_rows;
+        s.active_crc = self.active_crc;
         s.committed_id = self.committed_id.unwrap_or(NO_TABLE);
         s.saved_id = self.saved.map_or(NO_TABLE, |h| h.id);
         s.boot_slot = self.boot_slot.unwrap_or(0xFF);

@@ -22,6 +22,7 @@
 //! each DMA chunk, `poll(dev)` every loop, and `on_tick(tx, sample)` for telemetry.
 
 pub mod device;
+pub mod diag;
 pub mod frame;
 pub mod handler;
 pub mod msg;

@@ -14,7 +14,7 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 /// Protocol version reported in `Info`.
-pub const PROTOCOL_VERSION: u8 = 3;
+pub const PROTOCOL_VERSION: u8 = 4;
 /// Most axes a `Status`/`Telemetry` message can describe.
 pub const MAX_AXES: usize = 8;
 /// "No table" in id fields.
@@ -56,6 +56,12 @@ pub mod ty {
     pub const SET_TELEMETRY: u8 = 0x32;
     /// Request: read one parameter.
     pub const GET_PARAM: u8 = 0x33;
+    /// Request: the fault history and link statistics ([`super::Response::Faults`]).
+    pub const GET_FAULTS: u8 = 0x34;
+    /// Request: arm the loop-rate capture.
+    pub const CAPTURE_ARM: u8 = 0x40;
+    /// Request: the capture's state and rows ([`super::Response::Capture`]).
+    pub const GET_CAPTURE: u8 = 0x41;
     /// Response: done.
     pub const ACK: u8 = 0x80;
     /// Response: refused, nothing changed.
@@ -68,6 +74,10 @@ pub mod ty {
     pub const TELEMETRY: u8 = 0x84;
     /// Response to GetParam.
     pub const PARAM: u8 = 0x85;
+    /// Response: the fault history and link statistics.
+    pub const FAULTS: u8 = 0x86;
+    /// Response: the capture's state and rows.
+    pub const CAPTURE: u8 = 0x87;
 }
 
 /// Why a request was refused (`Nak` code byte). Nothing changed on the board.
@@ -150,13 +160,18 @@ pub enum NakCode {
     /// A payload that is not a valid body of its type (e.g. a varint longer than its
     /// integer).
     Malformed = 35,
+    /// CaptureArm: pre + 1 + post rows exceed the ring (`detail` = its capacity in rows).
+    CaptureTooLong = 36,
+    /// CaptureArm: not a trigger (unknown kind or channel), or the board keeps no
+    /// capture ring.
+    CaptureTrigger = 37,
 }
 
 impl NakCode {
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use NakCode::*;
-        const ALL: [NakCode; 35] = [
+        const ALL: [NakCode; 37] = [
             UnknownType,
             Truncated,
             Oversized,
@@ -192,6 +207,8 @@ impl NakCode {
             ReadOnly,
             Version,
             Malformed,
+            CaptureTooLong,
+            CaptureTrigger,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -355,6 +372,31 @@ pub enum Request<'a> {
         /// Raw parameter id (see [`ParamId`]).
         param: u8,
     },
+    /// The fault history and link statistics (answered by [`Response::Faults`]).
+    GetFaults,
+    /// Arm the loop-rate capture (the previous capture's rows are dropped).
+    CaptureArm {
+        /// Trigger kind, channel, slave and level ([`super::diag::trigger_from_wire`]).
+        trigger: u8,
+        /// Channel kind of a level trigger.
+        channel: u8,
+        /// Slave of a level trigger's channel.
+        axis: u8,
+        /// Level, in the channel's stored unit.
+        value: i32,
+        /// Ticks to keep before the trigger.
+        pre: u32,
+        /// Ticks to record after it.
+        post: u32,
+    },
+    /// The capture's state, and up to `count` rows from `offset` of a finished one
+    /// (answered by [`Response::Capture`]).
+    GetCapture {
+        /// First row.
+        offset: u32,
+        /// Most rows wanted (the board sends what fits one frame).
+        count: u8,
+    },
 }
 
 impl<'a> Request<'a> {
@@ -409,6 +451,22 @@ impl<'a> Request<'a> {
                 let (axis, param) = body(payload)?;
                 Request::GetParam { axis, param }
             }
+            ty::GET_FAULTS => unit(payload, Request::GetFaults)?,
+            ty::CAPTURE_ARM => {
+                let (trigger, channel, axis, value, pre, post) = body(payload)?;
+                Request::CaptureArm {
+                    trigger,
+                    channel,
+                    axis,
+                    value,
+                    pre,
+                    post,
+                }
+            }
+            ty::GET_CAPTURE => {
+                let (offset, count) = body(payload)?;
+                Request::GetCapture { offset, count }
+            }
             _ => return Err(NakCode::UnknownType),
         })
     }
@@ -433,6 +491,9 @@ impl<'a> Request<'a> {
             Request::Save => ty::SAVE,
             Request::SetTelemetry { .. } => ty::SET_TELEMETRY,
             Request::GetParam { .. } => ty::GET_PARAM,
+            Request::GetFaults => ty::GET_FAULTS,
+            Request::CaptureArm { .. } => ty::CAPTURE_ARM,
+            Request::GetCapture { .. } => ty::GET_CAPTURE,
         }
     }
 
@@ -446,6 +507,7 @@ impl<'a> Request<'a> {
             | Request::Stop
             | Request::Hold
             | Request::ClearFault
+            | Request::GetFaults
             | Request::Save => Some(0),
             Request::TableBegin { id, columns, rows } => put(&(id, columns, rows), buf),
             Request::TableChunk {
@@ -460,6 +522,15 @@ impl<'a> Request<'a> {
             Request::SetParam { axis, param, value } => put(&(axis, param, value), buf),
             Request::SetTelemetry { decimation } => put(&decimation, buf),
             Request::GetParam { axis, param } => put(&(axis, param), buf),
+            Request::CaptureArm {
+                trigger,
+                channel,
+                axis,
+                value,
+                pre,
+                post,
+            } => put(&(trigger, channel, axis, value, pre, post), buf),
+            Request::GetCapture { offset, count } => put(&(offset, count), buf),
         }
     }
 }
@@ -563,6 +634,10 @@ pub const FLAG_UNREFERENCED: u8 = 1 << 5;
 pub const FLAG_LINK_LOST: u8 = 1 << 6;
 /// `StatusMsg::flags`: the pressure inputs stopped updating this tick.
 pub const FLAG_PRESSURE_STALE: u8 = 1 << 7;
+/// `StatusMsg::inputs`: the E-stop input is active.
+pub const INPUT_ESTOP: u8 = 1;
+/// `StatusMsg::inputs`: valve power (the enable output) is on.
+pub const INPUT_VALVE_POWER: u8 = 1 << 1;
 
 /// Per-axis part of `Status`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -575,6 +650,8 @@ pub struct AxisStatus {
     pub error_um: i32,
     /// Valve DAC code, LSB.
     pub dac: i16,
+    /// Reference: 0 not referenced, 1 homing armed (waiting for the edge), 2 referenced.
+    pub reference: u8,
 }
 
 /// `Status`.
@@ -592,8 +669,14 @@ pub struct StatusMsg {
     pub fault_code: u16,
     /// Axis of the fault (0xFF = board-wide or none).
     pub fault_axis: u8,
+    /// Inputs and outputs: [`INPUT_ESTOP`], [`INPUT_VALVE_POWER`].
+    pub inputs: u8,
     /// Active table id.
     pub active_id: u32,
+    /// The active table's rows (0: none).
+    pub active_rows: u16,
+    /// CRC-32 of the active table's rows (as `TableCommit` carries it; 0: none).
+    pub active_crc: u32,
     /// Committed (inactive) table id.
     pub committed_id: u32,
     /// Id of the table in the newest valid flash slot.
@@ -683,6 +766,10 @@ pub enum Response {
     Status(StatusMsg),
     /// Unsolicited sample.
     Telemetry(Telemetry),
+    /// Answer to GetFaults.
+    Faults(super::diag::FaultsMsg),
+    /// Answer to GetCapture.
+    Capture(super::diag::CaptureMsg),
     /// Answer to GetParam: the value in force.
     Param {
         /// Axis asked for (0 for a board-wide parameter).
@@ -704,6 +791,8 @@ impl Response {
             Response::Status(_) => ty::STATUS,
             Response::Telemetry(_) => ty::TELEMETRY,
             Response::Param { .. } => ty::PARAM,
+            Response::Faults(_) => ty::FAULTS,
+            Response::Capture(_) => ty::CAPTURE,
         }
     }
 
@@ -716,6 +805,8 @@ impl Response {
             Response::Info(i) => put(i, buf),
             Response::Status(s) => put(s, buf),
             Response::Telemetry(t) => put(t, buf),
+            Response::Faults(f) => put(f, buf),
+            Response::Capture(c) => put(c, buf),
         }
     }
 
@@ -765,6 +856,8 @@ impl Response {
             },
             ty::STATUS => ok(body(payload).map(Response::Status)),
             ty::TELEMETRY => ok(body(payload).map(Response::Telemetry)),
+            ty::FAULTS => ok(body(payload).map(Response::Faults)),
+            ty::CAPTURE => ok(body(payload).map(Response::Capture)),
             _ => None,
         }
     }
@@ -789,7 +882,9 @@ mod tests {
         assert_eq!(NakCode::from_u8(33), Some(NakCode::ReadOnly));
         assert_eq!(NakCode::from_u8(34), Some(NakCode::Version));
         assert_eq!(NakCode::from_u8(35), Some(NakCode::Malformed));
-        assert_eq!(NakCode::from_u8(36), None);
+        assert_eq!(NakCode::from_u8(36), Some(NakCode::CaptureTooLong));
+        assert_eq!(NakCode::from_u8(37), Some(NakCode::CaptureTrigger));
+        assert_eq!(NakCode::from_u8(38), None);
     }
 
     #[test]
@@ -817,6 +912,18 @@ mod tests {
             Request::SetTelemetry { decimation: 10 },
             Request::GetParam { axis: 1, param: 14 },
             Request::Save,
+            Request::CaptureArm {
+                trigger: 4,
+                channel: 3,
+                axis: 1,
+                value: -12_800,
+                pre: 500,
+                post: 1500,
+            },
+            Request::GetCapture {
+                offset: 1999,
+                count: 7,
+            },
         ];
         for q in reqs {
             let mut b = [0u8; 64];
@@ -862,6 +969,7 @@ mod tests {
                 target_um: 2,
                 error_um: 3,
                 dac: -4,
+                reference: 2,
             })
             .unwrap();
         let mut tm = Telemetry {
@@ -919,6 +1027,28 @@ mod tests {
             }),
             Response::Status(st),
             Response::Telemetry(tm),
+            Response::Faults({
+                let mut f = super::super::diag::FaultsMsg::default();
+                f.events
+                    .push(super::super::diag::FaultEventMsg {
+                        code: 0x0601,
+                        tick: 70_000,
+                        value: -1 << 20,
+                        limit: 2000 << 8,
+                    })
+                    .unwrap();
+                f.link.frames = 300;
+                f
+            }),
+            Response::Capture(super::super::diag::CaptureMsg {
+                phase: 3,
+                pre: 20,
+                rows: 31,
+                trigger_tick: 150,
+                capacity: 2000,
+                offset: 7,
+                data: heapless::Vec::from_slice(&[1, 2, 3]).unwrap(),
+            }),
         ];
         // A version-2 board's answer to this version's Hello (its fixed-layout Nak Length:
         // the Hello had a byte it did not expect) is read as such.

@@ -2,7 +2,10 @@
 //! [`super::Device`] (the firmware and the host's virtual board).
 
 use super::handler::Motion;
-use super::msg::{AxisStatus, Nak, NakCode, StatusMsg, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED};
+use super::msg::{
+    AxisStatus, Nak, NakCode, StatusMsg, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, INPUT_ESTOP,
+    INPUT_VALVE_POWER,
+};
 use crate::runtime::{Command, CommandError, Fault, RefState, State, Status};
 
 /// `Refused` detail: the device's law cannot be built from the table with the present
@@ -99,18 +102,26 @@ pub fn fill_status<const S: usize, const P: usize>(
     out.overruns = st.timing.overruns;
     out.master = st.master.to_bits();
     out.axes.clear();
-    for (((p, t), e), d) in st
+    out.inputs = if st.estop { INPUT_ESTOP } else { 0 }
+        | if st.enable { INPUT_VALVE_POWER } else { 0 };
+    for ((((p, t), e), d), r) in st
         .pos_um
         .iter()
         .zip(&st.target_um)
         .zip(&st.error_um)
         .zip(&st.dac)
+        .zip(&st.reference)
     {
         let _ = out.axes.push(AxisStatus {
             pos_um: p.to_bits(),
             target_um: t.to_bits(),
             error_um: e.to_bits(),
             dac: d.get(),
+            reference: match r {
+                RefState::Unreferenced => 0,
+                RefState::Homing => 1,
+                RefState::Referenced => 2,
+            },
         });
     }
 }

@@ -45,6 +45,20 @@ pub struct TableUpload<'a, const S: usize> {
     step: Step,
 }
 
+/// CRC-32 of every row's wire bytes in order (what `TableCommit` carries, and what
+/// Status reports for the active table); `None` for more than 8 slave columns.
+pub fn rows_crc<const S: usize>(nodes: impl Iterator<Item = Node<S>>) -> Option<u32> {
+    let mut crc = CRC32.digest();
+    let mut row = [0u8; row_len(super::msg::MAX_AXES)];
+    for n in nodes {
+        let mut w = Writer::new(&mut row);
+        write_row(&mut w, &n)?;
+        let len = w.len();
+        crc.update(row.get(..len).unwrap_or(&[]));
+    }
+    Some(crc.finalize())
+}
+
 impl<'a, const S: usize> TableUpload<'a, S> {
     /// An upload of `nodes` as table `id` in chunks of at most `per_chunk_rows` rows (the
     /// board's `max_chunk_rows` from Info).
@@ -58,19 +72,12 @@ impl<'a, const S: usize> TableUpload<'a, S> {
         if per_chunk_rows == 0 || u8::try_from(per_chunk_rows).is_err() {
             return Err(UploadError::ChunkRows);
         }
-        let mut crc = CRC32.digest();
-        let mut row = [0u8; row_len(super::msg::MAX_AXES)];
-        for n in nodes {
-            let mut w = Writer::new(&mut row);
-            write_row(&mut w, n).ok_or(UploadError::TooManyColumns)?;
-            let len = w.len();
-            crc.update(row.get(..len).unwrap_or(&[]));
-        }
+        let crc = rows_crc(nodes.iter().copied()).ok_or(UploadError::TooManyColumns)?;
         Ok(Self {
             id,
             nodes,
             per: per_chunk_rows,
-            crc: crc.finalize(),
+            crc,
             step: Step::Begin,
         })
     }

@@ -17,6 +17,7 @@
 //! - [`pressure`]: transducer scaling;
 //! - [`reference`]: where each slave is (set-position, homing, absolute encoders).
 
+pub mod capture;
 pub mod config;
 pub mod controller;
 pub mod encoder;
@@ -48,4 +49,8 @@ pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
 };
 pub use reference::{RefState, ReferenceMode, References};
-pub use tick::{Reply, TickCommand, TickHost, TickLoop, TickSample, STATUS_PERIOD_US};
+pub use capture::{Capture, CaptureError, CaptureInfo, CaptureRow, Channel, Phase, Trigger};
+pub use tick::{
+    Reply, TickCommand, TickHost, TickLoop, TickSample, FLAG_COMMAND, FLAG_END_OF_TABLE,
+    FLAG_ESTOP, FLAG_VALVE_POWER, STATE_MASK, STATUS_PERIOD_US,
+};

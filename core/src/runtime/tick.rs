@@ -14,7 +14,7 @@
 //!    running resets the board);
 //! 4. the command's [`Reply`] ([`TickHost::reply`]);
 //! 5. every [`STATUS_PERIOD_US`] a status snapshot ([`TickHost::status`]);
-//! 6. a [`TickSample`] for the telemetry ([`TickHost::sample`]);
+//! 6. a [`TickSample`] for the telemetry and the capture ring ([`TickHost::sample`]);
 //! 7. the tick's cycles recorded; if the period flag is set again
 //!    ([`TickHost::period_flag`]) the next period began before this tick finished, and if
 //!    two tick starts are more than 1.5 periods apart a period was skipped: either is an
@@ -56,7 +56,20 @@ pub struct Reply {
     pub result: Result<(), Option<CommandError>>,
 }
 
-/// One tick's telemetry sample (raw fixed-point bits, as on the wire).
+/// [`TickSample::flags`]: the state bits — 0 Idle, 1 Following, 2 Holding, 3 Fault, plus
+/// [`FLAG_END_OF_TABLE`] (holding at the end of the table).
+pub const STATE_MASK: u8 = 0b111;
+/// [`TickSample::flags`]: holding because the table ended.
+pub const FLAG_END_OF_TABLE: u8 = 1 << 2;
+/// [`TickSample::flags`]: valve power (the enable output) on.
+pub const FLAG_VALVE_POWER: u8 = 1 << 3;
+/// [`TickSample::flags`]: the E-stop input is active.
+pub const FLAG_ESTOP: u8 = 1 << 4;
+/// [`TickSample::flags`]: this tick applied a host command.
+pub const FLAG_COMMAND: u8 = 1 << 5;
+
+/// One tick's sample for telemetry and the capture ring (raw fixed-point bits, as on
+/// the wire).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TickSample<const S: usize> {
@@ -70,17 +83,46 @@ pub struct TickSample<const S: usize> {
     pub actual_um: [i32; S],
     /// Per slave: valve command, DAC LSB (0 = null).
     pub dac: [i16; S],
+    /// Per slave: chamber A and B pressure (the board's pressure inputs 2k and 2k + 1;
+    /// 0 where the board has none), centibar (0.01 bar, ±327 bar, saturating).
+    pub pressure_cbar: [[i16; 2]; S],
+    /// State bits ([`STATE_MASK`]), [`FLAG_VALVE_POWER`], [`FLAG_ESTOP`],
+    /// [`FLAG_COMMAND`].
+    pub flags: u8,
 }
 
 impl<const S: usize> TickSample<S> {
-    /// The sample of a status snapshot.
+    /// The sample of a status snapshot (without [`FLAG_COMMAND`]: the tick adds it).
     pub fn of<const P: usize>(st: &Status<S, P>) -> Self {
+        let mut pressure_cbar = [[0i16; 2]; S];
+        for (k, pair) in pressure_cbar.iter_mut().enumerate() {
+            for (j, p) in pair.iter_mut().enumerate() {
+                let input = k.saturating_mul(2).saturating_add(j);
+                if let Some(bar) = st.pressure_bar.get(input) {
+                    // I16F16 bar × 100 → centibar: (raw · 100) >> 16, saturated to i16.
+                    let cbar = i64::from(bar.to_bits()).saturating_mul(100) >> 16;
+                    *p = i16::try_from(cbar).unwrap_or(if cbar < 0 { i16::MIN } else { i16::MAX });
+                }
+            }
+        }
+        let state = match st.state {
+            super::State::Idle => 0,
+            super::State::Following => 1,
+            super::State::Holding(super::HoldReason::Commanded) => 2,
+            super::State::Holding(super::HoldReason::EndOfTable) => 2 | FLAG_END_OF_TABLE,
+            super::State::Fault => 3,
+        };
+        let flags = state
+            | if st.enable { FLAG_VALVE_POWER } else { 0 }
+            | if st.estop { FLAG_ESTOP } else { 0 };
         Self {
             tick: st.tick,
             master: st.master.to_bits(),
             target_um: st.target_um.map(|v| v.to_bits()),
             actual_um: st.pos_um.map(|v| v.to_bits()),
             dac: st.dac.map(|d| d.get()),
+            pressure_cbar,
+            flags,
         }
     }
 }
@@ -193,7 +235,11 @@ impl<C: Controller<S>, const S: usize, const P: usize> TickLoop<C, S, P> {
             self.status_countdown = self.status_every;
             host.status(self.rt.status());
         }
-        host.sample(&TickSample::of(self.rt.status()));
+        let mut sample = TickSample::of(self.rt.status());
+        if fresh.is_some() {
+            sample.flags |= FLAG_COMMAND;
+        }
+        host.sample(&sample);
         let t1 = host.now_cycles();
         self.rt.record_tick_cycles(t1.wrapping_sub(t0));
         if host.period_flag() {

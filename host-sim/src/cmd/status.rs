@@ -1,12 +1,17 @@
-//! `host-sim status --port PORT [--json]`: the board's state, faults, tables, timing and
-//! per-axis position / target / error in engineering units.
+//! `host-sim status --port PORT [--watch] [--json]`: the board's state, the latched fault
+//! with the value that tripped it and its limit, the fault history, inputs, tables,
+//! timing, the link, and per-axis position / target / error with the reference state,
+//! in engineering units. `--watch` redraws in place (5 Hz by default) until Ctrl-C.
 
 use super::serial::Link;
+use hydra_core::protocol::diag::{FaultEventMsg, FaultsMsg};
 use hydra_core::protocol::msg::{
-    StatusMsg, FLAG_LINK_LOST, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, NO_TABLE,
+    StatusMsg, FLAG_LINK_LOST, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, INPUT_ESTOP,
+    INPUT_VALVE_POWER, NO_TABLE,
 };
 use hydra_core::protocol::{Request, Response};
-use hydra_core::runtime::Fault;
+use hydra_core::runtime::{Fault, FaultKind};
+use std::time::{Duration, Instant};
 
 /// Arguments of `status`.
 #[derive(Debug, clap::Args)]
@@ -14,9 +19,61 @@ pub struct Args {
     /// Serial port.
     #[arg(long)]
     pub port: String,
-    /// Print JSON.
+    /// Print JSON (with --watch: one JSON object per line, each refresh).
     #[arg(long)]
     pub json: bool,
+    /// Redraw in place until Ctrl-C.
+    #[arg(long)]
+    pub watch: bool,
+    /// Refresh interval of --watch, ms (50 … 10 000).
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(50..=10_000))]
+    pub interval_ms: u64,
+    /// With --watch: stop after this many refreshes (0: until Ctrl-C).
+    #[arg(long, default_value_t = 0)]
+    pub count: u64,
+}
+
+/// One fault event in engineering units.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct FaultReport {
+    /// Tick it was raised.
+    pub tick: u32,
+    /// Time since boot, s.
+    pub time_s: f64,
+    /// Fault code.
+    pub code: u16,
+    /// Its name (`following_error`, …).
+    pub name: String,
+    /// The slave it names, if any.
+    pub axis: Option<u8>,
+    /// The value that tripped it (in `unit`; none for a state such as the E-stop).
+    pub value: Option<f64>,
+    /// Its limit (in `unit`).
+    pub limit: Option<f64>,
+    /// `mm`, `counts` or `s`; empty when the fault has no value.
+    pub unit: String,
+}
+
+/// The inputs and outputs a person checks first.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
+pub struct Inputs {
+    /// The E-stop input is active (the chain is open).
+    pub estop: bool,
+    /// Valve power (the amplifiers' enable) is on.
+    pub valve_power: bool,
+}
+
+/// The host link as the board saw it, and the round trip the host measured.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct LinkReport {
+    /// Frames the board received whole since boot.
+    pub frames: u32,
+    /// Frames it received damaged (COBS, length, CRC).
+    pub bad_frames: u32,
+    /// Requests it refused.
+    pub naks: u32,
+    /// GetStatus round trip, ms.
+    pub round_trip_ms: f64,
 }
 
 /// Per-axis status in engineering units.
@@ -30,6 +87,8 @@ pub struct AxisReport {
     pub error_mm: f64,
     /// Valve DAC code, LSB.
     pub dac: i16,
+    /// `referenced`, `homing` (waiting for the reference edge) or `unreferenced`.
+    pub reference: String,
 }
 
 /// The status in engineering units (the `--json` schema).
@@ -43,16 +102,32 @@ pub struct Report {
     pub fault_name: Option<String>,
     /// The slave axis it names, if any.
     pub fault_axis: Option<u8>,
+    /// The value that tripped the latched fault (`fault_unit`), from the history.
+    pub fault_value: Option<f64>,
+    /// Its limit.
+    pub fault_limit: Option<f64>,
+    /// Their unit (`mm`, `counts`, `s`; empty: a state, not a value).
+    pub fault_unit: String,
+    /// The last 16 fault events, oldest first.
+    pub faults: Vec<FaultReport>,
+    /// E-stop and valve power.
+    pub inputs: Inputs,
     /// A slave is not referenced yet (Start is refused until it is).
     pub unreferenced: bool,
     /// The host-link watchdog held the axes since the last Start.
     pub link_lost: bool,
     /// The pressure inputs are stale.
     pub pressure_stale: bool,
-    /// Master, master units (degrees for the rotary table).
+    /// Master, master units (degrees for the rotary table: 1 000 counts per °).
     pub master: f64,
+    /// The master's unit.
+    pub master_unit: String,
     /// Active table id, if any.
     pub active_id: Option<u32>,
+    /// Its rows.
+    pub active_rows: u16,
+    /// CRC-32 of its rows (as `upload` prints it), hex.
+    pub active_crc: String,
     /// Committed (not yet active) table id.
     pub committed_id: Option<u32>,
     /// Table id in flash.
@@ -68,6 +143,10 @@ pub struct Report {
     pub activation_pending: bool,
     /// Ticks since boot.
     pub ticks: u32,
+    /// Control period, µs.
+    pub period_us: u32,
+    /// Time since boot (ticks × period), s.
+    pub time_s: f64,
     /// Longest tick, µs.
     pub tick_max_us: f64,
     /// Mean tick, µs.
@@ -76,15 +155,67 @@ pub struct Report {
     pub overruns: u32,
     /// Per axis.
     pub axes: Vec<AxisReport>,
+    /// The link.
+    pub link: LinkReport,
 }
 
 fn id(x: u32) -> Option<u32> {
     (x != NO_TABLE).then_some(x)
 }
 
-/// Converts a Status message (master counts per unit: 1000 for mdeg → degrees).
+/// A fault event's value and limit in engineering units, and the unit
+/// (`hydra_core::runtime::FaultEvent` documents the raw units by kind).
+fn event_values(f: Option<Fault>, e: &FaultEventMsg, period_s: f64) -> (Option<f64>, Option<f64>, &'static str) {
+    let mm = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
+    match f.map(Fault::kind) {
+        Some(FaultKind::FollowingError | FaultKind::Controller) => {
+            (Some(mm(e.value)), Some(mm(e.limit)), "mm")
+        }
+        Some(FaultKind::EncoderJump) => (Some(f64::from(e.value)), Some(f64::from(e.limit)), "counts"),
+        Some(FaultKind::MasterStalled) => (
+            Some(f64::from(e.value) * period_s),
+            Some(f64::from(e.limit) * period_s),
+            "s",
+        ),
+        _ => (None, None, ""),
+    }
+}
+
+/// The fault history in engineering units.
+pub fn fault_reports(f: &FaultsMsg, period_us: u32) -> Vec<FaultReport> {
+    let period_s = f64::from(period_us) * 1e-6;
+    f.events
+        .iter()
+        .map(|e| {
+            let fault = Fault::from_code(e.code);
+            let (value, limit, unit) = event_values(fault, e, period_s);
+            FaultReport {
+                tick: e.tick,
+                time_s: f64::from(e.tick) * period_s,
+                code: e.code,
+                name: fault.map_or("unknown", Fault::name).to_string(),
+                axis: fault.and_then(Fault::slave),
+                value,
+                limit,
+                unit: unit.to_string(),
+            }
+        })
+        .collect()
+}
+
+/// Converts a Status message alone (no history, no link figures; master counts per
+/// unit: 1000 for mdeg → degrees).
 pub fn report(s: &StatusMsg) -> Report {
+    report_with(s, &FaultsMsg::default(), 1000, 0.0)
+}
+
+/// Converts a Status message with the fault history and link statistics (`Faults`), the
+/// board's period and the measured round trip.
+pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: f64) -> Report {
     let um = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
+    let faults = fault_reports(f, period_us);
+    // The latched fault's event: the newest with its code.
+    let latched = faults.iter().rev().find(|e| e.code == s.fault_code && s.fault_code != 0);
     Report {
         state: match s.state {
             0 => "idle",
@@ -101,11 +232,22 @@ pub fn report(s: &StatusMsg) -> Report {
                 .to_string()
         }),
         fault_axis: Fault::from_code(s.fault_code).and_then(Fault::slave),
+        fault_value: latched.and_then(|e| e.value),
+        fault_limit: latched.and_then(|e| e.limit),
+        fault_unit: latched.map_or_else(String::new, |e| e.unit.clone()),
+        inputs: Inputs {
+            estop: s.inputs & INPUT_ESTOP != 0,
+            valve_power: s.inputs & INPUT_VALVE_POWER != 0,
+        },
+        faults,
         unreferenced: s.flags & FLAG_UNREFERENCED != 0,
         link_lost: s.flags & FLAG_LINK_LOST != 0,
         pressure_stale: s.flags & FLAG_PRESSURE_STALE != 0,
         master: s.master as f64 / 65536.0 / 1000.0,
+        master_unit: "deg".to_string(),
         active_id: id(s.active_id),
+        active_rows: s.active_rows,
+        active_crc: format!("{:08x}", s.active_crc),
         committed_id: id(s.committed_id),
         saved_id: id(s.saved_id),
         boot_slot: (s.boot_slot != 0xFF).then_some(s.boot_slot),
@@ -113,6 +255,8 @@ pub fn report(s: &StatusMsg) -> Report {
         end_of_table: s.flags & 1 != 0,
         activation_pending: s.flags & 2 != 0,
         ticks: s.ticks,
+        period_us,
+        time_s: f64::from(s.ticks) * f64::from(period_us) * 1e-6,
         tick_max_us: f64::from(s.tick_max_ns) / 1000.0,
         tick_mean_us: f64::from(s.tick_mean_ns) / 1000.0,
         overruns: s.overruns,
@@ -124,8 +268,20 @@ pub fn report(s: &StatusMsg) -> Report {
                 target_mm: um(a.target_um),
                 error_mm: um(a.error_um),
                 dac: a.dac,
+                reference: match a.reference {
+                    2 => "referenced",
+                    1 => "homing",
+                    _ => "unreferenced",
+                }
+                .to_string(),
             })
             .collect(),
+        link: LinkReport {
+            frames: f.link.frames,
+            bad_frames: f.link.bad_frames,
+            naks: f.link.naks,
+            round_trip_ms,
+        },
     }
 }
 
@@ -177,33 +333,93 @@ pub fn boot_words(r: &Report) -> String {
     format!("{slot}{why}")
 }
 
+/// Asks for the status and the fault history over an open link.
+pub fn fetch_on(link: &mut Link) -> anyhow::Result<Report> {
+    let t0 = Instant::now();
+    let s = match link.request(&Request::GetStatus)? {
+        Response::Status(s) => s,
+        r => anyhow::bail!("GetStatus answered {r:?}"),
+    };
+    let rtt_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let f = match link.request(&Request::GetFaults)? {
+        Response::Faults(f) => f,
+        r => anyhow::bail!("GetFaults answered {r:?}"),
+    };
+    Ok(report_with(&s, &f, link.info.period_us, rtt_ms))
+}
+
 /// Asks for the status.
 pub fn fetch(port: &str) -> anyhow::Result<Report> {
-    let mut link = Link::open(port)?;
-    match link.request(&Request::GetStatus)? {
-        Response::Status(s) => Ok(report(&s)),
-        r => anyhow::bail!("GetStatus answered {r:?}"),
-    }
+    fetch_on(&mut Link::open(port)?)
 }
 
 /// Runs `status`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let r = fetch(&args.port)?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&r)?);
+    let mut link = Link::open(&args.port)?;
+    if !args.watch {
+        let r = fetch_on(&mut link)?;
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&r)?);
+        } else {
+            print!("{}", text(&r));
+        }
         return Ok(());
     }
-    let table = |t: Option<u32>| t.map_or_else(|| "none".to_string(), |v| v.to_string());
-    println!("state        {}", r.state);
-    match &r.fault_name {
-        None => println!("fault        none"),
-        Some(n) => println!(
-            "fault        {n}{} (code {:#06x})",
-            r.fault_axis
-                .map_or_else(String::new, |a| format!(" on axis {a}")),
-            r.fault_code
-        ),
+    let mut n = 0u64;
+    loop {
+        let next = Instant::now() + Duration::from_millis(args.interval_ms);
+        let r = fetch_on(&mut link)?;
+        if args.json {
+            println!("{}", serde_json::to_string(&r)?);
+        } else {
+            // Home and clear, then the page: redrawn in place.
+            print!("\x1b[H\x1b[2J{}", text(&r));
+            println!("(every {} ms; Ctrl-C to stop)", args.interval_ms);
+        }
+        use std::io::Write;
+        std::io::stdout().flush()?;
+        n += 1;
+        if args.count != 0 && n >= args.count {
+            return Ok(());
+        }
+        std::thread::sleep(next.saturating_duration_since(Instant::now()));
     }
+}
+
+fn value_words(v: Option<f64>, limit: Option<f64>, unit: &str) -> String {
+    match (v, limit) {
+        (Some(v), Some(l)) => format!(": {v:.3} {unit} (limit {l:.3} {unit})"),
+        _ => String::new(),
+    }
+}
+
+/// The status as a page of text.
+pub fn text(r: &Report) -> String {
+    use std::fmt::Write;
+    let mut o = String::new();
+    let table = |t: Option<u32>| t.map_or_else(|| "none".to_string(), |v| v.to_string());
+    let _ = writeln!(o, "state        {}", r.state);
+    match &r.fault_name {
+        None => {
+            let _ = writeln!(o, "fault        none");
+        }
+        Some(n) => {
+            let _ = writeln!(
+                o,
+                "fault        {n}{}{} (code {:#06x})",
+                r.fault_axis
+                    .map_or_else(String::new, |a| format!(" on axis {a}")),
+                value_words(r.fault_value, r.fault_limit, &r.fault_unit),
+                r.fault_code
+            );
+        }
+    }
+    let _ = writeln!(
+        o,
+        "inputs       E-stop {}, valve power {}",
+        if r.inputs.estop { "ACTIVE (chain open)" } else { "released" },
+        if r.inputs.valve_power { "on" } else { "off" }
+    );
     let mut notes = Vec::new();
     if r.unreferenced {
         notes.push("a slave is not referenced: set-position or home it before Start");
@@ -215,12 +431,18 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         notes.push("pressure inputs stale");
     }
     for n in notes {
-        println!("note         {n}");
+        let _ = writeln!(o, "note         {n}");
     }
-    println!("master       {:.3}", r.master);
-    println!(
-        "tables       active {}, committed {}, saved {}{}{}",
+    let _ = writeln!(o, "master       {:.3} {}", r.master, r.master_unit);
+    let _ = writeln!(
+        o,
+        "tables       active {}{}, committed {}, saved {}{}{}",
         table(r.active_id),
+        if r.active_id.is_some() {
+            format!(" ({} rows, CRC {})", r.active_rows, r.active_crc)
+        } else {
+            String::new()
+        },
         table(r.committed_id),
         table(r.saved_id),
         if r.end_of_table { ", at end" } else { "" },
@@ -230,18 +452,42 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             ""
         }
     );
-    println!("boot         {}", boot_words(&r));
-    println!(
-        "tick         max {:.1} µs, mean {:.1} µs, {} overruns, {} ticks",
-        r.tick_max_us, r.tick_mean_us, r.overruns, r.ticks
+    let _ = writeln!(o, "boot         {}", boot_words(r));
+    let _ = writeln!(
+        o,
+        "tick         {} µs period, max {:.1} µs, mean {:.1} µs, {} overruns, {} ticks ({:.1} s since boot)",
+        r.period_us, r.tick_max_us, r.tick_mean_us, r.overruns, r.ticks, r.time_s
+    );
+    let _ = writeln!(
+        o,
+        "link         {} frames, {} damaged, {} refused; round trip {:.1} ms",
+        r.link.frames, r.link.bad_frames, r.link.naks, r.link.round_trip_ms
     );
     for (i, a) in r.axes.iter().enumerate() {
-        println!(
-            "axis {i}       pos {:.3} mm, target {:.3} mm, error {:.3} mm, dac {}",
-            a.pos_mm, a.target_mm, a.error_mm, a.dac
+        let _ = writeln!(
+            o,
+            "axis {i}       pos {:.3} mm, target {:.3} mm, error {:.3} mm, dac {}, {}",
+            a.pos_mm, a.target_mm, a.error_mm, a.dac, a.reference
         );
     }
-    Ok(())
+    if r.faults.is_empty() {
+        let _ = writeln!(o, "history      no fault since boot");
+    }
+    for (k, e) in r.faults.iter().enumerate() {
+        let ago = r.time_s - e.time_s;
+        let _ = writeln!(
+            o,
+            "{} {:>8.3} s ({:.1} s ago, tick {}): {}{}{}",
+            if k == 0 { "history     " } else { "            " },
+            e.time_s,
+            ago,
+            e.tick,
+            e.name,
+            e.axis.map_or_else(String::new, |a| format!(" on axis {a}")),
+            value_words(e.value, e.limit, &e.unit)
+        );
+    }
+    o
 }
 
 #[cfg(test)]
@@ -267,13 +513,14 @@ mod tests {
             tick_mean_ns: 0,
             overruns: 0,
             master: 0,
-            axes: heapless::Vec::new(),
+            ..StatusMsg::default()
         };
         let _ = s.axes.push(AxisStatus {
             pos_um: 256_000,
             target_um: 0,
             error_um: 0,
             dac: 0,
+            reference: 1,
         });
         let r = report(&s);
         assert_eq!(r.fault_name.as_deref(), Some("following_error"));
@@ -286,7 +533,54 @@ mod tests {
         );
         assert!(boot_words(&r).starts_with("slot 1: the save before the last"));
         assert!((r.axes[0].pos_mm - 1.0).abs() < 1e-12);
+        assert_eq!(r.axes[0].reference, "homing");
         s.fault_code = 0;
         assert_eq!(report(&s).fault_name, None);
+    }
+
+    #[test]
+    fn the_latched_fault_gets_its_value_and_limit_from_the_history() {
+        let s = StatusMsg {
+            state: 3,
+            fault_code: 0x0601,
+            ticks: 12_000,
+            inputs: INPUT_ESTOP,
+            ..StatusMsg::default()
+        };
+        let mut f = FaultsMsg::default();
+        for (code, tick, value, limit) in [
+            (0x0500, 2_000, 75, 60),
+            (0x0601, 10_000, 2_500 << 8, 2_000 << 8),
+            (0x0100, 10_001, 0, 0),
+        ] {
+            f.events
+                .push(FaultEventMsg {
+                    code,
+                    tick,
+                    value,
+                    limit,
+                })
+                .unwrap();
+        }
+        f.link.bad_frames = 3;
+        let r = report_with(&s, &f, 1000, 0.5);
+        assert_eq!(
+            (r.fault_value, r.fault_limit, r.fault_unit.as_str()),
+            (Some(2.5), Some(2.0), "mm")
+        );
+        assert!(r.inputs.estop && !r.inputs.valve_power);
+        assert_eq!(r.faults.len(), 3);
+        assert_eq!(r.faults[0].name, "encoder_jump");
+        assert_eq!((r.faults[0].value, r.faults[0].unit.as_str()), (Some(75.0), "counts"));
+        assert_eq!(r.faults[2].value, None, "an E-stop is a state, not a value");
+        assert!((r.time_s - 12.0).abs() < 1e-9);
+        let t = text(&r);
+        assert!(
+            t.contains("following_error on axis 1: 2.500 mm (limit 2.000 mm)"),
+            "{t}"
+        );
+        assert!(t.contains("E-stop ACTIVE"), "{t}");
+        assert!(t.contains("(2.0 s ago, tick 10000)"), "{t}");
+        assert!(t.contains("3 damaged"), "{t}");
     }
 }
