@@ -308,6 +308,11 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         self.configured && !self.table.is_empty()
     }
 
+    /// Slave `i`'s following-error limit (the law's own), µm (`None`: no such slave).
+    pub fn following_error_limit_um(&self, i: usize) -> Option<PosUm> {
+        self.axes.get(i).map(|c| PosUm::from_bits(c.fe_limit))
+    }
+
     /// The table in use.
     pub fn table(&self) -> &CamTable<S, N> {
         &self.table

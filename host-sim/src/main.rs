@@ -30,6 +30,9 @@ enum Command {
     Status(cmd::status::Args),
     /// Record a board's telemetry to CSV (and an SVG plot).
     Trace(cmd::trace::Args),
+    /// Record every tick around a trigger (fault, state change, command, threshold) to
+    /// CSV and an SVG plot.
+    Capture(cmd::capture::Args),
     /// Send Start / Stop / Hold / ClearFault / set-position / home to a board.
     Motion(cmd::motion::Args),
     /// List a board's tables or activate a committed one.
@@ -67,6 +70,7 @@ fn dispatch() -> anyhow::Result<()> {
         Some(Command::Upload(a)) => cmd::upload::run(&a),
         Some(Command::Status(a)) => cmd::status::run(&a),
         Some(Command::Trace(a)) => cmd::trace::run(&a),
+        Some(Command::Capture(a)) => cmd::capture::run(&a),
         Some(Command::Motion(a)) => cmd::motion::run(&a),
         Some(Command::Table(a)) => cmd::table::run(&a),
         Some(Command::Param(a)) => cmd::param::run(&a),

@@ -15,10 +15,15 @@ const PALETTE: [RGBColor; 4] = [
     RGBColor(148, 103, 189),
 ];
 
-struct Panel {
-    title: String,
-    y_label: String,
-    series: Vec<(String, Vec<f64>)>,
+/// One panel of a figure: its title, y-axis label and named series (on the figure's
+/// common time axis).
+pub struct Panel {
+    /// Title.
+    pub title: String,
+    /// y-axis label (with the unit).
+    pub y_label: String,
+    /// Named series, one value per time sample.
+    pub series: Vec<(String, Vec<f64>)>,
 }
 
 fn range(series: &[(String, Vec<f64>)]) -> (f64, f64) {
@@ -131,24 +136,35 @@ pub fn plot_run(r: &RunReport, path: &Path) -> anyhow::Result<()> {
         .as_ref()
         .ok_or_else(|| anyhow::anyhow!("the run has no trace to plot"))?;
     let t = tr.column("t_s").unwrap_or_default();
-    let ps = panels(r, tr);
-    let h_panel = 260u32;
-    let height = 40 + h_panel * ps.len() as u32;
-    let root = SVGBackend::new(path, (1100, height)).into_drawing_area();
-    root.fill(&WHITE)?;
     let title = format!(
         "{} — {} @ {} µs",
         r.scenario,
         r.controller.name(),
         r.period_us
     );
-    let root = root.titled(&title, ("sans-serif", 20))?;
+    plot_panels(path, &title, &t, &panels(r, tr), None)
+}
+
+/// Writes a figure of stacked `panels` over the time samples `t` (s) to `path`, each
+/// panel with its legend; `marker_s` draws a vertical line at that time (a trigger).
+pub fn plot_panels(
+    path: &Path,
+    title: &str,
+    t: &[f64],
+    ps: &[Panel],
+    marker_s: Option<f64>,
+) -> anyhow::Result<()> {
+    let h_panel = 260u32;
+    let height = 40 + h_panel * ps.len() as u32;
+    let root = SVGBackend::new(path, (1100, height)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(title, ("sans-serif", 20))?;
     let areas = root.split_evenly((ps.len(), 1));
     let (t0, t1) = (
         t.first().copied().unwrap_or(0.0),
         t.last().copied().unwrap_or(1.0).max(1e-9),
     );
-    for (area, p) in areas.iter().zip(&ps) {
+    for (area, p) in areas.iter().zip(ps) {
         let (lo, hi) = range(&p.series);
         let mut chart = ChartBuilder::on(area)
             .caption(&p.title, ("sans-serif", 14))
@@ -165,9 +181,12 @@ pub fn plot_run(r: &RunReport, path: &Path) -> anyhow::Result<()> {
         for (i, (name, v)) in p.series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
             chart
-                .draw_series(LineSeries::new(thin(&t, v), color.stroke_width(1)))?
+                .draw_series(LineSeries::new(thin(t, v), color.stroke_width(1)))?
                 .label(name.as_str())
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
+        }
+        if let Some(m) = marker_s {
+            chart.draw_series(LineSeries::new([(m, lo), (m, hi)], BLACK.mix(0.5)))?;
         }
         chart
             .configure_series_labels()

@@ -34,9 +34,9 @@ use hydra_core::protocol::msg::Telemetry;
 use hydra_core::protocol::ramflash::RamFlash;
 use hydra_core::protocol::{Handler, Store};
 use hydra_core::runtime::{
-    BootCause, Command, CommandError, EncoderInput, EncoderSample, PressureInput, Reply, Runtime,
-    Capture, CaptureRow, SafetyInput, Status, TickCommand, TickHost, TickLoop, TickSample,
-    ValveOutput,
+    BootCause, Capture, CaptureRow, Command, CommandError, EncoderInput, EncoderSample,
+    PressureInput, Reply, Runtime, SafetyInput, Status, TickCommand, TickHost, TickLoop,
+    TickSample, ValveOutput,
 };
 use hydra_core::table::CamTable;
 use hydra_core::units::{Counts, DacCode, PressureBar};

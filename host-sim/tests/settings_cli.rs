@@ -6,66 +6,9 @@
 //! in force make invalid cannot be activated; bad paths and values are refused naming
 //! the path.
 
-use std::io::{BufRead, BufReader};
+mod common;
+use common::{json, ok, refused, serve};
 use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
-
-/// A `serve` process, killed when dropped (a restart is a drop and a new one).
-struct Serve(Child, String);
-
-impl Drop for Serve {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn serve(flash: &Path) -> Serve {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(["serve", "--pty", "--flash"])
-        .arg(flash)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("serve starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().expect("stdout"))
-        .read_line(&mut line)
-        .expect("the PTY path");
-    let port = line.trim().to_string();
-    assert!(port.starts_with("/dev/"), "{port:?}");
-    Serve(child, port)
-}
-
-fn cli(s: &Serve, args: &[&str]) -> Output {
-    let mut a: Vec<&str> = args.to_vec();
-    a.extend(["--port", &s.1]);
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(&a)
-        .output()
-        .expect("host-sim runs")
-}
-
-/// Runs a command that must succeed; its stdout.
-fn ok(s: &Serve, args: &[&str]) -> String {
-    let o = cli(s, args);
-    assert!(
-        o.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8(o.stdout).expect("utf-8")
-}
-
-/// Runs a command that must fail; its stderr.
-fn refused(s: &Serve, args: &[&str]) -> String {
-    let o = cli(s, args);
-    assert!(!o.status.success(), "{args:?} must be refused");
-    String::from_utf8(o.stderr).expect("utf-8")
-}
-
-fn json(text: &str) -> serde_json::Value {
-    serde_json::from_str(text.trim()).expect("JSON")
-}
 
 /// A flat table: slave 0 at `x_mm`, slave 1 (the side press) at 20 mm.
 fn table(dir: &Path, name: &str, x_mm: f64) -> String {

@@ -18,6 +18,7 @@
 
 use core::ops::DerefMut;
 
+use super::diag::{phase_code, put_capture_row, CaptureMsg, FaultEventMsg, CAPTURE_DATA_MAX};
 use super::handler::{Device, Motion};
 use super::msg::ParamId;
 use super::msg::{Nak, NakCode, StatusMsg};
@@ -26,9 +27,8 @@ use super::params::{apply_param, apply_saved_set, read_param, reference_offset_u
 use super::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
-use crate::follower::{Follower, FollowerConfig};
-use super::diag::{phase_code, put_capture_row, CaptureMsg, FaultEventMsg, CAPTURE_DATA_MAX};
 use super::wire::Writer;
+use crate::follower::{Follower, FollowerConfig};
 use crate::runtime::{
     BootCause, Capture, CaptureError, Command, CommandError, Controller, Runtime, RuntimeCoeffs,
     State, Trigger, FAULT_HISTORY_LEN,

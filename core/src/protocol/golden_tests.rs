@@ -3,13 +3,13 @@
 //! with the hex the document shows, and the document's bytes decode back to the same
 //! message. A change to the wire format fails here until the document shows it.
 
+use super::diag::{put_capture_row, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats};
 use super::frame::{self, FrameDecoder, MAX_WIRE};
 use super::handler::encode_request;
 use super::msg::{
     AxisLimitsMsg, AxisSample, AxisStatus, Info, InfoLimits, Nak, NakCode, Request, Response,
     StatusMsg, Telemetry, MAX_AXES, NO_TABLE, PROTOCOL_VERSION,
 };
-use super::diag::{put_capture_row, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats};
 use super::wire::Writer;
 use crate::runtime::CaptureRow;
 use std::string::{String, ToString};

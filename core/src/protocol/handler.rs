@@ -25,14 +25,12 @@
 //!   active table and every parameter changed by SetParam since boot (boot applies them
 //!   again before it validates the table).
 
+use super::diag::{trigger_from_wire, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats};
 use super::frame::{self, FrameDecoder, FrameError, MAX_PAYLOAD, MAX_WIRE};
 use super::frame::{Crc32, CRC32};
 use super::msg::{
     read_row, row_len, ty, Info, Nak, NakCode, ParamId, Request, Response, StatusMsg, Telemetry,
     FLAG_LINK_LOST, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, NO_TABLE, PROTOCOL_VERSION,
-};
-use super::diag::{
-    trigger_from_wire, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats,
 };
 use super::overrides::ParamOverrides;
 use super::store::{SlotHeader, Store};
@@ -730,7 +728,11 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 post,
             } => match trigger_from_wire(trigger, channel, axis, value) {
                 Some(t) => dev.capture_arm(t, pre, post),
-                None => Err(Nak::with(NakCode::CaptureTrigger, u16::from(trigger), channel)),
+                None => Err(Nak::with(
+                    NakCode::CaptureTrigger,
+                    u16::from(trigger),
+                    channel,
+                )),
             },
             Request::GetCapture { offset, count } => {
                 let mut c = CaptureMsg::default();

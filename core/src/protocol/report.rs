@@ -102,8 +102,8 @@ pub fn fill_status<const S: usize, const P: usize>(
     out.overruns = st.timing.overruns;
     out.master = st.master.to_bits();
     out.axes.clear();
-    out.inputs = if st.estop { INPUT_ESTOP } else { 0 }
-        | if st.enable { INPUT_VALVE_POWER } else { 0 };
+    out.inputs =
+        if st.estop { INPUT_ESTOP } else { 0 } | if st.enable { INPUT_VALVE_POWER } else { 0 };
     for ((((p, t), e), d), r) in st
         .pos_um
         .iter()

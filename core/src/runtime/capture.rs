@@ -413,7 +413,11 @@ mod tests {
         assert_eq!((i.pre, i.rows, i.trigger_tick), (20, 31, 150));
         let ticks: vec::Vec<i32> = (0..31).map(|k| c.row(k).unwrap().0.master).collect();
         assert_eq!(ticks, (130..=160).collect::<vec::Vec<i32>>());
-        assert_eq!(c.row(20).unwrap().1, 3, "the trigger row is the first in Fault");
+        assert_eq!(
+            c.row(20).unwrap().1,
+            3,
+            "the trigger row is the first in Fault"
+        );
         assert_eq!(c.row(19).unwrap().1, 1);
         assert_eq!(c.row(31), None);
         // Channels in their stored units.
@@ -436,8 +440,15 @@ mod tests {
         assert_eq!((i.pre, i.rows, i.trigger_tick), (0, 4, 0));
         // A level trigger after the ring has wrapped several times.
         let err = Channel::Error(0);
-        c.arm(Trigger::Above { channel: err, value: 256 * 50 }, 9, 6)
-            .unwrap();
+        c.arm(
+            Trigger::Above {
+                channel: err,
+                value: 256 * 50,
+            },
+            9,
+            6,
+        )
+        .unwrap();
         for t in 0..100 {
             c.push(&sample(t, 1, if t >= 77 { 60 } else { 10 }));
         }
@@ -446,7 +457,15 @@ mod tests {
         let m: vec::Vec<i32> = (0..16).map(|k| c.row(k).unwrap().0.master).collect();
         assert_eq!(m, (68..=83).collect::<vec::Vec<i32>>());
         // Below, state change and command.
-        c.arm(Trigger::Below { channel: err, value: 0 }, 0, 0).unwrap();
+        c.arm(
+            Trigger::Below {
+                channel: err,
+                value: 0,
+            },
+            0,
+            0,
+        )
+        .unwrap();
         c.push(&sample(1, 1, 5));
         c.push(&sample(2, 1, -1));
         assert_eq!(c.info().trigger_tick, 2);
@@ -475,7 +494,14 @@ mod tests {
         );
         let ch = Channel::Error(2);
         assert_eq!(
-            c.arm(Trigger::Above { channel: ch, value: 0 }, 1, 1),
+            c.arm(
+                Trigger::Above {
+                    channel: ch,
+                    value: 0
+                },
+                1,
+                1
+            ),
             Err(CaptureError::NoChannel)
         );
         assert_eq!(c.info().phase, Phase::Idle, "nothing changed");

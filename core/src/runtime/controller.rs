@@ -74,6 +74,12 @@ pub trait Controller<const S: usize> {
     fn master_span(&self) -> Option<(Master, Master)> {
         None
     }
+
+    /// The law's own following-error limit of slave `axis`, if it has one (the limit a
+    /// [`LawFault::FollowingError`] exceeded, for the fault history).
+    fn following_error_limit_um(&self, _axis: usize) -> Option<PosUm> {
+        None
+    }
 }
 
 /// `Controller` for a pointer type `$p<C>` to a law `C`, forwarding every call.
@@ -95,6 +101,10 @@ macro_rules! forward_controller {
 
             fn master_span(&self) -> Option<(Master, Master)> {
                 (**self).master_span()
+            }
+
+            fn following_error_limit_um(&self, axis: usize) -> Option<PosUm> {
+                (**self).following_error_limit_um(axis)
             }
         }
     };

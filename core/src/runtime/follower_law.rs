@@ -49,6 +49,10 @@ impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
     fn master_span(&self) -> Option<(Master, Master)> {
         Some((self.table().master_first(), self.table().master_last()))
     }
+
+    fn following_error_limit_um(&self, axis: usize) -> Option<crate::units::PosUm> {
+        Follower::following_error_limit_um(self, axis)
+    }
 }
 
 #[cfg(test)]
@@ -163,6 +167,10 @@ mod tests {
         let rec = r.fault().unwrap();
         assert_eq!(rec.fault, Fault::FollowingError { axis: 0 });
         assert_eq!(r.status().dac[0].get(), -12);
+        // The history names the follower's 3 mm limit, not the runtime's 1 000 mm.
+        let ev = *r.fault_history().recent().unwrap();
+        assert_eq!(ev.limit, 3000 << 8);
+        assert!(ev.value.unsigned_abs() > 3000 << 8, "{ev:?}");
         // Clear, restart: the follower's latched axis fault is cleared too.
         r.step(&sample(0, 20_000), None);
         assert_eq!(

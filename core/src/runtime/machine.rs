@@ -703,12 +703,20 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         for (i, ((e, flt), lim)) in per_axis.enumerate() {
             let axis = u8::try_from(i).unwrap_or(u8::MAX);
             let [fe, ctl] = &mut raised;
-            let ev = |f: Fault| (f, e.to_bits(), lim.to_bits());
-            if e.unsigned_abs() > lim.unsigned_abs() || *flt == Some(LawFault::FollowingError) {
-                fe.get_or_insert(ev(Fault::FollowingError { axis }));
+            let ev = |f: Fault, lim: PosUm| (f, e.to_bits(), lim.to_bits());
+            if e.unsigned_abs() > lim.unsigned_abs() {
+                fe.get_or_insert(ev(Fault::FollowingError { axis }, *lim));
+            }
+            if *flt == Some(LawFault::FollowingError) {
+                // The law's own limit tripped (tighter than the runtime's).
+                let own = self
+                    .law
+                    .as_ref()
+                    .and_then(|l| l.following_error_limit_um(i));
+                fe.get_or_insert(ev(Fault::FollowingError { axis }, own.unwrap_or(*lim)));
             }
             if *flt == Some(LawFault::Other) {
-                ctl.get_or_insert(ev(Fault::Controller { axis }));
+                ctl.get_or_insert(ev(Fault::Controller { axis }, *lim));
             }
         }
         for (f, value, limit) in raised.into_iter().flatten() {

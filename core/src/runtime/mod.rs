@@ -36,6 +36,7 @@ mod tests;
 #[cfg(test)]
 mod tests_reference;
 
+pub use capture::{Capture, CaptureError, CaptureInfo, CaptureRow, Channel, Phase, Trigger};
 pub use config::{
     MasterSource, RuntimeCoeffs, RuntimeConfig, RuntimeConfigError, MAX_STEP_LIMIT_COUNTS,
     PERIOD_MAX_US, PERIOD_MIN_US,
@@ -49,7 +50,6 @@ pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
 };
 pub use reference::{RefState, ReferenceMode, References};
-pub use capture::{Capture, CaptureError, CaptureInfo, CaptureRow, Channel, Phase, Trigger};
 pub use tick::{
     Reply, TickCommand, TickHost, TickLoop, TickSample, FLAG_COMMAND, FLAG_END_OF_TABLE,
     FLAG_ESTOP, FLAG_VALVE_POWER, STATE_MASK, STATUS_PERIOD_US,

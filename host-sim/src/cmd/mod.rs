@@ -1,5 +1,6 @@
 //! One module per sub-command of the `host-sim` tool.
 
+pub mod capture;
 pub mod contour_estimate;
 pub mod motion;
 pub mod open_loop;

@@ -100,6 +100,15 @@ pub fn explain(nak: &Nak) -> String {
             "the table's law cannot be built with the present parameters".into()
         }
         C::Refused => "the board was not at a safe point".into(),
+        C::CaptureTooLong => format!(
+            "the capture is longer than the board's ring ({d} ticks: pre + post + 1 must fit)"
+        ),
+        C::CaptureTrigger if d == 0 && d2 == 0 => {
+            "the board keeps no capture ring, or the trigger is not one it knows".into()
+        }
+        C::CaptureTrigger => {
+            format!("trigger kind {d}, channel {d2}: not a trigger this board knows")
+        }
         c => format!("{c:?}"),
     }
 }

@@ -165,13 +165,19 @@ fn id(x: u32) -> Option<u32> {
 
 /// A fault event's value and limit in engineering units, and the unit
 /// (`hydra_core::runtime::FaultEvent` documents the raw units by kind).
-fn event_values(f: Option<Fault>, e: &FaultEventMsg, period_s: f64) -> (Option<f64>, Option<f64>, &'static str) {
+fn event_values(
+    f: Option<Fault>,
+    e: &FaultEventMsg,
+    period_s: f64,
+) -> (Option<f64>, Option<f64>, &'static str) {
     let mm = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
     match f.map(Fault::kind) {
         Some(FaultKind::FollowingError | FaultKind::Controller) => {
             (Some(mm(e.value)), Some(mm(e.limit)), "mm")
         }
-        Some(FaultKind::EncoderJump) => (Some(f64::from(e.value)), Some(f64::from(e.limit)), "counts"),
+        Some(FaultKind::EncoderJump) => {
+            (Some(f64::from(e.value)), Some(f64::from(e.limit)), "counts")
+        }
         Some(FaultKind::MasterStalled) => (
             Some(f64::from(e.value) * period_s),
             Some(f64::from(e.limit) * period_s),
@@ -215,7 +221,10 @@ pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: 
     let um = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
     let faults = fault_reports(f, period_us);
     // The latched fault's event: the newest with its code.
-    let latched = faults.iter().rev().find(|e| e.code == s.fault_code && s.fault_code != 0);
+    let latched = faults
+        .iter()
+        .rev()
+        .find(|e| e.code == s.fault_code && s.fault_code != 0);
     Report {
         state: match s.state {
             0 => "idle",
@@ -417,7 +426,11 @@ pub fn text(r: &Report) -> String {
     let _ = writeln!(
         o,
         "inputs       E-stop {}, valve power {}",
-        if r.inputs.estop { "ACTIVE (chain open)" } else { "released" },
+        if r.inputs.estop {
+            "ACTIVE (chain open)"
+        } else {
+            "released"
+        },
         if r.inputs.valve_power { "on" } else { "off" }
     );
     let mut notes = Vec::new();
@@ -478,7 +491,11 @@ pub fn text(r: &Report) -> String {
         let _ = writeln!(
             o,
             "{} {:>8.3} s ({:.1} s ago, tick {}): {}{}{}",
-            if k == 0 { "history     " } else { "            " },
+            if k == 0 {
+                "history     "
+            } else {
+                "            "
+            },
             e.time_s,
             ago,
             e.tick,
@@ -571,7 +588,10 @@ mod tests {
         assert!(r.inputs.estop && !r.inputs.valve_power);
         assert_eq!(r.faults.len(), 3);
         assert_eq!(r.faults[0].name, "encoder_jump");
-        assert_eq!((r.faults[0].value, r.faults[0].unit.as_str()), (Some(75.0), "counts"));
+        assert_eq!(
+            (r.faults[0].value, r.faults[0].unit.as_str()),
+            (Some(75.0), "counts")
+        );
         assert_eq!(r.faults[2].value, None, "an E-stop is a state, not a value");
         assert!((r.time_s - 12.0).abs() < 1e-9);
         let t = text(&r);
