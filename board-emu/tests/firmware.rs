@@ -6,7 +6,10 @@ mod common;
 use board_emu::machine::TIM7_EXC;
 use board_emu::session::Session;
 use common::*;
+use hydra_core::protocol::diag::take_capture_row;
+use hydra_core::protocol::msg::INPUT_ESTOP;
 use hydra_core::protocol::{Request, Response};
+use hydra_core::runtime::{FLAG_ESTOP, FLAG_VALVE_POWER, STATE_MASK};
 
 fn ticks(s: &Session) -> u64 {
     s.m.state().stats.taken.get(&TIM7_EXC).copied().unwrap_or(0)
@@ -186,6 +189,20 @@ fn estop_nulls_the_valves_and_drops_the_enable_within_one_tick() {
     s.m.run_for(2.0).expect("follow");
     let out = s.plant.borrow().outputs;
     assert!(out.enable, "following: valves powered");
+    // The loop-rate capture armed on the E-stop's fault: 20 ticks either side.
+    let arm = Request::CaptureArm {
+        trigger: 1,
+        channel: 0,
+        axis: 0,
+        value: 0,
+        pre: 20,
+        post: 20,
+    };
+    assert!(matches!(
+        s.host.request(&mut s.m, &arm),
+        Ok(Response::Ack { .. })
+    ));
+    s.m.run_for(0.03).expect("30 ticks before the E-stop");
     let cut = s.m.cycles();
     s.plant.borrow_mut().estop_closed = false;
     s.m.run_for(0.003).expect("run");
@@ -207,6 +224,58 @@ fn estop_nulls_the_valves_and_drops_the_enable_within_one_tick() {
     assert!(first.at - cut <= 168_000, "within one period");
     let st = s.status().expect("status");
     assert_eq!(st.fault_code, 0x0100, "E-stop fault latched");
+    assert_eq!(st.inputs, INPUT_ESTOP, "E-stop active, valve power off");
+    assert!(
+        st.axes.iter().all(|a| a.reference == 2),
+        "both slaves referenced"
+    );
+    assert_eq!(st.active_rows as usize, s.nodes().len());
+    // The history: the E-stop at the tick it latched, and the link's statistics.
+    match s.host.request(&mut s.m, &Request::GetFaults) {
+        Ok(Response::Faults(f)) => {
+            let e = f.events.last().expect("an event");
+            assert_eq!(e.code, 0x0100);
+            assert!(f.link.frames > 10 && f.link.bad_frames == 0, "{:?}", f.link);
+        }
+        r => panic!("GetFaults answered {r:?}"),
+    }
+    // The capture, read back in frames once the 20 ticks after the trigger have run: the
+    // trigger row is the E-stop tick.
+    s.m.run_for(0.03).expect("run");
+    let mut rows = Vec::new();
+    let info = loop {
+        let q = Request::GetCapture {
+            offset: rows.len() as u32,
+            count: 255,
+        };
+        let Ok(Response::Capture(c)) = s.host.request(&mut s.m, &q) else {
+            panic!("GetCapture");
+        };
+        assert_eq!(c.phase, 3, "done 20 ticks after the fault");
+        let mut r = hydra_core::protocol::wire::Reader::new(&c.data);
+        while r.remaining() > 0 {
+            rows.push(take_capture_row(&mut r, 2).expect("a whole row"));
+        }
+        if rows.len() as u32 >= c.rows {
+            break c;
+        }
+    };
+    assert_eq!((info.pre, info.rows), (20, 41));
+    let (before, at) = (&rows[19], &rows[20]);
+    assert_eq!(before.flags & STATE_MASK, 1, "following before the E-stop");
+    assert_ne!(before.flags & FLAG_VALVE_POWER, 0);
+    assert_eq!(at.flags & STATE_MASK, 3, "the trigger row is in Fault");
+    assert_ne!(at.flags & FLAG_ESTOP, 0);
+    assert_eq!(
+        at.flags & FLAG_VALVE_POWER,
+        0,
+        "valve power off in that tick"
+    );
+    assert!(
+        at.axes.iter().all(|a| a.dac == 0),
+        "valves at null in that tick"
+    );
+    assert!(rows[..20].iter().all(|r| r.axes[0].pressure_cbar[0] > 0));
     assert_stack(&s);
 }
 

@@ -217,7 +217,7 @@ pub struct Capture<'a, const S: usize> {
     trigger_at: usize,
     trigger_tick: u32,
     post_left: u32,
-    /// The previous tick's flags (state-change and fault edges).
+    /// The previous tick's flags (state-change and fault edges; kept across an arm).
     last_flags: Option<u8>,
 }
 
@@ -265,6 +265,7 @@ impl<'a, const S: usize> Capture<'a, S> {
             phase: Phase::Armed,
             pre,
             post,
+            last_flags: self.last_flags,
             ..Self::new(&mut [], &mut [])
         };
         Ok(())
@@ -304,6 +305,9 @@ impl<'a, const S: usize> Capture<'a, S> {
     /// Records one tick (the tick's glue calls this every tick).
     #[inline]
     pub fn push(&mut self, s: &TickSample<S>) {
+        // Every tick's flags, armed or not: a fault in the first tick after the arm is
+        // still an edge.
+        let prev = self.last_flags.replace(s.flags);
         if !matches!(self.phase, Phase::Armed | Phase::Triggered) {
             return;
         }
@@ -316,7 +320,6 @@ impl<'a, const S: usize> Capture<'a, S> {
         }
         self.head = at.saturating_add(1).checked_rem(cap).unwrap_or(0);
         self.filled = self.filled.saturating_add(1).min(cap);
-        let prev = self.last_flags.replace(s.flags);
         match self.phase {
             Phase::Armed if self.fires(&row, s.flags, prev) => {
                 self.phase = Phase::Triggered;
@@ -470,7 +473,7 @@ mod tests {
         c.push(&sample(2, 1, -1));
         assert_eq!(c.info().trigger_tick, 2);
         c.arm(Trigger::StateChange, 1, 1).unwrap();
-        for (t, s) in [(5, 0), (6, 0), (7, 1), (8, 1)] {
+        for (t, s) in [(5, 1), (6, 1), (7, 0), (8, 0)] {
             c.push(&sample(t, s, 0));
         }
         assert_eq!((c.info().trigger_tick, c.info().rows), (7, 3));
@@ -478,6 +481,24 @@ mod tests {
         c.push(&sample(1, 0, 0));
         c.push(&sample(2, FLAG_COMMAND, 0));
         assert_eq!(c.info().trigger_tick, 2);
+    }
+
+    #[test]
+    fn a_fault_in_the_first_tick_after_the_arm_is_an_edge_but_a_standing_one_is_not() {
+        let (mut r, mut f) = ring(16);
+        let mut c = Capture::new(&mut r, &mut f);
+        c.push(&sample(1, 1, 0)); // following, not armed
+        c.arm(Trigger::Fault, 2, 2).unwrap();
+        c.push(&sample(2, 3, 0));
+        assert_eq!(
+            (c.info().phase, c.info().trigger_tick),
+            (Phase::Triggered, 2)
+        );
+        c.arm(Trigger::Fault, 2, 2).unwrap();
+        for t in 3..20 {
+            c.push(&sample(t, 3, 0)); // in Fault all along
+        }
+        assert_eq!(c.info().phase, Phase::Armed);
     }
 
     #[test]

@@ -704,16 +704,17 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             let axis = u8::try_from(i).unwrap_or(u8::MAX);
             let [fe, ctl] = &mut raised;
             let ev = |f: Fault, lim: PosUm| (f, e.to_bits(), lim.to_bits());
-            if e.unsigned_abs() > lim.unsigned_abs() {
-                fe.get_or_insert(ev(Fault::FollowingError { axis }, *lim));
-            }
+            // The law's own limit when it flagged the axis (the setting the user made), else
+            // the runtime's.
             if *flt == Some(LawFault::FollowingError) {
-                // The law's own limit tripped (tighter than the runtime's).
                 let own = self
                     .law
                     .as_ref()
                     .and_then(|l| l.following_error_limit_um(i));
                 fe.get_or_insert(ev(Fault::FollowingError { axis }, own.unwrap_or(*lim)));
+            }
+            if e.unsigned_abs() > lim.unsigned_abs() {
+                fe.get_or_insert(ev(Fault::FollowingError { axis }, *lim));
             }
             if *flt == Some(LawFault::Other) {
                 ctl.get_or_insert(ev(Fault::Controller { axis }, *lim));
