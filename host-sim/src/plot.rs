@@ -142,17 +142,18 @@ pub fn plot_run(r: &RunReport, path: &Path) -> anyhow::Result<()> {
         r.controller.name(),
         r.period_us
     );
-    plot_panels(path, &title, &t, &panels(r, tr), None)
+    plot_panels(path, &title, ("t (s)", &t), &panels(r, tr), None)
 }
 
-/// Writes a figure of stacked `panels` over the time samples `t` (s) to `path`, each
-/// panel with its legend; `marker_s` draws a vertical line at that time (a trigger).
+/// Writes a figure of stacked `panels` over the common x samples `(label, x)` (time, or
+/// the master for a cam table) to `path`, each panel with its legend; `marker` draws a
+/// vertical line at that x (a trigger).
 pub fn plot_panels(
     path: &Path,
     title: &str,
-    t: &[f64],
+    (x_desc, t): (&str, &[f64]),
     ps: &[Panel],
-    marker_s: Option<f64>,
+    marker: Option<f64>,
 ) -> anyhow::Result<()> {
     let h_panel = 260u32;
     let height = 40 + h_panel * ps.len() as u32;
@@ -174,7 +175,7 @@ pub fn plot_panels(
             .build_cartesian_2d(t0..t1, lo..hi)?;
         chart
             .configure_mesh()
-            .x_desc("t (s)")
+            .x_desc(x_desc)
             .y_desc(p.y_label.as_str())
             .light_line_style(WHITE.mix(0.0))
             .draw()?;
@@ -185,7 +186,7 @@ pub fn plot_panels(
                 .label(name.as_str())
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
         }
-        if let Some(m) = marker_s {
+        if let Some(m) = marker {
             chart.draw_series(LineSeries::new([(m, lo), (m, hi)], BLACK.mix(0.5)))?;
         }
         chart

@@ -354,7 +354,7 @@ pub fn plot(c: &Captured, path: &std::path::Path, title: &str) -> anyhow::Result
             })
             .collect(),
     });
-    plot_panels(path, title, &t, &ps, Some(0.0))
+    plot_panels(path, title, ("t from the trigger (s)", &t), &ps, Some(0.0))
 }
 
 /// Runs `capture`.

@@ -42,6 +42,10 @@ pub struct Args {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+    /// Check: an SVG plot of each slave's position, velocity and acceleration against the
+    /// master (at the master's top speed) with the board's limits.
+    #[arg(long)]
+    pub plot: Option<std::path::PathBuf>,
 }
 
 /// The tables of a status report as JSON: `{"active", "committed", "saved"}` (null: none).
@@ -113,6 +117,10 @@ fn check(args: &Args) -> anyhow::Result<()> {
         None => (BoardRules::firmware(), "the firmware's profile"),
     };
     let r = check(&csv, &rules, args.master_counts_per_unit);
+    if let Some(p) = &args.plot {
+        crate::tablecheck::plot(&csv, &rules, args.master_counts_per_unit, p)?;
+        eprintln!("plot → {}", p.display());
+    }
     if args.json {
         let e = r.as_ref().err();
         println!(
