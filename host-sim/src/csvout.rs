@@ -63,6 +63,14 @@ impl CsvOut<Vec<u8>> {
     }
 }
 
+/// Creates (empties) `path` now, so a command that records for a while before writing
+/// fails at once, naming the path, if it cannot be written.
+pub fn writable(path: &std::path::Path) -> anyhow::Result<()> {
+    std::fs::File::create(path)
+        .map(drop)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+}
+
 /// Writes `text` to `path`, an error naming the path.
 pub fn save(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
     std::fs::write(path, text).map_err(|e| anyhow::anyhow!("writing {}: {e}", path.display()))

@@ -365,6 +365,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         "--timeout-s {}: must be > 0",
         args.timeout_s
     );
+    for p in args.csv.iter().chain(args.plot.iter()) {
+        crate::csvout::writable(p)?;
+    }
     let mut link = Link::open(&args.port)?;
     if !args.read_only {
         arm(&mut link, trigger, args.pre_ms, args.post_ms)?;

@@ -25,8 +25,8 @@ pub struct Args {
     /// Optional SVG plot of target and actual.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// One sample every this many ticks.
-    #[arg(long, default_value_t = 10)]
+    /// One sample every this many ticks (1 … 65 535).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(1..))]
     pub every: u16,
 }
 
@@ -50,6 +50,15 @@ pub fn record(link: &mut Link, seconds: f64, every: u16) -> anyhow::Result<Vec<T
 
 /// Runs `trace`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.seconds.is_finite() && args.seconds > 0.0 && args.seconds <= 86_400.0,
+        "--seconds {}: a recording time must be > 0 s (and at most a day)",
+        args.seconds
+    );
+    crate::csvout::writable(&args.csv)?;
+    if let Some(p) = &args.plot {
+        crate::csvout::writable(p)?;
+    }
     let mut link = Link::open(&args.port)?;
     let period_s = f64::from(link.info.period_us) * 1e-6;
     let samples = record(&mut link, args.seconds, args.every)?;

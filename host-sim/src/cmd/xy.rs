@@ -52,7 +52,7 @@ pub struct Args {
     #[arg(long)]
     pub gains: Option<PathBuf>,
     /// Velocity feed-forward (all four controllers alike): `on` (the product default,
-    /// identified gains) or `off` (feedback only, as in the seed's comparison; scale 0).
+    /// identified gains) or `off` (feedback only, as in the published comparison; scale 0).
     /// Also honoured by `--tune`: `off` tunes every controller without feed-forward.
     #[arg(long, value_enum, default_value = "on")]
     pub feedforward: OnOff,
@@ -65,7 +65,7 @@ pub struct Args {
     /// Exit 0 even when the runtime latched a fault (by default the exit code is 3).
     #[arg(long)]
     pub allow_fault: bool,
-    /// Run the documented tuning procedure ([`crate::xy::tune`]): prints every evaluated
+    /// Run the documented tuning procedure ((docs/npid.md)): prints every evaluated
     /// setting and the chosen gains of each controller as TOML (`--controller C`: only
     /// C's part of the procedure).
     #[arg(long)]

@@ -229,7 +229,8 @@ pub struct PressCfg {
 pub enum Controller {
     /// PID toward the table node at the far end of the current segment (core `NextNode`).
     Traditional,
-    /// SPEC §A exactly: eq. 4 prediction, incremental integral-separation PID (core `Paper`).
+    /// The published method exactly: 3-point master prediction, incremental PID with
+    /// integral separation.
     Paper,
     /// Feedback at the sampling instant + feed-forward aimed at the interval in which the
     /// command acts (core `Feedforward`, the default).
@@ -268,7 +269,8 @@ impl Controller {
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum PredictorCfg {
-    /// SPEC §A eq. 4 as printed.
+    /// The published 3-point extrapolation as printed (short by ½·θ̈·T² on an
+    /// accelerating master).
     #[default]
     Eq4,
     /// Exact quadratic extrapolation.

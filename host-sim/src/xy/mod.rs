@@ -78,7 +78,8 @@ pub enum ControllerKind {
     Ccc,
     /// Cross-coupled nonlinear PID (TD + fal), model ε.
     Nccc,
-    /// Cross-coupled nonlinear PID, ε from the seed-003 estimator.
+    /// Cross-coupled nonlinear PID, the contour error ε estimated on line (adaptive
+    /// window over the interpolated path).
     NcccEst,
 }
 

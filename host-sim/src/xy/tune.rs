@@ -211,16 +211,30 @@ fn evaluate(name: &str, sc: &XyScenario) -> Eval {
     }
 }
 
-fn eval_all(cands: &[(String, XyScenario)]) -> Vec<Eval> {
+/// Evaluates the candidates on two threads, with a progress bar and its ETA on a
+/// terminal's stderr (`label`: which step of the procedure).
+fn eval_all(label: &str, cands: &[(String, XyScenario)]) -> Vec<Eval> {
     let threads = 2usize;
     let chunk = cands.len().div_ceil(threads).max(1);
-    std::thread::scope(|s| {
+    let bar = indicatif::ProgressBar::new(cands.len() as u64);
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{msg} [{bar:30}] {pos}/{len} candidates, {elapsed} so far, ETA {eta}",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message(label.to_string());
+    let out = std::thread::scope(|s| {
         let hs: Vec<_> = cands
             .chunks(chunk)
             .map(|c| {
+                let bar = bar.clone();
                 s.spawn(move || {
                     c.iter()
-                        .map(|(name, sc)| evaluate(name, sc))
+                        .map(|(name, sc)| {
+                            let e = evaluate(name, sc);
+                            bar.inc(1);
+                            e
+                        })
                         .collect::<Vec<_>>()
                 })
             })
@@ -228,7 +242,9 @@ fn eval_all(cands: &[(String, XyScenario)]) -> Vec<Eval> {
         hs.into_iter()
             .flat_map(|h| h.join().unwrap_or_default())
             .collect()
-    })
+    });
+    bar.finish_and_clear();
+    out
 }
 
 /// Evaluates every candidate, logs one line each and returns the accepted ones sorted
@@ -238,7 +254,7 @@ fn ranked(
     cands: Vec<(String, XyScenario)>,
     log: &mut dyn FnMut(&str),
 ) -> Vec<(f64, String, XyScenario, f64)> {
-    let res = eval_all(&cands);
+    let res = eval_all(label, &cands);
     let mut ok = Vec::new();
     for (e, (_, sc)) in res.iter().zip(cands) {
         let name = &e.name;
