@@ -72,6 +72,17 @@ fn hello_info_and_status_over_the_emulated_uart() {
     let st = s.status().expect("status");
     assert_eq!((st.state, st.fault_code), (0, 0));
     assert!(st.ticks > 10);
+    // The real board's master is an encoder: the virtual master's request is refused.
+    let q = Request::VirtualMaster {
+        op: 1,
+        speed_scale: 0.0,
+    };
+    match s.host.request(&mut s.m, &q) {
+        Ok(Response::Nak { nak, .. }) => {
+            assert_eq!(nak.code, hydra_core::protocol::NakCode::NoVirtualMaster)
+        }
+        r => panic!("VirtualMaster answered {r:?}"),
+    }
     assert_stack(&s);
 }
 

@@ -67,6 +67,8 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
             what,
             axis,
             mm,
+            master_op: None,
+            speed_scale: None,
         })
     };
     use host_sim::cmd::motion::What;
@@ -94,6 +96,7 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
             master_counts_per_unit: 1000.0,
             id,
             json: true,
+            plot: None,
         })
     };
     use host_sim::cmd::table::What as T;

@@ -393,7 +393,11 @@ mod tests {
 /// is the velocity change at the node over the shorter of its two segments' durations (a
 /// cam table of straight segments changes velocity at its nodes; the follower's
 /// feed-forward sees that change spread over about one segment).
-pub fn kinematics(csv: &CamCsv, rules: &BoardRules, counts_per_unit: f64) -> Vec<(Vec<f64>, Vec<f64>)> {
+pub fn kinematics(
+    csv: &CamCsv,
+    rules: &BoardRules,
+    counts_per_unit: f64,
+) -> Vec<(Vec<f64>, Vec<f64>)> {
     // Master units per second at the top speed.
     let w = rules.master_speed_per_s() / counts_per_unit;
     let m = &csv.master;
@@ -403,7 +407,11 @@ pub fn kinematics(csv: &CamCsv, rules: &BoardRules, counts_per_unit: f64) -> Vec
         .map(|x| {
             let slope = |k: usize| {
                 let dm = m[k + 1] - m[k];
-                if dm > 0.0 { (x[k + 1] - x[k]) / dm } else { 0.0 }
+                if dm > 0.0 {
+                    (x[k + 1] - x[k]) / dm
+                } else {
+                    0.0
+                }
             };
             let v: Vec<f64> = (0..n)
                 .map(|k| if n < 2 { 0.0 } else { slope(k.min(n - 2)) * w })
@@ -414,7 +422,11 @@ pub fn kinematics(csv: &CamCsv, rules: &BoardRules, counts_per_unit: f64) -> Vec
                         return 0.0;
                     }
                     let dt = (m[k] - m[k - 1]).min(m[k + 1] - m[k]) / w;
-                    if dt > 0.0 { (v[k] - v[k - 1]) / dt } else { 0.0 }
+                    if dt > 0.0 {
+                        (v[k] - v[k - 1]) / dt
+                    } else {
+                        0.0
+                    }
                 })
                 .collect();
             (v, a)

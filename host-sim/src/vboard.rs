@@ -30,9 +30,10 @@ use hydra_core::dac::DacRange;
 use hydra_core::follower::Follower;
 use hydra_core::profile;
 use hydra_core::protocol::device::{BoardDevice, DeviceGlue, LawDevice};
+use hydra_core::protocol::diag::{master_op, MasterStateMsg};
 use hydra_core::protocol::msg::Telemetry;
 use hydra_core::protocol::ramflash::RamFlash;
-use hydra_core::protocol::{Handler, Store};
+use hydra_core::protocol::{Handler, Nak, NakCode, Store};
 use hydra_core::runtime::{
     BootCause, Capture, CaptureRow, Command, CommandError, EncoderInput, EncoderSample,
     PressureInput, Reply, Runtime, SafetyInput, Status, TickCommand, TickHost, TickLoop,
@@ -69,8 +70,10 @@ pub struct VirtualIo {
     pub estop: bool,
     /// Master time, s (advances once started).
     pub t_master: f64,
-    /// The master has been started (by the first accepted Start).
+    /// The master runs (from the first accepted Start, or `motion master start`).
     pub started: bool,
+    /// The master's speed relative to the scenario's profile (`motion master --speed`).
+    pub speed_scale: f64,
     master_res_deg: f64,
     range: DacRange,
     written: [DacCode; AXES],
@@ -132,8 +135,40 @@ impl VirtualIo {
             *u = valve_command(c.get(), self.enable);
         }
         if self.started {
-            self.t_master += period_s;
+            self.t_master += period_s * self.speed_scale;
         }
+    }
+
+    /// `motion master`: start, stop, rewind or query the simulated master
+    /// ([`master_op`]), its speed scale changed unless `speed_scale` is 0 (else 0.01 …
+    /// 100 of the scenario's profile).
+    fn master_op(&mut self, op: u8, speed_scale: f32) -> Result<MasterStateMsg, Nak> {
+        if speed_scale != 0.0 {
+            if !(0.01..=100.0).contains(&speed_scale) {
+                return Err(Nak::with(NakCode::NoVirtualMaster, u16::from(op), 1));
+            }
+            self.speed_scale = f64::from(speed_scale);
+        }
+        match op {
+            master_op::QUERY => {}
+            master_op::START => self.started = true,
+            master_op::STOP => self.started = false,
+            master_op::REWIND => {
+                self.started = false;
+                self.t_master = 0.0;
+            }
+            _ => return Err(Nak::with(NakCode::NoVirtualMaster, u16::from(op), 0)),
+        }
+        let m = &self.plant.master;
+        let end_s = m.stop_time_s();
+        Ok(MasterStateMsg {
+            running: self.started,
+            time_s: self.t_master as f32,
+            position: m.angle_deg(self.t_master) as f32,
+            end_s: end_s as f32,
+            at_end: self.t_master >= end_s,
+            speed_scale: self.speed_scale as f32,
+        })
     }
 
     /// Whether the valve power is on (the last tick's enable).
@@ -214,6 +249,7 @@ impl Machine {
                 estop: false,
                 t_master: 0.0,
                 started: false,
+                speed_scale: 1.0,
                 master_res_deg: scn.master.resolution_deg,
                 range: profile::dac_range()
                     .ok_or_else(|| anyhow::anyhow!("the board profile's DAC range"))?,
@@ -327,6 +363,9 @@ impl DeviceGlue<Law, AXES, PRESSURES> for Machine {
     }
     fn capture<R>(&mut self, f: impl FnOnce(&mut Capture<'_, AXES>) -> R) -> Option<R> {
         Some(f(&mut self.host.capture))
+    }
+    fn virtual_master(&mut self, op: u8, speed_scale: f32) -> Option<Result<MasterStateMsg, Nak>> {
+        Some(self.io.master_op(op, speed_scale))
     }
 }
 

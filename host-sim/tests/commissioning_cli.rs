@@ -241,6 +241,21 @@ fn status_capture_around_a_command_and_a_fault() {
     assert_eq!(lines.len(), 3);
     assert!(lines.iter().all(|l| json(l)["state"] == "fault"));
 
+    // The virtual master: rewound and run again at 50× without restarting `serve`; its
+    // end is reported.
+    ok(&s, &["motion", "clear-fault"]);
+    let m = ok(&s, &["motion", "master", "rewind"]);
+    assert!(m.starts_with("master stopped, 0.000 s of"), "{m}");
+    ok(&s, &["motion", "master", "start", "--speed-scale", "50"]);
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let m = ok(&s, &["motion", "master", "status"]);
+    assert!(
+        m.contains("speed ×50") && m.contains("at the end of its profile"),
+        "{m}"
+    );
+    let e = refused(&s, &["motion", "master", "start", "--speed-scale", "500"]);
+    assert!(e.contains("0.01 … 100"), "{e}");
+
     // Nonsense gets words, before anything is sent or from the board.
     let e = refused(
         &s,

@@ -26,6 +26,8 @@ fn reference_all(port: &str) {
             what: motion::What::SetPosition,
             axis: Some(k as u8),
             mm: Some(a.pos_mm),
+            master_op: None,
+            speed_scale: None,
         })
         .unwrap();
     }

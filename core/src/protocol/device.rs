@@ -18,7 +18,9 @@
 
 use core::ops::DerefMut;
 
-use super::diag::{phase_code, put_capture_row, CaptureMsg, FaultEventMsg, CAPTURE_DATA_MAX};
+use super::diag::{
+    phase_code, put_capture_row, CaptureMsg, FaultEventMsg, MasterStateMsg, CAPTURE_DATA_MAX,
+};
 use super::handler::{Device, Motion};
 use super::msg::ParamId;
 use super::msg::{Nak, NakCode, StatusMsg};
@@ -66,6 +68,15 @@ pub trait DeviceGlue<L, const S: usize, const P: usize> {
     /// Runs `f` on the board's capture ring (briefly, as [`DeviceGlue::write`]: the tick
     /// records into it); `None` if the board keeps none (the default).
     fn capture<R>(&mut self, _f: impl FnOnce(&mut Capture<'_, S>) -> R) -> Option<R> {
+        None
+    }
+    /// A test board's simulated master ([`super::diag::master_op`]); `None`: the master
+    /// is a real encoder (the default).
+    fn virtual_master(
+        &mut self,
+        _op: u8,
+        _speed_scale: f32,
+    ) -> Option<Result<MasterStateMsg, Nak>> {
         None
     }
 }
@@ -411,6 +422,11 @@ where
                 Err(Nak::with(NakCode::NoAxis, u16::from(axis), 0))
             }
         }
+    }
+    fn virtual_master(&mut self, op: u8, speed_scale: f32) -> Result<MasterStateMsg, Nak> {
+        self.glue
+            .virtual_master(op, speed_scale)
+            .unwrap_or(Err(Nak::with(NakCode::NoVirtualMaster, u16::from(op), 0)))
     }
     fn capture_read(&mut self, offset: u32, count: u8, out: &mut CaptureMsg) {
         self.glue.capture(|c| {

@@ -51,6 +51,36 @@ pub struct FaultsMsg {
     pub link: LinkStats,
 }
 
+/// `VirtualMaster` operations (a test board's simulated master; a real board's master
+/// is an encoder and refuses them with `NoVirtualMaster`).
+pub mod master_op {
+    /// Only report the master's state.
+    pub const QUERY: u8 = 0;
+    /// Run (from where it is).
+    pub const START: u8 = 1;
+    /// Stand still where it is.
+    pub const STOP: u8 = 2;
+    /// Back to the start of its profile (standing still).
+    pub const REWIND: u8 = 3;
+}
+
+/// `MasterState`: a test board's simulated master.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MasterStateMsg {
+    /// It runs.
+    pub running: bool,
+    /// Its time along the profile, s.
+    pub time_s: f32,
+    /// Its position, master units (degrees for the rotary table).
+    pub position: f32,
+    /// When its profile arrives at rest at its end, s.
+    pub end_s: f32,
+    /// It has arrived at the end (it stands still there until rewound).
+    pub at_end: bool,
+    /// Speed relative to the profile (1 = as specified).
+    pub speed_scale: f32,
+}
+
 /// Bytes of capture rows one `Capture` message carries at most.
 pub const CAPTURE_DATA_MAX: usize = 256;
 

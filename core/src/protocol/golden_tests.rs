@@ -3,7 +3,9 @@
 //! with the hex the document shows, and the document's bytes decode back to the same
 //! message. A change to the wire format fails here until the document shows it.
 
-use super::diag::{put_capture_row, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats};
+use super::diag::{
+    put_capture_row, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats, MasterStateMsg,
+};
 use super::frame::{self, FrameDecoder, MAX_WIRE};
 use super::handler::encode_request;
 use super::msg::{
@@ -222,6 +224,16 @@ fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
             )
         ),
         (
+            "virtual_master",
+            Req(
+                13,
+                Request::VirtualMaster {
+                    op: 3,
+                    speed_scale: 0.5
+                }
+            )
+        ),
+        (
             "get_capture",
             Req(
                 12,
@@ -277,6 +289,20 @@ fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
         ("telemetry", Resp(42, Response::Telemetry(telemetry()))),
         ("faults", Resp(10, Response::Faults(faults()))),
         ("capture", Resp(12, Response::Capture(capture()))),
+        (
+            "master_state",
+            Resp(
+                13,
+                Response::MasterState(MasterStateMsg {
+                    running: false,
+                    time_s: 0.0,
+                    position: 0.0,
+                    end_s: 31.5,
+                    at_end: false,
+                    speed_scale: 0.5
+                })
+            )
+        ),
     ]
 }
 

@@ -25,7 +25,9 @@
 //!   active table and every parameter changed by SetParam since boot (boot applies them
 //!   again before it validates the table).
 
-use super::diag::{trigger_from_wire, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats};
+use super::diag::{
+    trigger_from_wire, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats, MasterStateMsg,
+};
 use super::frame::{self, FrameDecoder, FrameError, MAX_PAYLOAD, MAX_WIRE};
 use super::frame::{Crc32, CRC32};
 use super::msg::{
@@ -131,6 +133,11 @@ pub trait Device<const S: usize, const N: usize> {
     /// The capture's state and up to `count` rows from `offset` (whole rows that fit
     /// [`super::diag::CAPTURE_DATA_MAX`]). Default: never armed, no ring.
     fn capture_read(&mut self, _offset: u32, _count: u8, _out: &mut CaptureMsg) {}
+    /// A test board's simulated master ([`super::diag::master_op`]). Default: the master
+    /// is a real encoder ([`NakCode::NoVirtualMaster`]).
+    fn virtual_master(&mut self, op: u8, _speed_scale: f32) -> Result<MasterStateMsg, Nak> {
+        Err(Nak::with(NakCode::NoVirtualMaster, u16::from(op), 0))
+    }
 }
 
 /// A host-link timeout from its SetParam value: 0 (off) or 10 … 60 000 whole ms, else
@@ -738,6 +745,12 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 let mut c = CaptureMsg::default();
                 dev.capture_read(offset, count, &mut c);
                 return Response::Capture(c);
+            }
+            Request::VirtualMaster { op, speed_scale } => {
+                return match dev.virtual_master(op, speed_scale) {
+                    Ok(m) => Response::MasterState(m),
+                    Err(nak) => Response::Nak { req: t, nak },
+                }
             }
         };
         match r {

@@ -62,6 +62,8 @@ pub mod ty {
     pub const CAPTURE_ARM: u8 = 0x40;
     /// Request: the capture's state and rows ([`super::Response::Capture`]).
     pub const GET_CAPTURE: u8 = 0x41;
+    /// Request: a test board's simulated master ([`super::Response::MasterState`]).
+    pub const VIRTUAL_MASTER: u8 = 0x42;
     /// Response: done.
     pub const ACK: u8 = 0x80;
     /// Response: refused, nothing changed.
@@ -78,6 +80,8 @@ pub mod ty {
     pub const FAULTS: u8 = 0x86;
     /// Response: the capture's state and rows.
     pub const CAPTURE: u8 = 0x87;
+    /// Response: a test board's simulated master.
+    pub const MASTER_STATE: u8 = 0x88;
 }
 
 /// Why a request was refused (`Nak` code byte). Nothing changed on the board.
@@ -165,13 +169,16 @@ pub enum NakCode {
     /// CaptureArm: not a trigger (unknown kind or channel), or the board keeps no
     /// capture ring.
     CaptureTrigger = 37,
+    /// VirtualMaster on a board whose master is a real encoder (or an unknown operation:
+    /// `detail` = the operation).
+    NoVirtualMaster = 38,
 }
 
 impl NakCode {
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use NakCode::*;
-        const ALL: [NakCode; 37] = [
+        const ALL: [NakCode; 38] = [
             UnknownType,
             Truncated,
             Oversized,
@@ -209,6 +216,7 @@ impl NakCode {
             Malformed,
             CaptureTooLong,
             CaptureTrigger,
+            NoVirtualMaster,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -397,6 +405,14 @@ pub enum Request<'a> {
         /// Most rows wanted (the board sends what fits one frame).
         count: u8,
     },
+    /// A test board's simulated master: an operation ([`super::diag::master_op`]) and a
+    /// speed scale (0: keep the present one); answered by [`Response::MasterState`].
+    VirtualMaster {
+        /// Operation.
+        op: u8,
+        /// Speed relative to the profile (0 = unchanged, else 0.01 … 100).
+        speed_scale: f32,
+    },
 }
 
 impl<'a> Request<'a> {
@@ -467,6 +483,10 @@ impl<'a> Request<'a> {
                 let (offset, count) = body(payload)?;
                 Request::GetCapture { offset, count }
             }
+            ty::VIRTUAL_MASTER => {
+                let (op, speed_scale) = body(payload)?;
+                Request::VirtualMaster { op, speed_scale }
+            }
             _ => return Err(NakCode::UnknownType),
         })
     }
@@ -494,6 +514,7 @@ impl<'a> Request<'a> {
             Request::GetFaults => ty::GET_FAULTS,
             Request::CaptureArm { .. } => ty::CAPTURE_ARM,
             Request::GetCapture { .. } => ty::GET_CAPTURE,
+            Request::VirtualMaster { .. } => ty::VIRTUAL_MASTER,
         }
     }
 
@@ -531,6 +552,7 @@ impl<'a> Request<'a> {
                 post,
             } => put(&(trigger, channel, axis, value, pre, post), buf),
             Request::GetCapture { offset, count } => put(&(offset, count), buf),
+            Request::VirtualMaster { op, speed_scale } => put(&(op, speed_scale), buf),
         }
     }
 }
@@ -770,6 +792,8 @@ pub enum Response {
     Faults(super::diag::FaultsMsg),
     /// Answer to GetCapture.
     Capture(super::diag::CaptureMsg),
+    /// Answer to VirtualMaster.
+    MasterState(super::diag::MasterStateMsg),
     /// Answer to GetParam: the value in force.
     Param {
         /// Axis asked for (0 for a board-wide parameter).
@@ -793,6 +817,7 @@ impl Response {
             Response::Param { .. } => ty::PARAM,
             Response::Faults(_) => ty::FAULTS,
             Response::Capture(_) => ty::CAPTURE,
+            Response::MasterState(_) => ty::MASTER_STATE,
         }
     }
 
@@ -807,6 +832,7 @@ impl Response {
             Response::Telemetry(t) => put(t, buf),
             Response::Faults(f) => put(f, buf),
             Response::Capture(c) => put(c, buf),
+            Response::MasterState(m) => put(m, buf),
         }
     }
 
@@ -858,6 +884,7 @@ impl Response {
             ty::TELEMETRY => ok(body(payload).map(Response::Telemetry)),
             ty::FAULTS => ok(body(payload).map(Response::Faults)),
             ty::CAPTURE => ok(body(payload).map(Response::Capture)),
+            ty::MASTER_STATE => ok(body(payload).map(Response::MasterState)),
             _ => None,
         }
     }
@@ -884,7 +911,8 @@ mod tests {
         assert_eq!(NakCode::from_u8(35), Some(NakCode::Malformed));
         assert_eq!(NakCode::from_u8(36), Some(NakCode::CaptureTooLong));
         assert_eq!(NakCode::from_u8(37), Some(NakCode::CaptureTrigger));
-        assert_eq!(NakCode::from_u8(38), None);
+        assert_eq!(NakCode::from_u8(38), Some(NakCode::NoVirtualMaster));
+        assert_eq!(NakCode::from_u8(39), None);
     }
 
     #[test]

@@ -2,9 +2,14 @@
 //! command. A board with incremental slaves refuses Start until every slave is
 //! referenced: `set-position --axis N --mm X` (the slave is at X mm now) or `home --axis N`
 //! (referenced at its next index / reference-switch edge).
+//!
+//! `host-sim motion --port PORT master start|stop|rewind|status [--speed-scale K]`: the
+//! virtual board's simulated master (`serve`), so a run can be repeated without
+//! restarting it; prints where the master is and whether it reached its end (a real
+//! board's master is an encoder: refused in words).
 
 use super::serial::Link;
-use hydra_core::protocol::Request;
+use hydra_core::protocol::{Request, Response};
 
 /// The command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -21,6 +26,21 @@ pub enum What {
     SetPosition,
     /// Idle or Fault: arm homing of slave `--axis` (its next reference edge).
     Home,
+    /// The virtual board's master: start, stop, rewind or status.
+    Master,
+}
+
+/// What to do with a virtual board's master.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MasterOp {
+    /// Run from where it is.
+    Start,
+    /// Stand still where it is.
+    Stop,
+    /// Back to the start of its profile, standing still.
+    Rewind,
+    /// Only say where it is.
+    Status,
 }
 
 /// Arguments of `motion`.
@@ -38,6 +58,12 @@ pub struct Args {
     /// Set-position: where the slave is, mm (|x| ≤ 8 000 mm).
     #[arg(long, allow_negative_numbers = true)]
     pub mm: Option<f64>,
+    /// Master: the operation.
+    #[arg(value_enum)]
+    pub master_op: Option<MasterOp>,
+    /// Master: its speed relative to the scenario's profile (0.01 … 100).
+    #[arg(long)]
+    pub speed_scale: Option<f64>,
 }
 
 /// The request of `args`, or why it cannot be sent.
@@ -52,6 +78,22 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
         What::Hold => Request::Hold,
         What::ClearFault => Request::ClearFault,
         What::Home => Request::Home { axis: axis()? },
+        What::Master => {
+            use hydra_core::protocol::diag::master_op as m;
+            let op = match args.master_op {
+                None => anyhow::bail!("motion master needs start, stop, rewind or status"),
+                Some(MasterOp::Start) => m::START,
+                Some(MasterOp::Stop) => m::STOP,
+                Some(MasterOp::Rewind) => m::REWIND,
+                Some(MasterOp::Status) => m::QUERY,
+            };
+            let speed_scale = match args.speed_scale {
+                None => 0.0,
+                Some(k) if (0.01..=100.0).contains(&k) => k as f32,
+                Some(k) => anyhow::bail!("--speed-scale {k}: must be 0.01 … 100"),
+            };
+            Request::VirtualMaster { op, speed_scale }
+        }
         What::SetPosition => {
             let axis = axis()?;
             let mm = args.mm.ok_or_else(|| {
@@ -74,6 +116,32 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let q = request(args)?;
     let mut link = Link::open(&args.port)?;
+    if let Request::VirtualMaster { .. } = q {
+        return match link.request(&q)? {
+            Response::MasterState(m) => {
+                println!(
+                    "master {}, {:.3} s of {:.3} s, at {:.3}, speed ×{}{}",
+                    if m.running { "running" } else { "stopped" },
+                    m.time_s,
+                    m.end_s,
+                    m.position,
+                    m.speed_scale,
+                    if m.at_end {
+                        "; at the end of its profile (it stands there: rewind to repeat)"
+                    } else {
+                        ""
+                    }
+                );
+                Ok(())
+            }
+            Response::Nak { nak, .. } => Err(super::serial::Refused {
+                req: "VirtualMaster".into(),
+                nak,
+            }
+            .into()),
+            r => anyhow::bail!("VirtualMaster answered {r:?}"),
+        };
+    }
     link.expect_ack(&q)?;
     Ok(())
 }
@@ -88,6 +156,8 @@ mod tests {
             what,
             axis,
             mm,
+            master_op: None,
+            speed_scale: None,
         }
     }
 

@@ -106,6 +106,11 @@ pub fn explain(nak: &Nak) -> String {
         C::CaptureTrigger if d == 0 && d2 == 0 => {
             "the board keeps no capture ring, or the trigger is not one it knows".into()
         }
+        C::NoVirtualMaster if d2 == 1 => "the master's speed scale must be 0.01 … 100".into(),
+        C::NoVirtualMaster => format!(
+            "operation {d}: this board's master is a real encoder (only a virtual board's \
+             master can be started, stopped or rewound from the host)"
+        ),
         C::CaptureTrigger => {
             format!("trigger kind {d}, channel {d2}: not a trigger this board knows")
         }
