@@ -288,6 +288,102 @@ fn explain(csv: &CamCsv, rules: &BoardRules, cpu: f64, e: TableError) -> CheckEr
     }
 }
 
+/// Each slave's velocity (mm/s) and acceleration (mm/s²) along the table with the master at
+/// `rules`' top speed, per node: the velocity is the slope of the segment that starts at
+/// the node (the last node keeps the last segment's) × the master speed; the acceleration
+/// is the velocity change at the node over the shorter of its two segments' durations (a
+/// cam table of straight segments changes velocity at its nodes; the follower's
+/// feed-forward sees that change spread over about one segment).
+pub fn kinematics(
+    csv: &CamCsv,
+    rules: &BoardRules,
+    counts_per_unit: f64,
+) -> Vec<(Vec<f64>, Vec<f64>)> {
+    // Master units per second at the top speed.
+    let w = rules.master_speed_per_s() / counts_per_unit;
+    let m = &csv.master;
+    let n = m.len();
+    csv.columns
+        .iter()
+        .map(|x| {
+            let slope = |k: usize| {
+                let dm = m[k + 1] - m[k];
+                if dm > 0.0 {
+                    (x[k + 1] - x[k]) / dm
+                } else {
+                    0.0
+                }
+            };
+            let v: Vec<f64> = (0..n)
+                .map(|k| if n < 2 { 0.0 } else { slope(k.min(n - 2)) * w })
+                .collect();
+            let a: Vec<f64> = (0..n)
+                .map(|k| {
+                    if k == 0 || k + 1 >= n {
+                        return 0.0;
+                    }
+                    let dt = (m[k] - m[k - 1]).min(m[k + 1] - m[k]) / w;
+                    if dt > 0.0 {
+                        (v[k] - v[k - 1]) / dt
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            (v, a)
+        })
+        .collect()
+}
+
+/// `table check --plot`: per slave, position against the master with the board's range,
+/// velocity at the master's top speed with the slave's speed limit, and acceleration.
+pub fn plot(
+    csv: &CamCsv,
+    rules: &BoardRules,
+    counts_per_unit: f64,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    use crate::plot::{plot_panels, Panel};
+    let n = csv.master.len();
+    let kin = kinematics(csv, rules, counts_per_unit);
+    let mut ps = Vec::new();
+    for (k, (name, x)) in csv.axes.iter().zip(&csv.columns).enumerate() {
+        let lim = rules.limits.axes.get(k).copied().unwrap_or_default();
+        let mm = |raw: i32| f64::from(raw) / 256_000.0;
+        let flat = |v: f64| vec![v; n];
+        ps.push(Panel {
+            title: format!("{name}: position"),
+            y_label: "mm".into(),
+            series: vec![
+                (name.clone(), x.clone()),
+                ("min".into(), flat(mm(lim.min_um))),
+                ("max".into(), flat(mm(lim.max_um))),
+            ],
+        });
+        let (v, a) = &kin[k];
+        let vmax = mm(lim.max_speed_um_per_s);
+        ps.push(Panel {
+            title: format!(
+                "{name}: velocity at the master's top speed ({} counts/s)",
+                rules.master_speed_per_s()
+            ),
+            y_label: "mm/s".into(),
+            series: vec![
+                ("velocity".into(), v.clone()),
+                ("+limit".into(), flat(vmax)),
+                ("−limit".into(), flat(-vmax)),
+            ],
+        });
+        ps.push(Panel {
+            title: format!("{name}: acceleration at the nodes (same master speed)"),
+            y_label: "mm/s²".into(),
+            series: vec![("acceleration".into(), a.clone())],
+        });
+    }
+    let title = format!("{} — {n} rows", csv.path.display());
+    plot_panels(path, &title, ("master", &csv.master), &ps, None)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -385,100 +481,4 @@ mod tests {
         assert_eq!(e.line, Some(4), "{e}");
         assert!(e.reason.contains("2000 master counts"), "{e}");
     }
-}
-
-/// Each slave's velocity (mm/s) and acceleration (mm/s²) along the table with the master at
-/// `rules`' top speed, per node: the velocity is the slope of the segment that starts at
-/// the node (the last node keeps the last segment's) × the master speed; the acceleration
-/// is the velocity change at the node over the shorter of its two segments' durations (a
-/// cam table of straight segments changes velocity at its nodes; the follower's
-/// feed-forward sees that change spread over about one segment).
-pub fn kinematics(
-    csv: &CamCsv,
-    rules: &BoardRules,
-    counts_per_unit: f64,
-) -> Vec<(Vec<f64>, Vec<f64>)> {
-    // Master units per second at the top speed.
-    let w = rules.master_speed_per_s() / counts_per_unit;
-    let m = &csv.master;
-    let n = m.len();
-    csv.columns
-        .iter()
-        .map(|x| {
-            let slope = |k: usize| {
-                let dm = m[k + 1] - m[k];
-                if dm > 0.0 {
-                    (x[k + 1] - x[k]) / dm
-                } else {
-                    0.0
-                }
-            };
-            let v: Vec<f64> = (0..n)
-                .map(|k| if n < 2 { 0.0 } else { slope(k.min(n - 2)) * w })
-                .collect();
-            let a: Vec<f64> = (0..n)
-                .map(|k| {
-                    if k == 0 || k + 1 >= n {
-                        return 0.0;
-                    }
-                    let dt = (m[k] - m[k - 1]).min(m[k + 1] - m[k]) / w;
-                    if dt > 0.0 {
-                        (v[k] - v[k - 1]) / dt
-                    } else {
-                        0.0
-                    }
-                })
-                .collect();
-            (v, a)
-        })
-        .collect()
-}
-
-/// `table check --plot`: per slave, position against the master with the board's range,
-/// velocity at the master's top speed with the slave's speed limit, and acceleration.
-pub fn plot(
-    csv: &CamCsv,
-    rules: &BoardRules,
-    counts_per_unit: f64,
-    path: &std::path::Path,
-) -> anyhow::Result<()> {
-    use crate::plot::{plot_panels, Panel};
-    let n = csv.master.len();
-    let kin = kinematics(csv, rules, counts_per_unit);
-    let mut ps = Vec::new();
-    for (k, (name, x)) in csv.axes.iter().zip(&csv.columns).enumerate() {
-        let lim = rules.limits.axes.get(k).copied().unwrap_or_default();
-        let mm = |raw: i32| f64::from(raw) / 256_000.0;
-        let flat = |v: f64| vec![v; n];
-        ps.push(Panel {
-            title: format!("{name}: position"),
-            y_label: "mm".into(),
-            series: vec![
-                (name.clone(), x.clone()),
-                ("min".into(), flat(mm(lim.min_um))),
-                ("max".into(), flat(mm(lim.max_um))),
-            ],
-        });
-        let (v, a) = &kin[k];
-        let vmax = mm(lim.max_speed_um_per_s);
-        ps.push(Panel {
-            title: format!(
-                "{name}: velocity at the master's top speed ({} counts/s)",
-                rules.master_speed_per_s()
-            ),
-            y_label: "mm/s".into(),
-            series: vec![
-                ("velocity".into(), v.clone()),
-                ("+limit".into(), flat(vmax)),
-                ("−limit".into(), flat(-vmax)),
-            ],
-        });
-        ps.push(Panel {
-            title: format!("{name}: acceleration at the nodes (same master speed)"),
-            y_label: "mm/s²".into(),
-            series: vec![("acceleration".into(), a.clone())],
-        });
-    }
-    let title = format!("{} — {n} rows", csv.path.display());
-    plot_panels(path, &title, ("master", &csv.master), &ps, None)
 }

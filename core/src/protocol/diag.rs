@@ -88,7 +88,7 @@ pub const CAPTURE_DATA_MAX: usize = 256;
 /// slave target i32, actual i32, DAC i16, pressure A i16, pressure B i16 (little-endian;
 /// units of [`CaptureRow`]).
 pub const fn capture_row_len(axes: usize) -> usize {
-    5 + 14 * axes
+    14usize.saturating_mul(axes).saturating_add(5)
 }
 
 /// `Capture`: where the capture is, and rows `offset ..` of a finished one.

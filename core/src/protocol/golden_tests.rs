@@ -145,6 +145,8 @@ fn capture() -> CaptureMsg {
 }
 
 /// Every golden frame by its name in the document: the request or response and its seq.
+// A test's list of messages: the size of a Response (a Capture's 256 data bytes) is fine.
+#[allow(clippy::large_enum_variant)]
 enum Msg {
     Req(u16, Request<'static>),
     Resp(u16, Response),
