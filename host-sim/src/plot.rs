@@ -137,12 +137,47 @@ pub fn plot_run(r: &RunReport, path: &Path) -> anyhow::Result<()> {
         .ok_or_else(|| anyhow::anyhow!("the run has no trace to plot"))?;
     let t = tr.column("t_s").unwrap_or_default();
     let title = format!(
-        "{} — {} @ {} µs",
+        "{} — {} @ {} µs (statistics from {} s: the dashed line)",
         r.scenario,
         r.controller.name(),
-        r.period_us
+        r.period_us,
+        r.error_skip_s
     );
-    plot_panels(path, &title, ("t (s)", &t), &panels(r, tr), None)
+    plot_panels(
+        path,
+        &title,
+        ("t (s)", &t),
+        &panels(r, tr),
+        Some(r.error_skip_s),
+    )?;
+    // The same panels against the master angle: a cam table's error belongs to where
+    // on the table it happens.
+    if let Some(m) = tr.column("master_deg") {
+        let p = path.with_extension("master.svg");
+        let ps = panels(r, tr);
+        plot_panels(
+            &p,
+            &format!("{} — against the master", r.scenario),
+            ("master (°)", &m),
+            &ps,
+            None,
+        )?;
+    }
+    Ok(())
+}
+
+/// Tick labels for an axis spanning `lo … hi`: the decimals that tell ticks about a tenth
+/// of the span apart, and no sign on zero (`-0.0` → `0.0`).
+pub fn tick_format(lo: f64, hi: f64) -> impl Fn(&f64) -> String {
+    let step = ((hi - lo).abs() / 10.0).max(1e-12);
+    let decimals = (-step.log10().floor()).clamp(0.0, 9.0) as usize;
+    move |v: &f64| {
+        let s = format!("{v:.decimals$}");
+        match s.strip_prefix('-') {
+            Some(rest) if rest.chars().all(|c| c == '0' || c == '.') => rest.to_string(),
+            _ => s,
+        }
+    }
 }
 
 /// Writes a figure of stacked `panels` over the common x samples `(label, x)` (time, or
@@ -161,6 +196,10 @@ pub fn plot_panels(
     root.fill(&WHITE)?;
     let root = root.titled(title, ("sans-serif", 20))?;
     let areas = root.split_evenly((ps.len(), 1));
+    let x_fmt = tick_format(
+        t.first().copied().unwrap_or(0.0),
+        t.last().copied().unwrap_or(1.0),
+    );
     let (t0, t1) = (
         t.first().copied().unwrap_or(0.0),
         t.last().copied().unwrap_or(1.0).max(1e-9),
@@ -177,6 +216,8 @@ pub fn plot_panels(
             .configure_mesh()
             .x_desc(x_desc)
             .y_desc(p.y_label.as_str())
+            .x_label_formatter(&x_fmt)
+            .y_label_formatter(&tick_format(lo, hi))
             .light_line_style(WHITE.mix(0.0))
             .draw()?;
         for (i, (name, v)) in p.series.iter().enumerate() {
@@ -187,7 +228,8 @@ pub fn plot_panels(
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
         }
         if let Some(m) = marker {
-            chart.draw_series(LineSeries::new([(m, lo), (m, hi)], BLACK.mix(0.5)))?;
+            let dashed = DashedLineSeries::new([(m, lo), (m, hi)], 6, 4, BLACK.mix(0.6).into());
+            chart.draw_series(dashed)?;
         }
         chart
             .configure_series_labels()
@@ -198,4 +240,21 @@ pub fn plot_panels(
     }
     root.present()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels_carry_no_negative_zero_and_enough_decimals() {
+        let f = tick_format(-1.0, 1.0);
+        assert_eq!(f(&-0.0), "0.0");
+        assert_eq!(f(&-0.04), "0.0");
+        assert_eq!(f(&-0.2), "-0.2");
+        let g = tick_format(0.0, 500.0);
+        assert_eq!(g(&250.0), "250");
+        let h = tick_format(0.0, 0.01);
+        assert_eq!(h(&0.005), "0.005");
+    }
 }

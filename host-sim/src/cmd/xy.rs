@@ -39,9 +39,14 @@ pub struct Args {
     /// Time of the load step, s.
     #[arg(long, requires = "disturbance_n")]
     pub disturbance_at_s: Option<f64>,
-    /// Write an SVG plot (path and actual point, contour error, commands).
+    /// Write an SVG plot (path and actual point at equal axis scales, contour error,
+    /// commands).
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Plot: also draw the actual path with its deviation from the reference magnified
+    /// this many times (µm errors on a path of tens of mm are otherwise invisible).
+    #[arg(long, value_parser = parse_magnify)]
+    pub error_scale: Option<f64>,
     /// Write the trace as CSV (t_s, reference x/y µm, actual x/y µm, exact ε µm,
     /// controller ε µm, commands x/y LSB), one row per control period.
     #[arg(long)]
@@ -113,7 +118,7 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let r = simulate(&s)?;
     if let Some(p) = &args.plot {
-        plot(&r, p)?;
+        plot(&r, p, args.error_scale)?;
     }
     if let Some(p) = &args.csv {
         write_csv(&r, p)?;
@@ -206,8 +211,30 @@ fn bounds(v: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// Three panels: X–Y path (mm), exact and controller contour error (µm), commands (LSB).
-fn plot(r: &XyReport, file: &Path) -> Result<()> {
+fn parse_magnify(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(k) if k.is_finite() && (1.0..=1e6).contains(&k) => Ok(k),
+        _ => Err(format!(
+            "{s:?}: a magnification is a number from 1 to 1 000 000"
+        )),
+    }
+}
+
+/// Widens the shorter of two ranges so that one mm is as long on both axes of a
+/// `w × h`-pixel plotting area (a circle is drawn as a circle).
+fn equal_scale(x: (f64, f64), y: (f64, f64), w: f64, h: f64) -> ((f64, f64), (f64, f64)) {
+    let (sx, sy) = ((x.1 - x.0) / w, (y.1 - y.0) / h);
+    let s = sx.max(sy);
+    let widen = |r: (f64, f64), px: f64| {
+        let c = 0.5 * (r.0 + r.1);
+        (c - 0.5 * s * px, c + 0.5 * s * px)
+    };
+    (widen(x, w), widen(y, h))
+}
+
+/// Three panels: X–Y path (mm, equal scales; with `magnify`, the actual path's deviation
+/// × that factor too), exact and controller contour error (µm), commands (LSB).
+fn plot(r: &XyReport, file: &Path, magnify: Option<f64>) -> Result<()> {
     let root = SVGBackend::new(file, (1000, 1100)).into_drawing_area();
     root.fill(&WHITE)?;
     let root = root.titled(
@@ -217,8 +244,14 @@ fn plot(r: &XyReport, file: &Path) -> Result<()> {
     let (top, rest) = root.split_vertically(500);
     let (mid, bot) = rest.split_vertically(300);
     let tr = &r.trace;
-    let (x0, x1) = bounds(tr.iter().map(|s| s.reference_um[0] / 1000.0));
-    let (y0, y1) = bounds(tr.iter().map(|s| s.reference_um[1] / 1000.0));
+    let (tw, th) = top.dim_in_pixel();
+    // The plotting area: the panel less its margins (8 px) and label areas (50, 28 px).
+    let ((x0, x1), (y0, y1)) = equal_scale(
+        bounds(tr.iter().map(|s| s.reference_um[0] / 1000.0)),
+        bounds(tr.iter().map(|s| s.reference_um[1] / 1000.0)),
+        f64::from(tw) - 66.0,
+        f64::from(th) - 44.0,
+    );
     let mut c = ChartBuilder::on(&top)
         .margin(8)
         .x_label_area_size(28)
@@ -227,6 +260,8 @@ fn plot(r: &XyReport, file: &Path) -> Result<()> {
     c.configure_mesh()
         .x_desc("x (mm)")
         .y_desc("y (mm)")
+        .x_label_formatter(&crate::plot::tick_format(x0, x1))
+        .y_label_formatter(&crate::plot::tick_format(y0, y1))
         .draw()?;
     c.draw_series(LineSeries::new(
         tr.iter()
@@ -242,7 +277,22 @@ fn plot(r: &XyReport, file: &Path) -> Result<()> {
     ))?
     .label("actual")
     .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
-    c.configure_series_labels().border_style(BLACK).draw()?;
+    if let Some(k) = magnify {
+        let green = RGBColor(44, 160, 44);
+        let mag = |s: &crate::xy::Sample, i: usize| {
+            (s.reference_um[i] + k * (s.actual_um[i] - s.reference_um[i])) / 1000.0
+        };
+        c.draw_series(LineSeries::new(
+            tr.iter().map(|s| (mag(s, 0), mag(s, 1))),
+            green,
+        ))?
+        .label(format!("actual, deviation × {k}"))
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], green));
+    }
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
     let t1 = tr.last().map(|s| s.t_s).unwrap_or(1.0).max(1e-3);
     let (e0, e1) = bounds(
         tr.iter()
@@ -285,4 +335,22 @@ fn plot(r: &XyReport, file: &Path) -> Result<()> {
     c.configure_series_labels().border_style(BLACK).draw()?;
     root.present()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod plot_tests {
+    use super::*;
+
+    #[test]
+    fn a_circle_is_drawn_as_a_circle_and_magnification_is_bounded() {
+        // 100 mm × 20 mm of data on a 900 × 450 px area: y widened to 50 mm.
+        let ((x0, x1), (y0, y1)) = equal_scale((0.0, 100.0), (40.0, 60.0), 900.0, 450.0);
+        assert!(((x1 - x0) / 900.0 - (y1 - y0) / 450.0).abs() < 1e-12);
+        assert_eq!((x0, x1), (0.0, 100.0));
+        assert!((y0 - 25.0).abs() < 1e-9 && (y1 - 75.0).abs() < 1e-9);
+        assert_eq!(parse_magnify("200"), Ok(200.0));
+        for bad in ["0.5", "-3", "nan", "1e9", "x"] {
+            assert!(parse_magnify(bad).is_err(), "{bad}");
+        }
+    }
 }

@@ -150,6 +150,8 @@ pub struct RunReport {
     pub axes: Vec<AxisReport>,
     /// The trace, if asked for.
     pub trace: Option<Trace>,
+    /// Errors are measured from this time on, s (`sim.error_skip_s`).
+    pub error_skip_s: f64,
 }
 
 impl RunReport {
@@ -497,6 +499,7 @@ pub fn run(
         trace,
         faults,
         oscillation,
+        error_skip_s: sc.sim.error_skip_s,
     })
 }
 
