@@ -93,6 +93,10 @@ fn upload_activate_start_trace_status() {
         every: 10,
     })
     .unwrap();
+    let plot = std::fs::read_to_string(&svg).unwrap();
+    for legend in ["target 0", "actual 1", "error 0", "dac 1", "following error"] {
+        assert!(plot.contains(legend), "the trace plot's legend {legend:?}");
+    }
     let text = std::fs::read_to_string(&csv).unwrap();
     let rows: Vec<Vec<f64>> = text
         .lines()

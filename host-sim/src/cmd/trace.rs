@@ -100,46 +100,48 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn plot(path: &PathBuf, s: &[Telemetry], period_s: f64) -> anyhow::Result<()> {
-    use plotters::prelude::*;
+/// The plot: per slave target and actual, every slave's following error (µm) and valve
+/// command (LSB), each panel with its legend.
+fn plot(path: &std::path::Path, s: &[Telemetry], period_s: f64) -> anyhow::Result<()> {
+    use crate::plot::{plot_panels, Panel};
     let mm = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
-    let t0 = s[0].tick;
-    let t = |x: &Telemetry| f64::from(x.tick.wrapping_sub(t0)) * period_s;
-    let t_end = s.last().map(t).unwrap_or(1.0).max(1e-3);
-    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-    for x in s {
-        for a in &x.axes {
-            for v in [mm(a.target_um), mm(a.actual_um)] {
-                lo = lo.min(v);
-                hi = hi.max(v);
-            }
-        }
-    }
-    if hi <= lo {
-        hi = lo + 1.0;
-    }
-    let root = SVGBackend::new(path, (1000, 500)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut c = ChartBuilder::on(&root)
-        .margin(10)
-        .x_label_area_size(30)
-        .y_label_area_size(50)
-        .caption("trace: target and actual", ("sans-serif", 18))
-        .build_cartesian_2d(0.0..t_end, lo..hi)?;
-    c.configure_mesh().x_desc("t, s").y_desc("mm").draw()?;
-    let n = s[0].axes.len();
-    for i in 0..n {
-        c.draw_series(LineSeries::new(
-            s.iter().map(|x| (t(x), mm(x.axes[i].target_um))),
-            &BLUE,
-        ))?
-        .label(format!("target {i}"));
-        c.draw_series(LineSeries::new(
-            s.iter().map(|x| (t(x), mm(x.axes[i].actual_um))),
-            &RED,
-        ))?
-        .label(format!("actual {i}"));
-    }
-    root.present()?;
-    Ok(())
+    let t0 = s.first().map_or(0, |x| x.tick);
+    let t: Vec<f64> = s
+        .iter()
+        .map(|x| f64::from(x.tick.wrapping_sub(t0)) * period_s)
+        .collect();
+    let n = s.first().map_or(0, |x| x.axes.len());
+    let col = |f: &dyn Fn(&Telemetry) -> f64| s.iter().map(f).collect::<Vec<f64>>();
+    let axis = |x: &Telemetry, i: usize| x.axes.get(i).copied().unwrap_or_default();
+    let mut ps: Vec<Panel> = (0..n)
+        .map(|i| Panel {
+            title: format!("slave {i}: target and actual position"),
+            y_label: "mm".into(),
+            series: vec![
+                (format!("target {i}"), col(&|x| mm(axis(x, i).target_um))),
+                (format!("actual {i}"), col(&|x| mm(axis(x, i).actual_um))),
+            ],
+        })
+        .collect();
+    ps.push(Panel {
+        title: "following error (target − actual)".into(),
+        y_label: "µm".into(),
+        series: (0..n)
+            .map(|i| {
+                let e = col(&|x| {
+                    let a = axis(x, i);
+                    mm(a.target_um.wrapping_sub(a.actual_um)) * 1000.0
+                });
+                (format!("error {i}"), e)
+            })
+            .collect(),
+    });
+    ps.push(Panel {
+        title: "valve commands".into(),
+        y_label: "DAC LSB".into(),
+        series: (0..n)
+            .map(|i| (format!("dac {i}"), col(&|x| f64::from(axis(x, i).dac))))
+            .collect(),
+    });
+    plot_panels(path, "trace (telemetry)", ("t (s)", &t), &ps, None)
 }
