@@ -94,7 +94,13 @@ fn upload_activate_start_trace_status() {
     })
     .unwrap();
     let plot = std::fs::read_to_string(&svg).unwrap();
-    for legend in ["target 0", "actual 1", "error 0", "dac 1", "following error"] {
+    for legend in [
+        "target 0",
+        "actual 1",
+        "error 0",
+        "dac 1",
+        "following error",
+    ] {
         assert!(plot.contains(legend), "the trace plot's legend {legend:?}");
     }
     let text = std::fs::read_to_string(&csv).unwrap();

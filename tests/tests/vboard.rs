@@ -113,3 +113,127 @@ fn a_commands_tick_has_its_telemetry() {
         .collect();
     assert_eq!(tel, vec![b.runtime().unwrap().status().tick], "{r:?}");
 }
+
+/// The capture and the fault history against an adversarial host: impossible triggers
+/// and lengths are refused with their codes, reads beyond the rows are empty, a damaged
+/// frame is counted, and a capture around Start holds exactly the ticks asked for.
+#[test]
+fn the_capture_and_the_fault_history_refuse_nonsense_and_count_damage() {
+    use hydra_core::protocol::diag::{capture_row_len, take_capture_row};
+    use hydra_core::protocol::wire::Reader;
+    let mut b = VBoard::new(&Scenario::default()).unwrap();
+    let mut h = VbHost::new(9);
+    assert!(matches!(h.req(&mut b, &Request::Hello), Response::Info(_)));
+    let arm = |trigger, channel, axis, pre, post| Request::CaptureArm {
+        trigger,
+        channel,
+        axis,
+        value: 0,
+        pre,
+        post,
+    };
+    let nak = |r: Response| match r {
+        Response::Nak { nak, .. } => (nak.code, nak.detail),
+        r => panic!("{r:?}"),
+    };
+    assert_eq!(
+        nak(h.req(&mut b, &arm(9, 0, 0, 1, 1))),
+        (NakCode::CaptureTrigger, 9)
+    );
+    assert_eq!(
+        nak(h.req(&mut b, &arm(4, 9, 0, 1, 1))).0,
+        NakCode::CaptureTrigger
+    );
+    assert_eq!(
+        nak(h.req(&mut b, &arm(4, 3, 5, 1, 1))),
+        (NakCode::NoAxis, 5)
+    );
+    assert_eq!(
+        nak(h.req(&mut b, &arm(0, 0, 0, u32::MAX, u32::MAX))),
+        (NakCode::CaptureTooLong, 2000)
+    );
+    assert_eq!(
+        nak(h.req(&mut b, &arm(0, 0, 0, 1000, 1000))),
+        (NakCode::CaptureTooLong, 2000)
+    );
+    // Nothing armed yet: phase 0, no rows, whatever the offset.
+    for offset in [0, 1999, u32::MAX] {
+        match h.req(&mut b, &Request::GetCapture { offset, count: 255 }) {
+            Response::Capture(c) => assert!(c.phase == 0 && c.data.is_empty(), "{c:?}"),
+            r => panic!("{r:?}"),
+        }
+    }
+    // A damaged frame (its CRC flipped) is a Nak and counted.
+    let mut f = [0u8; 64];
+    let n = hydra_core::protocol::handler::encode_request(0, &Request::GetStatus, &mut f).unwrap();
+    f[n - 3] ^= 0x55; // a CRC byte (the delimiter is last)
+    let answers = hydra_tests::exchange(&mut b, &f[..n]);
+    assert!(
+        matches!(answers.as_slice(), [Response::Nak { .. }]),
+        "{answers:?}"
+    );
+    let link = match h.req(&mut b, &Request::GetFaults) {
+        Response::Faults(fm) => fm.link,
+        r => panic!("{r:?}"),
+    };
+    assert!(link.bad_frames >= 1 && link.naks >= 6, "{link:?}");
+    // A capture of 10 + 1 + 20 ticks around the Start command.
+    let nodes: Vec<Node<2>> = (0..3)
+        .map(|j| Node {
+            master: Master::from_num(j * 1000),
+            slave_um: [PosUm::from_num(250_000), PosUm::from_num(10_000)],
+        })
+        .collect();
+    assert!(matches!(h.upload(&mut b, 4, &nodes), Response::Ack { .. }));
+    h.ack(&mut b, &Request::Activate { id: 4 });
+    for (axis, um) in [(0u8, 250_000), (1, 10_000)] {
+        h.ack(
+            &mut b,
+            &Request::SetPosition {
+                axis,
+                pos_um: um << 8,
+            },
+        );
+    }
+    h.ack(&mut b, &arm(3, 0, 0, 10, 20));
+    for _ in 0..30 {
+        b.tick(&mut |_| ());
+    }
+    h.ack(&mut b, &Request::Start);
+    for _ in 0..30 {
+        b.tick(&mut |_| ());
+    }
+    let mut rows = Vec::new();
+    loop {
+        let q = Request::GetCapture {
+            offset: rows.len() as u32,
+            count: 255,
+        };
+        let Response::Capture(c) = h.req(&mut b, &q) else {
+            panic!("GetCapture")
+        };
+        assert_eq!((c.phase, c.pre, c.rows), (3, 10, 31));
+        assert_eq!(c.data.len() % capture_row_len(2), 0);
+        if c.data.is_empty() {
+            break;
+        }
+        let mut r = Reader::new(&c.data);
+        while r.remaining() > 0 {
+            rows.push(take_capture_row(&mut r, 2).unwrap());
+        }
+    }
+    assert_eq!(rows.len(), 31);
+    assert_eq!(rows[10].flags & 0b111, 1, "the Start tick is following");
+    assert_ne!(rows[10].flags & hydra_core::runtime::FLAG_COMMAND, 0);
+    assert!(
+        rows[..10].iter().all(|r| r.flags & 0b111 == 0),
+        "idle before"
+    );
+    // Reads past the end are empty, and the count of 0 reads only the state.
+    for (offset, count) in [(31, 255), (u32::MAX, 255), (0, 0)] {
+        match h.req(&mut b, &Request::GetCapture { offset, count }) {
+            Response::Capture(c) => assert!(c.data.is_empty() && c.rows == 31),
+            r => panic!("{r:?}"),
+        }
+    }
+}

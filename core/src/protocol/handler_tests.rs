@@ -897,6 +897,9 @@ enum Op {
     End,
     Save,
     Status,
+    /// A commissioning request with random fields (GetFaults, CaptureArm, GetCapture,
+    /// VirtualMaster): never changes a table.
+    Diag(u8, u8, u8, i32, u32, u32),
     /// A valid request with a wrong seq offset.
     Reseq(i8),
     /// Flip a byte of the next valid request.
@@ -917,6 +920,15 @@ fn op() -> impl Strategy<Value = Op> {
         Just(Op::End),
         Just(Op::Save),
         Just(Op::Status),
+        (
+            0u8..4,
+            any::<u8>(),
+            any::<u8>(),
+            any::<i32>(),
+            any::<u32>(),
+            any::<u32>()
+        )
+            .prop_map(|(k, a, b, v, p, q)| Op::Diag(k, a, b, v, p, q)),
         any::<i8>().prop_map(Op::Reseq),
         (any::<usize>(), 1u8..=255).prop_map(|(i, x)| Op::Corrupt(i, x)),
         proptest::collection::vec(any::<u8>(), 0..40).prop_map(Op::Noise),
@@ -993,6 +1005,31 @@ fn run_ops(ops: &[Op]) {
             }
             Op::Save => (r.raw(&Rig::frame(seq, &Request::Save)), false),
             Op::Status => (r.raw(&Rig::frame(seq, &Request::GetStatus)), false),
+            Op::Diag(kind, a, b, v, p, q) => {
+                let req = match kind {
+                    0 => Request::GetFaults,
+                    1 => Request::CaptureArm {
+                        trigger: *a,
+                        channel: *b,
+                        axis: *a,
+                        value: *v,
+                        pre: *p,
+                        post: *q,
+                    },
+                    2 => Request::GetCapture {
+                        offset: *p,
+                        count: *b,
+                    },
+                    _ => Request::VirtualMaster {
+                        op: *a,
+                        speed_scale: *v as f32,
+                    },
+                };
+                let before = r.snapshot();
+                let resp = r.raw(&Rig::frame(seq, &req));
+                assert_eq!(r.snapshot(), before, "{req:?} changed a table");
+                (resp, false)
+            }
             Op::Reseq(d) => {
                 let s = seq.wrapping_add(*d as u16);
                 (r.raw(&Rig::frame(s, &Request::Stop)), false)
