@@ -6,10 +6,10 @@ mod common;
 use board_emu::machine::TIM7_EXC;
 use board_emu::session::Session;
 use common::*;
-use hydra_core::protocol::diag::take_capture_row;
+use hydra_core::protocol::diag::{take_capture_row, CaptureArmMsg};
 use hydra_core::protocol::msg::INPUT_ESTOP;
 use hydra_core::protocol::{Request, Response};
-use hydra_core::runtime::{FLAG_ESTOP, FLAG_VALVE_POWER, STATE_MASK};
+use hydra_core::runtime::{Trigger, FLAG_ESTOP, FLAG_VALVE_POWER, STATE_MASK};
 
 fn ticks(s: &Session) -> u64 {
     s.m.state().stats.taken.get(&TIM7_EXC).copied().unwrap_or(0)
@@ -201,14 +201,7 @@ fn estop_nulls_the_valves_and_drops_the_enable_within_one_tick() {
     let out = s.plant.borrow().outputs;
     assert!(out.enable, "following: valves powered");
     // The loop-rate capture armed on the E-stop's fault: 20 ticks either side.
-    let arm = Request::CaptureArm {
-        trigger: 1,
-        channel: 0,
-        axis: 0,
-        value: 0,
-        pre: 20,
-        post: 20,
-    };
+    let arm = Request::CaptureArm(CaptureArmMsg::new(Trigger::Fault, 20, 20));
     assert!(matches!(
         s.host.request(&mut s.m, &arm),
         Ok(Response::Ack { .. })

@@ -11,6 +11,16 @@ use hydra_core::table::Node;
 use hydra_core::units::{Master, PosUm};
 use hydra_tests::VbHost;
 
+/// Slave 0 at 250 mm, slave 1 (the side press) at its 10 mm start, held: a flat table.
+fn flat_table() -> Vec<Node<2>> {
+    (0..3)
+        .map(|j| Node {
+            master: Master::from_num(j * 1000),
+            slave_um: [PosUm::from_num(250_000), PosUm::from_num(10_000)],
+        })
+        .collect()
+}
+
 #[test]
 fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
     let mut b = VBoard::new(&Scenario::default()).unwrap();
@@ -20,13 +30,7 @@ fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
         b.tick(&mut |_| ());
     }
     assert_eq!(b.ticks(), 20);
-    // Slave 0 at 250 mm, slave 1 (the side press) at its 10 mm start, held: a flat table.
-    let nodes: Vec<Node<2>> = (0..3)
-        .map(|j| Node {
-            master: Master::from_num(j * 1000),
-            slave_um: [PosUm::from_num(250_000), PosUm::from_num(10_000)],
-        })
-        .collect();
+    let nodes = flat_table();
     assert!(matches!(h.upload(&mut b, 4, &nodes), Response::Ack { .. }));
     h.ack(&mut b, &Request::Activate { id: 4 });
     let t0 = b.ticks();
@@ -124,13 +128,15 @@ fn the_capture_and_the_fault_history_refuse_nonsense_and_count_damage() {
     let mut b = VBoard::new(&Scenario::default()).unwrap();
     let mut h = VbHost::new(9);
     assert!(matches!(h.req(&mut b, &Request::Hello), Response::Info(_)));
-    let arm = |trigger, channel, axis, pre, post| Request::CaptureArm {
-        trigger,
-        channel,
-        axis,
-        value: 0,
-        pre,
-        post,
+    let arm = |trigger, channel, axis, pre, post| {
+        Request::CaptureArm(hydra_core::protocol::diag::CaptureArmMsg {
+            trigger,
+            channel,
+            axis,
+            value: 0,
+            pre,
+            post,
+        })
     };
     let nak = |r: Response| match r {
         Response::Nak { nak, .. } => (nak.code, nak.detail),
@@ -178,12 +184,7 @@ fn the_capture_and_the_fault_history_refuse_nonsense_and_count_damage() {
     };
     assert!(link.bad_frames >= 1 && link.naks >= 6, "{link:?}");
     // A capture of 10 + 1 + 20 ticks around the Start command.
-    let nodes: Vec<Node<2>> = (0..3)
-        .map(|j| Node {
-            master: Master::from_num(j * 1000),
-            slave_um: [PosUm::from_num(250_000), PosUm::from_num(10_000)],
-        })
-        .collect();
+    let nodes = flat_table();
     assert!(matches!(h.upload(&mut b, 4, &nodes), Response::Ack { .. }));
     h.ack(&mut b, &Request::Activate { id: 4 });
     for (axis, um) in [(0u8, 250_000), (1, 10_000)] {

@@ -110,6 +110,38 @@ pub struct CaptureMsg {
     pub data: Vec<u8, CAPTURE_DATA_MAX>,
 }
 
+/// `CaptureArm`'s body: the trigger ([`trigger_from_wire`]) and the ticks to keep.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CaptureArmMsg {
+    /// Trigger kind.
+    pub trigger: u8,
+    /// Channel kind of a level trigger.
+    pub channel: u8,
+    /// Slave of a level trigger's channel.
+    pub axis: u8,
+    /// Level, in the channel's stored unit.
+    pub value: i32,
+    /// Ticks to keep before the trigger.
+    pub pre: u32,
+    /// Ticks to record after it.
+    pub post: u32,
+}
+
+impl CaptureArmMsg {
+    /// The body that arms `trigger` with `pre` and `post` ticks.
+    pub const fn new(trigger: Trigger, pre: u32, post: u32) -> Self {
+        let (trigger, channel, axis, value) = trigger_to_wire(trigger);
+        Self {
+            trigger,
+            channel,
+            axis,
+            value,
+            pre,
+            post,
+        }
+    }
+}
+
 /// The wire code of a capture phase.
 pub const fn phase_code(p: Phase) -> u8 {
     match p {

@@ -4,7 +4,7 @@
 //! message. A change to the wire format fails here until the document shows it.
 
 use super::diag::{
-    put_capture_row, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats, MasterStateMsg,
+    put_capture_row, CaptureArmMsg, CaptureMsg, FaultEventMsg, FaultsMsg, LinkStats, MasterStateMsg,
 };
 use super::frame::{self, FrameDecoder, MAX_WIRE};
 use super::handler::encode_request;
@@ -215,14 +215,14 @@ fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
             "capture_arm",
             Req(
                 11,
-                Request::CaptureArm {
+                Request::CaptureArm(CaptureArmMsg {
                     trigger: 4,
                     channel: 3,
                     axis: 0,
                     value: 50 << 8,
                     pre: 500,
                     post: 1500
-                }
+                })
             )
         ),
         (

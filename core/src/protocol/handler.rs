@@ -726,21 +726,15 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 };
                 return Response::Faults(f);
             }
-            Request::CaptureArm {
-                trigger,
-                channel,
-                axis,
-                value,
-                pre,
-                post,
-            } => match trigger_from_wire(trigger, channel, axis, value) {
-                Some(t) => dev.capture_arm(t, pre, post),
-                None => Err(Nak::with(
-                    NakCode::CaptureTrigger,
-                    u16::from(trigger),
-                    channel,
-                )),
-            },
+            Request::CaptureArm(c) => {
+                match trigger_from_wire(c.trigger, c.channel, c.axis, c.value) {
+                    Some(t) => dev.capture_arm(t, c.pre, c.post),
+                    None => {
+                        let detail = u16::from(c.trigger);
+                        Err(Nak::with(NakCode::CaptureTrigger, detail, c.channel))
+                    }
+                }
+            }
             Request::GetCapture { offset, count } => {
                 let mut c = CaptureMsg::default();
                 dev.capture_read(offset, count, &mut c);

@@ -1008,14 +1008,14 @@ fn run_ops(ops: &[Op]) {
             Op::Diag(kind, a, b, v, p, q) => {
                 let req = match kind {
                     0 => Request::GetFaults,
-                    1 => Request::CaptureArm {
+                    1 => Request::CaptureArm(super::diag::CaptureArmMsg {
                         trigger: *a,
                         channel: *b,
                         axis: *a,
                         value: *v,
                         pre: *p,
                         post: *q,
-                    },
+                    }),
                     2 => Request::GetCapture {
                         offset: *p,
                         count: *b,

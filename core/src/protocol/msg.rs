@@ -383,20 +383,7 @@ pub enum Request<'a> {
     /// The fault history and link statistics (answered by [`Response::Faults`]).
     GetFaults,
     /// Arm the loop-rate capture (the previous capture's rows are dropped).
-    CaptureArm {
-        /// Trigger kind, channel, slave and level ([`super::diag::trigger_from_wire`]).
-        trigger: u8,
-        /// Channel kind of a level trigger.
-        channel: u8,
-        /// Slave of a level trigger's channel.
-        axis: u8,
-        /// Level, in the channel's stored unit.
-        value: i32,
-        /// Ticks to keep before the trigger.
-        pre: u32,
-        /// Ticks to record after it.
-        post: u32,
-    },
+    CaptureArm(super::diag::CaptureArmMsg),
     /// The capture's state, and up to `count` rows from `offset` of a finished one
     /// (answered by [`Response::Capture`]).
     GetCapture {
@@ -468,17 +455,7 @@ impl<'a> Request<'a> {
                 Request::GetParam { axis, param }
             }
             ty::GET_FAULTS => unit(payload, Request::GetFaults)?,
-            ty::CAPTURE_ARM => {
-                let (trigger, channel, axis, value, pre, post) = body(payload)?;
-                Request::CaptureArm {
-                    trigger,
-                    channel,
-                    axis,
-                    value,
-                    pre,
-                    post,
-                }
-            }
+            ty::CAPTURE_ARM => Request::CaptureArm(body(payload)?),
             ty::GET_CAPTURE => {
                 let (offset, count) = body(payload)?;
                 Request::GetCapture { offset, count }
@@ -512,7 +489,7 @@ impl<'a> Request<'a> {
             Request::SetTelemetry { .. } => ty::SET_TELEMETRY,
             Request::GetParam { .. } => ty::GET_PARAM,
             Request::GetFaults => ty::GET_FAULTS,
-            Request::CaptureArm { .. } => ty::CAPTURE_ARM,
+            Request::CaptureArm(_) => ty::CAPTURE_ARM,
             Request::GetCapture { .. } => ty::GET_CAPTURE,
             Request::VirtualMaster { .. } => ty::VIRTUAL_MASTER,
         }
@@ -543,14 +520,7 @@ impl<'a> Request<'a> {
             Request::SetParam { axis, param, value } => put(&(axis, param, value), buf),
             Request::SetTelemetry { decimation } => put(&decimation, buf),
             Request::GetParam { axis, param } => put(&(axis, param), buf),
-            Request::CaptureArm {
-                trigger,
-                channel,
-                axis,
-                value,
-                pre,
-                post,
-            } => put(&(trigger, channel, axis, value, pre, post), buf),
+            Request::CaptureArm(ref c) => put(c, buf),
             Request::GetCapture { offset, count } => put(&(offset, count), buf),
             Request::VirtualMaster { op, speed_scale } => put(&(op, speed_scale), buf),
         }
@@ -940,14 +910,14 @@ mod tests {
             Request::SetTelemetry { decimation: 10 },
             Request::GetParam { axis: 1, param: 14 },
             Request::Save,
-            Request::CaptureArm {
+            Request::CaptureArm(crate::protocol::diag::CaptureArmMsg {
                 trigger: 4,
                 channel: 3,
                 axis: 1,
                 value: -12_800,
                 pre: 500,
                 post: 1500,
-            },
+            }),
             Request::GetCapture {
                 offset: 1999,
                 count: 7,

@@ -19,7 +19,7 @@
 use super::serial::Link;
 use crate::plot::{plot_panels, Panel};
 use hydra_core::protocol::diag::{
-    capture_row_len, take_capture_row, trigger_to_wire, CaptureLine, CaptureMsg,
+    capture_row_len, take_capture_row, CaptureArmMsg, CaptureLine, CaptureMsg,
 };
 use hydra_core::protocol::wire::Reader;
 use hydra_core::protocol::{Request, Response};
@@ -159,15 +159,7 @@ pub fn arm(link: &mut Link, trigger: Trigger, pre_ms: f64, post_ms: f64) -> anyh
         Ok((ms * 1000.0 / period_us).round().min(f64::from(u32::MAX)) as u32)
     };
     let (pre, post) = (ticks(pre_ms, "pre")?, ticks(post_ms, "post")?);
-    let (kind, ch, axis, value) = trigger_to_wire(trigger);
-    link.expect_ack(&Request::CaptureArm {
-        trigger: kind,
-        channel: ch,
-        axis,
-        value,
-        pre,
-        post,
-    })?;
+    link.expect_ack(&Request::CaptureArm(CaptureArmMsg::new(trigger, pre, post)))?;
     Ok(())
 }
 
