@@ -27,10 +27,11 @@ pub const PRESSURES: usize = 2 * SLAVES;
 pub const TABLE_NODES: usize = 256;
 /// Control period, µs (1 kHz; 100 µs = 10 kHz is the fastest the runtime accepts).
 pub const PERIOD_US: u32 = 1000;
-/// Rows of the board's capture ring (`crate::runtime::capture`): 2 s of every tick at
-/// [`PERIOD_US`] (the firmware keeps them in the F407's 64 KiB CCM RAM: 32 B per row for
-/// [`SLAVES`] = 2).
-pub const CAPTURE_ROWS: usize = 2000;
+/// Rows of the board's capture ring (`crate::runtime::capture`): 2.048 s of every tick at
+/// [`PERIOD_US`], so 500 ms before a trigger and 1 500 ms after it fit with room (the
+/// firmware keeps them in the F407's 64 KiB CCM RAM: 32 B per row for [`SLAVES`] = 2,
+/// 65 536 B, the whole CCM).
+pub const CAPTURE_ROWS: usize = 2048;
 /// The board's analog supply (VDDA = VREF+), mV: 3.0 V, as on the STM32F4-Discovery.
 pub const VDDA_MV: u32 = 3000;
 /// How close to each rail the DAC's buffered output gets, mV (DS8626: ≈ 0.2 V).

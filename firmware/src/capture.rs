@@ -1,6 +1,6 @@
-//! The capture ring's storage (`hydra_core::runtime::capture`): 2 000 rows — 2 s of
-//! every tick at 1 kHz — in the F407's 64 KiB CCM RAM (0x1000_0000, CPU-only: nothing
-//! here is touched by DMA), and the rows' flags bytes (2 000 B) in SRAM.
+//! The capture ring's storage (`hydra_core::runtime::capture`): 2 048 rows — 2.048 s of
+//! every tick at 1 kHz — filling the F407's 64 KiB CCM RAM (0x1000_0000, CPU-only:
+//! nothing here is touched by DMA), and the rows' flags bytes (2 048 B) in SRAM.
 //!
 //! The rows' section `.ccmram` is `NOLOAD` (`memory.x`): the start-up code does not
 //! zero it, so [`take`] does, in place, before any reference to it exists.
@@ -12,7 +12,7 @@ use static_cell::ConstStaticCell;
 
 use crate::board::SLAVES;
 
-/// The rows: 32 B each for two slaves, 64 000 B of CCM.
+/// The rows: 32 B each for two slaves, 65 536 B of CCM.
 // Note(unsafe): a section of our own linker script (`memory.x`), nothing else in it.
 #[allow(unsafe_code)]
 #[link_section = ".ccmram.capture"]

@@ -63,12 +63,20 @@ impl CsvOut<Vec<u8>> {
     }
 }
 
-/// Creates (empties) `path` now, so a command that records for a while before writing
-/// fails at once, naming the path, if it cannot be written.
+/// Checks now that `path` can be written, so a command that records for a while before
+/// writing fails at once, naming the path. An existing file is left as it is (opened to
+/// append, nothing written); a new one is created and removed again.
 pub fn writable(path: &std::path::Path) -> anyhow::Result<()> {
-    std::fs::File::create(path)
-        .map(drop)
-        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+    let existed = path.exists();
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
+    }
+    Ok(())
 }
 
 /// Writes `text` to `path`, an error naming the path.

@@ -95,6 +95,48 @@ fn panels(r: &RunReport, tr: &Trace) -> Vec<Panel> {
     out
 }
 
+/// The board's per-slave panels of a recording (`trace`, `capture`): for each of `n`
+/// slaves its target and actual position (mm), then every slave's following error (µm)
+/// and valve command (LSB). `target(i)`, `actual(i)` are slave i's series in mm,
+/// `dac(i)` in LSB.
+pub fn slave_panels(
+    n: usize,
+    target: &dyn Fn(usize) -> Vec<f64>,
+    actual: &dyn Fn(usize) -> Vec<f64>,
+    dac: &dyn Fn(usize) -> Vec<f64>,
+) -> Vec<Panel> {
+    let mut ps: Vec<Panel> = (0..n)
+        .map(|i| Panel {
+            title: format!("slave {i}: target and actual position"),
+            y_label: "mm".into(),
+            series: vec![
+                (format!("target {i}"), target(i)),
+                (format!("actual {i}"), actual(i)),
+            ],
+        })
+        .collect();
+    ps.push(Panel {
+        title: "following error (target − actual)".into(),
+        y_label: "µm".into(),
+        series: (0..n)
+            .map(|i| {
+                let e = target(i)
+                    .iter()
+                    .zip(actual(i))
+                    .map(|(t, a)| (t - a) * 1000.0)
+                    .collect();
+                (format!("error {i}"), e)
+            })
+            .collect(),
+    });
+    ps.push(Panel {
+        title: "valve commands".into(),
+        y_label: "DAC LSB".into(),
+        series: (0..n).map(|i| (format!("dac {i}"), dac(i))).collect(),
+    });
+    ps
+}
+
 /// At most this many buckets per series: each keeps its minimum and maximum, so peaks
 /// survive the thinning (a 32 s trace at 1 ms is 32 000 points a series).
 const BUCKETS: usize = 1500;

@@ -143,6 +143,10 @@ impl VirtualIo {
     /// ([`master_op`]), its speed scale changed unless `speed_scale` is 0 (else 0.01 …
     /// 100 of the scenario's profile).
     fn master_op(&mut self, op: u8, speed_scale: f32) -> Result<MasterStateMsg, Nak> {
+        // Checked before anything changes: a refusal changes nothing.
+        if op > master_op::REWIND {
+            return Err(Nak::with(NakCode::NoVirtualMaster, u16::from(op), 2));
+        }
         if speed_scale != 0.0 {
             if !(0.01..=100.0).contains(&speed_scale) {
                 return Err(Nak::with(NakCode::NoVirtualMaster, u16::from(op), 1));

@@ -166,9 +166,9 @@ fn status_capture_around_a_command_and_a_fault() {
             "--trigger",
             "fault",
             "--pre-ms",
-            "50",
+            "500",
             "--post-ms",
-            "50",
+            "1500",
         ],
     );
     ok(&s, &["motion", "start"]);
@@ -256,16 +256,12 @@ fn status_capture_around_a_command_and_a_fault() {
     let e = refused(&s, &["motion", "master", "start", "--speed-scale", "500"]);
     assert!(e.contains("0.01 … 100"), "{e}");
 
-    // Nonsense gets words, before anything is sent or from the board.
+    // Nonsense gets words, before anything is sent or from the board; nothing is written.
+    let x = dir.path().join("x.csv");
+    let x_csv = x.to_str().expect("utf-8");
     let e = refused(
         &s,
-        &[
-            "capture",
-            "--trigger",
-            "threshold:speed0>1",
-            "--csv",
-            "x.csv",
-        ],
+        &["capture", "--trigger", "threshold:speed0>1", "--csv", x_csv],
     );
     assert!(e.contains("speed0"), "{e}");
     let e = refused(
@@ -273,17 +269,18 @@ fn status_capture_around_a_command_and_a_fault() {
         &[
             "capture",
             "--pre-ms",
-            "3000",
+            "2048",
             "--post-ms",
             "0",
             "--csv",
-            "x.csv",
+            x_csv,
         ],
     );
     assert!(
-        e.contains("longer than the board's ring (2000 ticks"),
+        e.contains("longer than the board's ring (2048 ticks"),
         "{e}"
     );
-    let e = refused(&s, &["capture", "--pre-ms", "-5", "--csv", "x.csv"]);
+    let e = refused(&s, &["capture", "--pre-ms", "-5", "--csv", x_csv]);
     assert!(e.contains("≥ 0 ms"), "{e}");
+    assert!(!x.exists(), "a refused capture writes no file");
 }

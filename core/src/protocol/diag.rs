@@ -38,7 +38,7 @@ pub struct LinkStats {
     pub frames: u32,
     /// Frames that were not: bad COBS, truncated, oversized or a CRC mismatch.
     pub bad_frames: u32,
-    /// Requests answered with a Nak.
+    /// Requests (whole frames) refused with a Nak.
     pub naks: u32,
 }
 
@@ -85,7 +85,7 @@ pub struct MasterStateMsg {
 pub const CAPTURE_DATA_MAX: usize = 256;
 
 /// Bytes of one capture row on the wire for `axes` slaves: master i32, flags u8, then per
-/// slave target i32, actual i32, DAC i16, pressure A i16, pressure B i16 (little-endian;
+/// slave target i32, actual i32, DAC i16, pressure A u16, pressure B u16 (little-endian;
 /// units of [`CaptureRow`]).
 pub const fn capture_row_len(axes: usize) -> usize {
     14usize.saturating_mul(axes).saturating_add(5)
@@ -206,8 +206,8 @@ pub fn put_capture_row<const S: usize>(
         w.i32(*row.actual_um.get(k)?)?;
         w.i16(*row.dac.get(k)?)?;
         let [a, b] = *row.pressure_cbar.get(k)?;
-        w.i16(a)?;
-        w.i16(b)?;
+        w.u16(a)?;
+        w.u16(b)?;
     }
     Some(())
 }
@@ -222,7 +222,7 @@ pub struct CaptureAxis {
     /// DAC code, LSB.
     pub dac: i16,
     /// Chamber A, B pressure, centibar.
-    pub pressure_cbar: [i16; 2],
+    pub pressure_cbar: [u16; 2],
 }
 
 /// A decoded capture row (the host's view: any number of slaves up to 8).
@@ -248,7 +248,7 @@ pub fn take_capture_row(r: &mut Reader<'_>, axes: usize) -> Option<CaptureLine> 
             target_um: r.i32()?,
             actual_um: r.i32()?,
             dac: r.i16()?,
-            pressure_cbar: [r.i16()?, r.i16()?],
+            pressure_cbar: [r.u16()?, r.u16()?],
         };
         line.axes.push(a).ok()?;
     }
@@ -266,7 +266,7 @@ mod tests {
             target_um: [1 << 20, -3],
             actual_um: [5, i32::MIN],
             dac: [2047, -2047],
-            pressure_cbar: [[25_000, 1], [-1, i16::MAX]],
+            pressure_cbar: [[25_000, 1], [0, u16::MAX]],
         };
         let mut buf = [0u8; 64];
         let mut w = Writer::new(&mut buf);

@@ -120,7 +120,7 @@ fn faults() -> FaultsMsg {
     f
 }
 
-/// A finished one-slave capture (500 + 1 + 1500 rows of 2 000), its first row: master
+/// A finished one-slave capture (500 + 1 + 1500 rows of 2 048), its first row: master
 /// 45 000 counts, Following with valve power, target 250 mm, actual 249.95 mm, DAC −35,
 /// 120.00 / 80.50 bar.
 fn capture() -> CaptureMsg {
@@ -138,7 +138,7 @@ fn capture() -> CaptureMsg {
         pre: 500,
         rows: 2001,
         trigger_tick: 70_000,
-        capacity: 2000,
+        capacity: 2048,
         offset: 0,
         data: heapless::Vec::from_slice(&buf).unwrap(),
     }

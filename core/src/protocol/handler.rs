@@ -254,7 +254,8 @@ struct LinkWatch {
     frames: u32,
     /// Frames that failed COBS, length or CRC checks (wrapping).
     bad_frames: u32,
-    /// Requests answered with a Nak (wrapping).
+    /// Requests (whole frames) answered with a Nak (wrapping; a damaged frame's Nak is
+    /// counted in `bad_frames` only).
     naks: u32,
     seen: u32,
     last_ms: u32,
@@ -566,12 +567,13 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                         d.copy_from_slice(f.payload);
                     }
                     let payload = p.get(..len).unwrap_or(&[]);
-                    (seq, self.request(dev, flash, seq, t, payload))
+                    let r = self.request(dev, flash, seq, t, payload);
+                    if matches!(r, Response::Nak { .. }) {
+                        self.link.naks = self.link.naks.wrapping_add(1);
+                    }
+                    (seq, r)
                 }
             };
-            if matches!(resp, Response::Nak { .. }) {
-                self.link.naks = self.link.naks.wrapping_add(1);
-            }
             send(tx, seq, &resp);
             // A refused deferred activation leaves the active id as it was; the host sees
             // that in Status.

@@ -9,16 +9,17 @@
 //! `pre + 1 + post` must fit the ring.
 //!
 //! Per tick and slave the ring keeps target and actual position (I24F8 µm raw, ±8.39 m,
-//! 3.9 nm), the valve DAC code (LSB, 0 = null), both chamber pressures (centibar, i16:
-//! 0.01 bar, ±327 bar); per tick the master (whole counts, wrapping i32) and a flags
-//! byte ([`TickSample::flags`]: state, hold reason, valve power, E-stop, command). The
+//! 3.9 nm), the valve DAC code (LSB, 0 = null), both chamber pressures (centibar, u16:
+//! 0.01 bar, 0 … 655.35 bar, saturating); per tick the master (whole counts, wrapping i32) and a flags
+//! byte ([`TickSample::flags`]: state, hold reason, valve power, E-stop, a command
+//! applied). The
 //! following error is target − actual (not stored). A row is 4 + 14·S bytes (32 B for
-//! the board's two slaves) plus the flags byte, so 2 000 rows — 2 s at 1 kHz — take
-//! 66 000 B (the firmware keeps the rows in the F407's 64 KiB CCM RAM).
+//! the board's two slaves) plus the flags byte, so the board's 2 048 rows — 2.048 s at
+//! 1 kHz — take 67 584 B (the firmware keeps the rows in the F407's 64 KiB CCM RAM).
 //!
 //! Triggers ([`Trigger`]): `now` (the first recorded tick), `fault` (entering Fault),
 //! `state` (any change of the state bits), `command` (a tick that applied a host
-//! command), and a level on one channel (`above` / `below` a raw value, in the
+//! command — one the runtime refused does not count), and a level on one channel (`above` / `below` a raw value, in the
 //! channel's unit as stored: [`Channel`]).
 
 use super::tick::{TickSample, FLAG_COMMAND, STATE_MASK};
@@ -36,7 +37,7 @@ pub struct CaptureRow<const S: usize> {
     /// Per slave: valve DAC code, LSB.
     pub dac: [i16; S],
     /// Per slave: chamber A and B pressure, centibar.
-    pub pressure_cbar: [[i16; 2]; S],
+    pub pressure_cbar: [[u16; 2]; S],
 }
 
 impl<const S: usize> CaptureRow<S> {

@@ -186,9 +186,11 @@ pub struct FaultRecord {
 pub const FAULT_HISTORY_LEN: usize = 16;
 
 /// One fault as it was raised: the cause, the tick, and the value that tripped it with
-/// its limit. Units by kind: following error — I24F8 µm raw (|target − position| and the
-/// axis' limit); encoder jump — counts (the tick's step and the channel's plausible
-/// maximum); master stalled — ticks (how long the master stood still, and the timeout);
+/// its limit. Units by kind: following error — I24F8 µm raw (target − position, signed,
+/// and the limit it exceeded: the law's own when the law flagged the axis, else the
+/// runtime's); encoder jump — counts (the tick's signed step and the channel's plausible
+/// maximum); master stalled — ticks (the stall timeout, as both: the master stood still
+/// that long);
 /// controller fault — the axis' following error and its limit at that tick, I24F8 µm
 /// raw (for context); every other kind — 0 and 0 (a state, not a value: E-stop,
 /// watchdog, overrun, pressure input).

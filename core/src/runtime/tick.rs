@@ -65,7 +65,7 @@ pub const FLAG_END_OF_TABLE: u8 = 1 << 2;
 pub const FLAG_VALVE_POWER: u8 = 1 << 3;
 /// [`TickSample::flags`]: the E-stop input is active.
 pub const FLAG_ESTOP: u8 = 1 << 4;
-/// [`TickSample::flags`]: this tick applied a host command.
+/// [`TickSample::flags`]: this tick applied a host command (the runtime accepted it).
 pub const FLAG_COMMAND: u8 = 1 << 5;
 
 /// One tick's sample for telemetry and the capture ring (raw fixed-point bits, as on
@@ -84,8 +84,9 @@ pub struct TickSample<const S: usize> {
     /// Per slave: valve command, DAC LSB (0 = null).
     pub dac: [i16; S],
     /// Per slave: chamber A and B pressure (the board's pressure inputs 2k and 2k + 1;
-    /// 0 where the board has none), centibar (0.01 bar, ±327 bar, saturating).
-    pub pressure_cbar: [[i16; 2]; S],
+    /// 0 where the board has none), centibar (0.01 bar, 0 … 655.35 bar, saturating: a
+    /// negative reading is 0).
+    pub pressure_cbar: [[u16; 2]; S],
     /// State bits ([`STATE_MASK`]), [`FLAG_VALVE_POWER`], [`FLAG_ESTOP`],
     /// [`FLAG_COMMAND`].
     pub flags: u8,
@@ -94,14 +95,14 @@ pub struct TickSample<const S: usize> {
 impl<const S: usize> TickSample<S> {
     /// The sample of a status snapshot (without [`FLAG_COMMAND`]: the tick adds it).
     pub fn of<const P: usize>(st: &Status<S, P>) -> Self {
-        let mut pressure_cbar = [[0i16; 2]; S];
+        let mut pressure_cbar = [[0u16; 2]; S];
         for (k, pair) in pressure_cbar.iter_mut().enumerate() {
             for (j, p) in pair.iter_mut().enumerate() {
                 let input = k.saturating_mul(2).saturating_add(j);
                 if let Some(bar) = st.pressure_bar.get(input) {
                     // I16F16 bar × 100 → centibar: (raw · 100) >> 16, saturated to i16.
                     let cbar = i64::from(bar.to_bits()).saturating_mul(100) >> 16;
-                    *p = i16::try_from(cbar).unwrap_or(if cbar < 0 { i16::MIN } else { i16::MAX });
+                    *p = u16::try_from(cbar.max(0)).unwrap_or(u16::MAX);
                 }
             }
         }
@@ -215,6 +216,8 @@ impl<C: Controller<S>, const S: usize, const P: usize> TickLoop<C, S, P> {
         let fresh = queued.filter(|c| t0.wrapping_sub(c.queued_at) <= self.max_age_cycles);
         let overrun = self.overrun_pending || self.skipped(t0);
         let reply = self.rt.tick_io(io, fresh.map(|c| c.cmd), overrun);
+        // A command the runtime accepted (the capture's `command` trigger).
+        let applied = matches!(reply, Some(Ok(())));
         self.overrun_pending = false;
         host.feed_watchdog();
         if let Some(c) = queued {
@@ -236,7 +239,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> TickLoop<C, S, P> {
             host.status(self.rt.status());
         }
         let mut sample = TickSample::of(self.rt.status());
-        if fresh.is_some() {
+        if applied {
             sample.flags |= FLAG_COMMAND;
         }
         host.sample(&sample);

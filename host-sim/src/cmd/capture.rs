@@ -299,35 +299,12 @@ pub fn plot(c: &Captured, path: &std::path::Path, title: &str) -> anyhow::Result
     let axes = c.rows.first().map_or(0, |r| r.axes.len());
     let col = |f: &dyn Fn(&CaptureLine) -> f64| c.rows.iter().map(f).collect::<Vec<f64>>();
     let mm = |raw: i32| f64::from(raw) / 256_000.0;
-    let mut ps = Vec::new();
-    for i in 0..axes {
-        ps.push(Panel {
-            title: format!("slave {i}: target and actual position"),
-            y_label: "mm".into(),
-            series: vec![
-                (format!("target {i}"), col(&|r| mm(r.axes[i].target_um))),
-                (format!("actual {i}"), col(&|r| mm(r.axes[i].actual_um))),
-            ],
-        });
-    }
-    ps.push(Panel {
-        title: "following error (target − actual)".into(),
-        y_label: "µm".into(),
-        series: (0..axes)
-            .map(|i| {
-                let e =
-                    col(&|r| mm(r.axes[i].target_um.wrapping_sub(r.axes[i].actual_um)) * 1000.0);
-                (format!("error {i}"), e)
-            })
-            .collect(),
-    });
-    ps.push(Panel {
-        title: "valve commands".into(),
-        y_label: "DAC LSB".into(),
-        series: (0..axes)
-            .map(|i| (format!("dac {i}"), col(&|r| f64::from(r.axes[i].dac))))
-            .collect(),
-    });
+    let mut ps = crate::plot::slave_panels(
+        axes,
+        &|i| col(&|r| mm(r.axes[i].target_um)),
+        &|i| col(&|r| mm(r.axes[i].actual_um)),
+        &|i| col(&|r| f64::from(r.axes[i].dac)),
+    );
     ps.push(Panel {
         title: "chamber pressures".into(),
         y_label: "bar".into(),
@@ -357,8 +334,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         "--timeout-s {}: must be > 0",
         args.timeout_s
     );
-    for p in args.csv.iter().chain(args.plot.iter()) {
-        crate::csvout::writable(p)?;
+    for (ms, what) in [(args.pre_ms, "pre"), (args.post_ms, "post")] {
+        anyhow::ensure!(
+            ms.is_finite() && ms >= 0.0,
+            "--{what}-ms {ms}: a time must be ≥ 0 ms"
+        );
+    }
+    if !args.arm_only {
+        for p in args.csv.iter().chain(args.plot.iter()) {
+            crate::csvout::writable(p)?;
+        }
     }
     let mut link = Link::open(&args.port)?;
     if !args.read_only {

@@ -72,6 +72,15 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
         args.axis
             .ok_or_else(|| anyhow::anyhow!("{:?} needs --axis N (the slave, 0-based)", args.what))
     };
+    anyhow::ensure!(
+        args.what == What::Master || (args.master_op.is_none() && args.speed_scale.is_none()),
+        "{:?} takes no master operation or --speed-scale (those are `motion master …`)",
+        args.what
+    );
+    anyhow::ensure!(
+        !(args.master_op == Some(MasterOp::Status) && args.speed_scale.is_some()),
+        "motion master status only reads: set --speed-scale with start"
+    );
     Ok(match args.what {
         What::Start => Request::Start,
         What::Stop => Request::Stop,

@@ -107,6 +107,7 @@ pub fn explain(nak: &Nak) -> String {
             "the board keeps no capture ring, or the trigger is not one it knows".into()
         }
         C::NoVirtualMaster if d2 == 1 => "the master's speed scale must be 0.01 … 100".into(),
+        C::NoVirtualMaster if d2 == 2 => format!("operation {d}: not a master operation"),
         C::NoVirtualMaster => format!(
             "operation {d}: this board's master is a real encoder (only a virtual board's \
              master can be started, stopped or rewound from the host)"

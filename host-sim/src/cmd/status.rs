@@ -172,9 +172,9 @@ fn event_values(
 ) -> (Option<f64>, Option<f64>, &'static str) {
     let mm = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
     match f.map(Fault::kind) {
-        Some(FaultKind::FollowingError | FaultKind::Controller) => {
-            (Some(mm(e.value)), Some(mm(e.limit)), "mm")
-        }
+        Some(FaultKind::FollowingError) => (Some(mm(e.value)), Some(mm(e.limit)), "mm"),
+        // The law flagged the axis: its error then, for context (no limit was exceeded).
+        Some(FaultKind::Controller) => (Some(mm(e.value)), None, "mm"),
         Some(FaultKind::EncoderJump) => {
             (Some(f64::from(e.value)), Some(f64::from(e.limit)), "counts")
         }
@@ -398,6 +398,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 fn value_words(v: Option<f64>, limit: Option<f64>, unit: &str) -> String {
     match (v, limit) {
         (Some(v), Some(l)) => format!(": {v:.3} {unit} (limit {l:.3} {unit})"),
+        (Some(v), None) => format!(": error {v:.3} {unit} then"),
         _ => String::new(),
     }
 }

@@ -100,10 +100,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The plot: per slave target and actual, every slave's following error (µm) and valve
-/// command (LSB), each panel with its legend.
+/// The plot: [`crate::plot::slave_panels`] of the telemetry.
 fn plot(path: &std::path::Path, s: &[Telemetry], period_s: f64) -> anyhow::Result<()> {
-    use crate::plot::{plot_panels, Panel};
     let mm = |raw: i32| f64::from(raw) / 256.0 / 1000.0;
     let t0 = s.first().map_or(0, |x| x.tick);
     let t: Vec<f64> = s
@@ -111,37 +109,16 @@ fn plot(path: &std::path::Path, s: &[Telemetry], period_s: f64) -> anyhow::Resul
         .map(|x| f64::from(x.tick.wrapping_sub(t0)) * period_s)
         .collect();
     let n = s.first().map_or(0, |x| x.axes.len());
-    let col = |f: &dyn Fn(&Telemetry) -> f64| s.iter().map(f).collect::<Vec<f64>>();
-    let axis = |x: &Telemetry, i: usize| x.axes.get(i).copied().unwrap_or_default();
-    let mut ps: Vec<Panel> = (0..n)
-        .map(|i| Panel {
-            title: format!("slave {i}: target and actual position"),
-            y_label: "mm".into(),
-            series: vec![
-                (format!("target {i}"), col(&|x| mm(axis(x, i).target_um))),
-                (format!("actual {i}"), col(&|x| mm(axis(x, i).actual_um))),
-            ],
-        })
-        .collect();
-    ps.push(Panel {
-        title: "following error (target − actual)".into(),
-        y_label: "µm".into(),
-        series: (0..n)
-            .map(|i| {
-                let e = col(&|x| {
-                    let a = axis(x, i);
-                    mm(a.target_um.wrapping_sub(a.actual_um)) * 1000.0
-                });
-                (format!("error {i}"), e)
-            })
-            .collect(),
-    });
-    ps.push(Panel {
-        title: "valve commands".into(),
-        y_label: "DAC LSB".into(),
-        series: (0..n)
-            .map(|i| (format!("dac {i}"), col(&|x| f64::from(axis(x, i).dac))))
-            .collect(),
-    });
-    plot_panels(path, "trace (telemetry)", ("t (s)", &t), &ps, None)
+    let col = |i: usize, f: &dyn Fn(&hydra_core::protocol::msg::AxisSample) -> f64| {
+        s.iter()
+            .map(|x| x.axes.get(i).map_or(0.0, f))
+            .collect::<Vec<f64>>()
+    };
+    let ps = crate::plot::slave_panels(
+        n,
+        &|i| col(i, &|a| mm(a.target_um)),
+        &|i| col(i, &|a| mm(a.actual_um)),
+        &|i| col(i, &|a| f64::from(a.dac)),
+    );
+    crate::plot::plot_panels(path, "trace (telemetry)", ("t (s)", &t), &ps, None)
 }

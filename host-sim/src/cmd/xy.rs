@@ -70,7 +70,7 @@ pub struct Args {
     /// Exit 0 even when the runtime latched a fault (by default the exit code is 3).
     #[arg(long)]
     pub allow_fault: bool,
-    /// Run the documented tuning procedure ((docs/npid.md)): prints every evaluated
+    /// Run the documented tuning procedure (docs/npid.md): prints every evaluated
     /// setting and the chosen gains of each controller as TOML (`--controller C`: only
     /// C's part of the procedure).
     #[arg(long)]
