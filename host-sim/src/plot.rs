@@ -137,6 +137,44 @@ pub fn slave_panels(
     ps
 }
 
+/// Width of the legend column right of each panel, px.
+pub const LEGEND_W: u32 = 170;
+
+/// A panel's area split into the chart and, right of it, its legend column
+/// ([`LEGEND_W`] px): the legend never covers the data.
+pub fn with_legend<DB: DrawingBackend>(
+    a: &DrawingArea<DB, plotters::coord::Shift>,
+) -> (
+    DrawingArea<DB, plotters::coord::Shift>,
+    DrawingArea<DB, plotters::coord::Shift>,
+) {
+    let (w, _) = a.dim_in_pixel();
+    a.split_horizontally(w.saturating_sub(LEGEND_W))
+}
+
+/// Legend entry `i` (a line in `color`, then `name`) in a panel's legend column.
+pub fn legend_entry<DB: DrawingBackend>(
+    legend: &DrawingArea<DB, plotters::coord::Shift>,
+    i: usize,
+    name: &str,
+    color: RGBColor,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let y = 40 + 18 * i as i32;
+    legend
+        .draw(&PathElement::new(
+            vec![(4, y), (24, y)],
+            color.stroke_width(2),
+        ))
+        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    legend
+        .draw(&Text::new(name, (30, y - 7), ("sans-serif", 13)))
+        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    Ok(())
+}
+
 /// At most this many buckets per series: each keeps its minimum and maximum, so peaks
 /// survive the thinning (a 32 s trace at 1 ms is 32 000 points a series).
 const BUCKETS: usize = 1500;
@@ -234,7 +272,7 @@ pub fn plot_panels(
 ) -> anyhow::Result<()> {
     let h_panel = 260u32;
     let height = 40 + h_panel * ps.len() as u32;
-    let root = SVGBackend::new(path, (1100, height)).into_drawing_area();
+    let root = SVGBackend::new(path, (1100 + LEGEND_W, height)).into_drawing_area();
     root.fill(&WHITE)?;
     let root = root.titled(title, ("sans-serif", 20))?;
     let areas = root.split_evenly((ps.len(), 1));
@@ -248,7 +286,8 @@ pub fn plot_panels(
     );
     for (area, p) in areas.iter().zip(ps) {
         let (lo, hi) = range(&p.series);
-        let mut chart = ChartBuilder::on(area)
+        let (area, legend) = with_legend(area);
+        let mut chart = ChartBuilder::on(&area)
             .caption(&p.title, ("sans-serif", 14))
             .margin(8)
             .x_label_area_size(28)
@@ -264,21 +303,13 @@ pub fn plot_panels(
             .draw()?;
         for (i, (name, v)) in p.series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
-            chart
-                .draw_series(LineSeries::new(thin(t, v), color.stroke_width(1)))?
-                .label(name.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
+            chart.draw_series(LineSeries::new(thin(t, v), color.stroke_width(1)))?;
+            legend_entry(&legend, i, name, color)?;
         }
         if let Some(m) = marker {
             let dashed = DashedLineSeries::new([(m, lo), (m, hi)], 6, 4, BLACK.mix(0.6).into());
             chart.draw_series(dashed)?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK.mix(0.3))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()?;
     }
     root.present()?;
     Ok(())

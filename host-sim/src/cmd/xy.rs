@@ -235,7 +235,8 @@ fn equal_scale(x: (f64, f64), y: (f64, f64), w: f64, h: f64) -> ((f64, f64), (f6
 /// Three panels: X–Y path (mm, equal scales; with `magnify`, the actual path's deviation
 /// × that factor too), exact and controller contour error (µm), commands (LSB).
 fn plot(r: &XyReport, file: &Path, magnify: Option<f64>) -> Result<()> {
-    let root = SVGBackend::new(file, (1000, 1100)).into_drawing_area();
+    use crate::plot::{legend_entry, with_legend, LEGEND_W};
+    let root = SVGBackend::new(file, (1000 + LEGEND_W, 1100)).into_drawing_area();
     root.fill(&WHITE)?;
     let root = root.titled(
         &format!("{} — {}", r.path, r.controller),
@@ -243,6 +244,9 @@ fn plot(r: &XyReport, file: &Path, magnify: Option<f64>) -> Result<()> {
     )?;
     let (top, rest) = root.split_vertically(500);
     let (mid, bot) = rest.split_vertically(300);
+    // Each panel's legend in a column right of it, never over the data.
+    let ((top, top_l), (mid, mid_l), (bot, bot_l)) =
+        (with_legend(&top), with_legend(&mid), with_legend(&bot));
     let tr = &r.trace;
     let (tw, th) = top.dim_in_pixel();
     // The plotting area: the panel less its margins (8 px) and label areas (50, 28 px).
@@ -267,16 +271,14 @@ fn plot(r: &XyReport, file: &Path, magnify: Option<f64>) -> Result<()> {
         tr.iter()
             .map(|s| (s.reference_um[0] / 1000.0, s.reference_um[1] / 1000.0)),
         BLUE,
-    ))?
-    .label("reference")
-    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLUE));
+    ))?;
+    legend_entry(&top_l, 0, "reference", BLUE)?;
     c.draw_series(LineSeries::new(
         tr.iter()
             .map(|s| (s.actual_um[0] / 1000.0, s.actual_um[1] / 1000.0)),
         RED,
-    ))?
-    .label("actual")
-    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
+    ))?;
+    legend_entry(&top_l, 1, "actual", RED)?;
     if let Some(k) = magnify {
         let green = RGBColor(44, 160, 44);
         let mag = |s: &crate::xy::Sample, i: usize| {
@@ -285,14 +287,9 @@ fn plot(r: &XyReport, file: &Path, magnify: Option<f64>) -> Result<()> {
         c.draw_series(LineSeries::new(
             tr.iter().map(|s| (mag(s, 0), mag(s, 1))),
             green,
-        ))?
-        .label(format!("actual, deviation × {k}"))
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], green));
+        ))?;
+        legend_entry(&top_l, 2, &format!("actual, deviation × {k}"), green)?;
     }
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
     let t1 = tr.last().map(|s| s.t_s).unwrap_or(1.0).max(1e-3);
     let (e0, e1) = bounds(
         tr.iter()
@@ -307,16 +304,13 @@ fn plot(r: &XyReport, file: &Path, magnify: Option<f64>) -> Result<()> {
     c.draw_series(LineSeries::new(
         tr.iter().map(|s| (s.t_s, s.contour_um)),
         RED,
-    ))?
-    .label("exact ε")
-    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
+    ))?;
+    legend_entry(&mid_l, 0, "exact ε", RED)?;
     c.draw_series(LineSeries::new(
         tr.iter().map(|s| (s.t_s, s.controller_contour_um)),
         BLUE,
-    ))?
-    .label("controller's ε")
-    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLUE));
-    c.configure_series_labels().border_style(BLACK).draw()?;
+    ))?;
+    legend_entry(&mid_l, 1, "controller's ε", BLUE)?;
     let (u0, u1) = bounds(tr.iter().flat_map(|s| s.command_lsb));
     let mut c = ChartBuilder::on(&bot)
         .margin(8)
@@ -328,11 +322,9 @@ fn plot(r: &XyReport, file: &Path, magnify: Option<f64>) -> Result<()> {
         c.draw_series(LineSeries::new(
             tr.iter().map(|s| (s.t_s, s.command_lsb[i])),
             col,
-        ))?
-        .label(if i == 0 { "U1 (x)" } else { "U2 (y)" })
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col));
+        ))?;
+        legend_entry(&bot_l, i, if i == 0 { "U1 (x)" } else { "U2 (y)" }, col)?;
     }
-    c.configure_series_labels().border_style(BLACK).draw()?;
     root.present()?;
     Ok(())
 }
