@@ -21,6 +21,19 @@ fn flat_table() -> Vec<Node<2>> {
         .collect()
 }
 
+/// Set-position of both slaves at the flat table's positions (they stand there).
+fn reference_at_the_flat_table(h: &mut VbHost, b: &mut VBoard) {
+    for (axis, um) in [(0u8, 250_000), (1, 10_000)] {
+        h.ack(
+            b,
+            &Request::SetPosition {
+                axis,
+                pos_um: um << 8,
+            },
+        );
+    }
+}
+
 #[test]
 fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
     let mut b = VBoard::new(&Scenario::default()).unwrap();
@@ -48,15 +61,7 @@ fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
     );
     // A pause of the host longer than a period changes nothing: the next command applies.
     std::thread::sleep(std::time::Duration::from_millis(3));
-    for (axis, um) in [(0u8, 250_000), (1, 10_000)] {
-        h.ack(
-            &mut b,
-            &Request::SetPosition {
-                axis,
-                pos_um: um << 8,
-            },
-        );
-    }
+    reference_at_the_flat_table(&mut h, &mut b);
     h.ack(&mut b, &Request::Start);
     assert_eq!(b.ticks(), t0 + 4);
     for _ in 0..200 {
@@ -188,15 +193,7 @@ fn the_capture_and_the_fault_history_refuse_nonsense_and_count_damage() {
     let nodes = flat_table();
     assert!(matches!(h.upload(&mut b, 4, &nodes), Response::Ack { .. }));
     h.ack(&mut b, &Request::Activate { id: 4 });
-    for (axis, um) in [(0u8, 250_000), (1, 10_000)] {
-        h.ack(
-            &mut b,
-            &Request::SetPosition {
-                axis,
-                pos_um: um << 8,
-            },
-        );
-    }
+    reference_at_the_flat_table(&mut h, &mut b);
     h.ack(&mut b, &arm(3, 0, 0, 10, 20));
     for _ in 0..30 {
         b.tick(&mut |_| ());
