@@ -67,11 +67,8 @@ cargo tree -p firmware --target "$TARGET" -e features -i defmt-rtt | grep -q 'de
   || { echo "defmt-rtt is not built with disable-blocking-mode"; exit 1; }
 # ... and its blocking write is not linked at all (--forbid-symbol).
 # (the per-function call paths: the same command without --brief)
-# (the link task's inlined waker registration calls the executor's RawWakerVTable
-# clone/drop through pointers: --indirect link_task=waker.)
 python3 scripts/stack-check.py "${CARGO_TARGET_DIR:-target}/$TARGET/release/firmware" --brief \
-  --allow-cycle rust_begin_unwind --forbid-symbol defmt_rtt::channel::Channel::blocking_write \
-  --indirect link_task=embassy_executor::raw::waker::
+  --allow-cycle rust_begin_unwind --forbid-symbol defmt_rtt::channel::Channel::blocking_write
 
 step "board-emu: the firmware's release ELF on the emulated STM32F407, plant in the loop"
 ./scripts/gpl-confined.sh

@@ -30,7 +30,8 @@ Method
   its indirect calls count as covered.  Built in (--indirect adds):
     Executor::run, SyncExecutor::poll -> embassy_executor::raw::TaskStorage<, poll_exited
       (the executor polls each task through a function pointer)
-    TaskStorage<, embassy_stm32::, embassy_time, embassy_sync::, USART1/2/6, TIM7, TIM8_BRK_TIM12 ->
+    TaskStorage<, embassy_stm32::, embassy_time, embassy_sync::, USART1/2/6, TIM7, TIM8_BRK_TIM12,
+    every task body (_task_inner_function) ->
       embassy_executor::raw::waker::  (RawWakerVTable clone/wake/drop; the executor's is the
       only waker vtable in .rodata; USART2 and TIM8_BRK_TIM12 inline embassy-stm32 code)
     core::fmt -> >::fmt, core::fmt::Write  (fmt::write and Formatter call fmt impls and
@@ -64,7 +65,10 @@ DEFAULT_RULES = [(c, t) for c in ("Executor::run", "SyncExecutor::poll")
                  for t in ("embassy_executor::raw::TaskStorage<", "embassy_executor::raw::poll_exited")]
 DEFAULT_RULES += [(c, "embassy_executor::raw::waker::") for c in (
     "embassy_executor::raw::TaskStorage<", "embassy_stm32::", "embassy_time", "embassy_sync::",
-    "USART2", "USART1", "USART6", "TIM8_BRK_TIM12", "TIM7")]
+    "USART2", "USART1", "USART6", "TIM8_BRK_TIM12", "TIM7",
+    # every #[embassy_executor::task] body (the macro's `__<name>_task_inner_function`):
+    # waker registration inlined into a task calls the same vtable
+    "_task_inner_function")]
 DEFAULT_RULES += [("core::fmt", ">::fmt"), ("core::fmt", "core::fmt::Write"),
                   ("_defmt_", "defmt_rtt::channel::Channel::")]
 DEFAULT_ALLOW = ["core::fmt"]

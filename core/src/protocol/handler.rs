@@ -230,8 +230,7 @@ pub struct Handler<const S: usize, const N: usize> {
     pending: bool,
     /// The active table's id (`None`: no table; all-zero, so a static handler is `.bss`).
     active_id: Option<u32>,
-    /// The active table's rows and their CRC-32 (Status), worked out when it is installed.
-    active_rows: u16,
+    /// The active table's CRC-32 (Status), worked out once when it is installed.
     active_crc: u32,
     saved: Option<SlotHeader>,
     /// The slot [`Handler::boot`] booted, and why.
@@ -294,7 +293,6 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             committed_id: None,
             pending: false,
             active_id: None,
-            active_rows: 0,
             active_crc: 0,
             saved: None,
             boot_slot: None,
@@ -489,7 +487,6 @@ impl<const S: usize, const N: usize> Handler<S, N> {
     fn set_active(&mut self, id: u32) {
         let t = &self.committed;
         self.active_id = Some(id);
-        self.active_rows = u16::try_from(t.len()).unwrap_or(u16::MAX);
         let nodes = (0..t.len()).map_while(|i| t.node(i));
         self.active_crc = super::upload::rows_crc(nodes).unwrap_or(0);
     }
@@ -793,7 +790,9 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         }
         s.flags = flags;
         s.active_id = self.active_id();
-        s.active_rows = self.active_rows;
+        s.active_rows = dev
+            .active_table()
+            .map_or(0, |t| u16::try_from(t.len()).unwrap_or(u16::MAX));
         s.active_crc = self.active_crc;
         s.committed_id = self.committed_id.unwrap_or(NO_TABLE);
         s.saved_id = self.saved.map_or(NO_TABLE, |h| h.id);

@@ -192,6 +192,19 @@ fn decode_all(bytes: &[u8]) -> Vec<(u16, Response)> {
 }
 
 impl Rig {
+    /// A rig around a handler and device that booted from `flash` (a power cycle), its
+    /// session opened with Hello.
+    fn booted(h: Handler<S, N>, dev: Mock, flash: RamFlash) -> Self {
+        let mut r = Self {
+            h,
+            dev,
+            flash,
+            seq: 0,
+        };
+        assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
+        r
+    }
+
     fn new() -> Self {
         let flash = RamFlash::new(4 * SLOT as usize);
         let store = Store::new::<_, S, N>(&flash, 0, SLOT).unwrap();
@@ -380,13 +393,7 @@ fn settings_alone_are_saved_and_come_back_without_a_table() {
     assert!(dev2.table.is_none());
     assert_eq!(h2.boot_report(), (Some(hd.slot), BootReason::Newest));
     // Then a table and the same settings: the next boot runs both.
-    let mut r2 = Rig {
-        h: h2,
-        dev: dev2,
-        flash: r.flash.clone(),
-        seq: 0,
-    };
-    assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
+    let mut r2 = Rig::booted(h2, dev2, r.flash.clone());
     r2.upload(3, &nodes(10, 100)).unwrap();
     r2.ack(&Request::Activate { id: 3 });
     r2.ack(&Request::Save);
@@ -421,13 +428,7 @@ fn none_bootable_is_reported_and_a_saved_table_is_not_replaced_by_settings_alone
     };
     let mut h = Handler::<S, N>::new(store);
     let _ = h.boot(&mut refusing, &mut r.flash);
-    let mut r2 = Rig {
-        h,
-        dev: refusing,
-        flash: r.flash.clone(),
-        seq: 0,
-    };
-    assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
+    let mut r2 = Rig::booted(h, refusing, r.flash.clone());
     r2.set_param(ParamId::KpLsbPerUm, 0.25);
     match r2.req(&Request::Save) {
         Response::Nak { nak, .. } => {
@@ -513,13 +514,7 @@ fn saved_parameters_come_back_at_boot() {
     assert_eq!(dev2.kp, 0.75);
     assert_eq!(dev2.table, r.dev.table);
     // Saved again after that boot without a SetParam: the parameter is still stored.
-    let mut r3 = Rig {
-        h: h2,
-        dev: dev2,
-        flash: r.flash.clone(),
-        seq: 0,
-    };
-    assert!(matches!(r3.req(&Request::Hello), Response::Info(_)));
+    let mut r3 = Rig::booted(h2, dev2, r.flash.clone());
     r3.ack(&Request::Save);
     let mut dev4 = Mock::default();
     let hd = Handler::<S, N>::new(store)
@@ -1185,13 +1180,7 @@ fn set_position_offset_and_link_timeout_are_saved() {
     assert_eq!(dev2.offset, Some(249.0));
     // The restored timeout acts after a Start.
     dev2.running = true;
-    let mut r2 = Rig {
-        h: h2,
-        dev: dev2,
-        flash: r.flash.clone(),
-        seq: 0,
-    };
-    assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
+    let mut r2 = Rig::booted(h2, dev2, r.flash.clone());
     r2.ack(&Request::Start);
     assert!(!r2.h.watch_link(&mut r2.dev, 10));
     assert!(r2.h.watch_link(&mut r2.dev, 261));
@@ -1246,13 +1235,7 @@ fn save_after_a_fallback_boot_keeps_the_slot_that_booted() {
     let hd = h.boot(&mut dev, &mut r.flash).unwrap();
     assert_eq!((hd.id, hd.slot), (1, 0));
     let image = r.flash.clone();
-    let mut r2 = Rig {
-        h,
-        dev,
-        flash: r.flash.clone(),
-        seq: 0,
-    };
-    assert!(matches!(r2.req(&Request::Hello), Response::Info(_)));
+    let mut r2 = Rig::booted(h, dev, r.flash.clone());
     r2.ack(&Request::Save);
     // The new save went to slot 1; slot 0 (what booted) is intact.
     let mut dev3 = limited();

@@ -62,14 +62,9 @@ pub const fn refused(detail: u16) -> Nak {
     Nak::with(NakCode::Refused, detail, 0)
 }
 
-/// State byte of Status: 0 Idle, 1 Following, 2 Holding, 3 Fault.
+/// State byte of Status ([`State::code`]).
 pub const fn state_code(s: State) -> u8 {
-    match s {
-        State::Idle => 0,
-        State::Following => 1,
-        State::Holding(_) => 2,
-        State::Fault => 3,
-    }
+    s.code()
 }
 
 /// Fills the runtime's part of a Status (state, end-of-table flag, fault and its axis,

@@ -65,6 +65,19 @@ pub enum State {
     Fault,
 }
 
+impl State {
+    /// The state's code in Status and in a tick sample's state bits: 0 Idle,
+    /// 1 Following, 2 Holding, 3 Fault.
+    pub const fn code(self) -> u8 {
+        match self {
+            State::Idle => 0,
+            State::Following => 1,
+            State::Holding(_) => 2,
+            State::Fault => 3,
+        }
+    }
+}
+
 /// A command to the runtime (from the host link; applied at the next tick).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -106,13 +106,8 @@ impl<const S: usize> TickSample<S> {
                 }
             }
         }
-        let state = match st.state {
-            super::State::Idle => 0,
-            super::State::Following => 1,
-            super::State::Holding(super::HoldReason::Commanded) => 2,
-            super::State::Holding(super::HoldReason::EndOfTable) => 2 | FLAG_END_OF_TABLE,
-            super::State::Fault => 3,
-        };
+        let end = st.state == super::State::Holding(super::HoldReason::EndOfTable);
+        let state = st.state.code() | if end { FLAG_END_OF_TABLE } else { 0 };
         let flags = state
             | if st.enable { FLAG_VALVE_POWER } else { 0 }
             | if st.estop { FLAG_ESTOP } else { 0 };

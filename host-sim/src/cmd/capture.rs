@@ -224,16 +224,12 @@ pub fn collect(link: &mut Link, timeout: Duration) -> anyhow::Result<Captured> {
     })
 }
 
-/// The state name of a flags byte.
+/// The state name of a flags byte (`holding_end`: holding at the end of the table).
 fn state_name(flags: u8) -> &'static str {
-    match flags & STATE_MASK {
-        0 => "idle",
-        1 => "following",
-        2 => "holding",
-        x if x == 2 | FLAG_END_OF_TABLE => "holding_end",
-        3 => "fault",
-        _ => "unknown",
+    if flags & STATE_MASK == 2 | FLAG_END_OF_TABLE {
+        return "holding_end";
     }
+    super::status::state_name(flags & STATE_MASK & !FLAG_END_OF_TABLE)
 }
 
 /// The CSV text of a capture (module docs for the columns).

@@ -163,6 +163,17 @@ fn id(x: u32) -> Option<u32> {
     (x != NO_TABLE).then_some(x)
 }
 
+/// The name of a state code (`hydra_core::runtime::State::code`).
+pub fn state_name(code: u8) -> &'static str {
+    match code {
+        0 => "idle",
+        1 => "following",
+        2 => "holding",
+        3 => "fault",
+        _ => "unknown",
+    }
+}
+
 /// A fault event's value and limit in engineering units, and the unit
 /// (`hydra_core::runtime::FaultEvent` documents the raw units by kind).
 fn event_values(
@@ -209,12 +220,6 @@ pub fn fault_reports(f: &FaultsMsg, period_us: u32) -> Vec<FaultReport> {
         .collect()
 }
 
-/// Converts a Status message alone (no history, no link figures; master counts per
-/// unit: 1000 for mdeg → degrees).
-pub fn report(s: &StatusMsg) -> Report {
-    report_with(s, &FaultsMsg::default(), 1000, 0.0)
-}
-
 /// Converts a Status message with the fault history and link statistics (`Faults`), the
 /// board's period and the measured round trip.
 pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: f64) -> Report {
@@ -226,14 +231,7 @@ pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: 
         .rev()
         .find(|e| e.code == s.fault_code && s.fault_code != 0);
     Report {
-        state: match s.state {
-            0 => "idle",
-            1 => "following",
-            2 => "holding",
-            3 => "fault",
-            _ => "unknown",
-        }
-        .to_string(),
+        state: state_name(s.state).to_string(),
         fault_code: s.fault_code,
         fault_name: (s.fault_code != 0).then(|| {
             Fault::from_code(s.fault_code)
@@ -540,7 +538,7 @@ mod tests {
             dac: 0,
             reference: 1,
         });
-        let r = report(&s);
+        let r = report_with(&s, &FaultsMsg::default(), 1000, 0.0);
         assert_eq!(r.fault_name.as_deref(), Some("following_error"));
         assert_eq!(r.fault_axis, Some(1));
         assert!(r.unreferenced && !r.link_lost && !r.pressure_stale);
@@ -553,7 +551,10 @@ mod tests {
         assert!((r.axes[0].pos_mm - 1.0).abs() < 1e-12);
         assert_eq!(r.axes[0].reference, "homing");
         s.fault_code = 0;
-        assert_eq!(report(&s).fault_name, None);
+        assert_eq!(
+            report_with(&s, &FaultsMsg::default(), 1000, 0.0).fault_name,
+            None
+        );
     }
 
     #[test]

@@ -71,7 +71,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         What::Check => unreachable!("handled above"),
         What::List => {
             let r = match link.request(&Request::GetStatus)? {
-                Response::Status(s) => status::report(&s),
+                Response::Status(s) => status::report_with(
+                    &s,
+                    &hydra_core::protocol::diag::FaultsMsg::default(),
+                    link.info.period_us,
+                    0.0,
+                ),
                 r => anyhow::bail!("GetStatus answered {r:?}"),
             };
             if args.json {
