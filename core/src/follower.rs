@@ -35,7 +35,9 @@
 //! (one segment read, no end test — `Follower::tick_ff_fast`).
 
 use crate::axis::position::{paper_law_bits, positional_law_ff};
-use crate::axis::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosState};
+use crate::axis::{
+    position_law, AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosRef, PosState,
+};
 use crate::master::{
     MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig, MasterFilterError,
 };
@@ -311,6 +313,58 @@ impl<const S: usize, const N: usize> Follower<S, N> {
     /// Slave `i`'s following-error limit (the law's own), µm (`None`: no such slave).
     pub fn following_error_limit_um(&self, i: usize) -> Option<PosUm> {
         self.axes.get(i).map(|c| PosUm::from_bits(c.fe_limit))
+    }
+
+    /// Every slave's table position at master `m` (an end's value beyond it), µm.
+    pub fn table_position_um(&self, m: Master) -> [PosUm; S] {
+        let mut cursor = 0;
+        let lk = self.table.locate(&mut cursor, m);
+        let mut out = [PosUm::ZERO; S];
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = self.table.value(&lk, i);
+        }
+        out
+    }
+
+    /// One period of position control toward `refs` instead of the table (manual motion,
+    /// `runtime::manual`): per axis the axis law ([`crate::axis::position_law`]: the
+    /// feedback on e = x_ref − x plus kv±·v + ka·a for the positional laws) and the
+    /// output stage; an error beyond the axis' limit latches its fault as in
+    /// [`Follower::tick`]. The master history is not touched (a run restarts it).
+    pub fn tick_manual(&mut self, pos_um: &[PosUm; S], refs: &[PosRef; S]) -> FollowerOutputs<S> {
+        let mut out = FollowerOutputs::default();
+        let axes = self
+            .axes
+            .iter()
+            .zip(self.rt.iter_mut())
+            .zip(pos_um.iter().zip(refs.iter()));
+        for (i, ((c, rt), (&x, r))) in axes.enumerate() {
+            let err = r.x_ref_um.to_bits().saturating_sub(x.to_bits());
+            if rt.fault.is_none() && err.saturating_abs() > c.fe_limit {
+                rt.fault = Some(AxisFault::FollowingError);
+                rt.st.reset();
+            }
+            let (u, code) = if rt.fault.is_some() {
+                (CmdLsb::ZERO, c.valve.null_code())
+            } else {
+                let u = position_law(c, &mut rt.st, r, x);
+                (u, c.valve.output(u))
+            };
+            if let (Some(d), Some(cl), Some(t), Some(e), Some(f)) = (
+                out.dac.get_mut(i),
+                out.cmd_lsb.get_mut(i),
+                out.target_um.get_mut(i),
+                out.error_um.get_mut(i),
+                out.fault.get_mut(i),
+            ) {
+                *d = code;
+                *cl = u;
+                *t = r.x_ref_um;
+                *e = PosUm::from_bits(err);
+                *f = rt.fault;
+            }
+        }
+        out
     }
 
     /// The table in use.

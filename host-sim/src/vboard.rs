@@ -307,7 +307,14 @@ impl Machine {
     fn tick(&mut self) -> Option<Reply> {
         let tl = self.tl.as_mut()?;
         self.host.wall = Instant::now();
+        let before = tl.runtime().state();
         tl.run(&mut self.io, &mut self.host);
+        // The simulated master runs once following starts (a Start, or the end of an
+        // approach), as the machine's master would be started for a run.
+        use hydra_core::runtime::State as S;
+        if before != S::Following && tl.runtime().state() == S::Following {
+            self.io.started = true;
+        }
         self.io.advance(self.steps, self.period_s);
         self.host.sim_ns = self.host.sim_ns.wrapping_add(self.period_ns);
         self.ticks += 1;
@@ -350,12 +357,7 @@ impl DeviceGlue<Law, AXES, PRESSURES> for Machine {
         }
         let r = reply?.result.map_err(|e| e.ok_or(()));
         match r {
-            Ok(()) => {
-                if cmd == Command::Start {
-                    self.io.started = true;
-                }
-                Some(Ok(()))
-            }
+            Ok(()) => Some(Ok(())),
             Err(Ok(e)) => Some(Err(e)),
             // Dropped unapplied (cannot happen here: the tick takes it at once).
             Err(Err(())) => None,

@@ -292,7 +292,8 @@ where
     }
     fn command(&mut self, m: Motion) -> Result<(), Nak> {
         let state = self.glue.read(|rt| state_code(rt.state())).unwrap_or(0xFF);
-        match self.glue.command(motion_command(m)) {
+        let cmd = motion_command(m, &self.st.limits)?;
+        match self.glue.command(cmd) {
             Some(Ok(())) => Ok(()),
             Some(Err(e)) => Err(command_nak(state, e)),
             // No tick answered in time (or none runs yet): detail 0xFFFF.

@@ -9,8 +9,8 @@ use super::diag::{
 use super::frame::{self, FrameDecoder, MAX_WIRE};
 use super::handler::encode_request;
 use super::msg::{
-    AxisLimitsMsg, AxisSample, AxisStatus, Info, InfoLimits, Nak, NakCode, Request, Response,
-    StatusMsg, Telemetry, MAX_AXES, NO_TABLE, PROTOCOL_VERSION,
+    AxisLimitsMsg, AxisSample, AxisStatus, Info, InfoLimits, MotionLimitsMsg, Nak, NakCode,
+    Request, Response, StatusMsg, Telemetry, MAX_AXES, NO_TABLE, PROTOCOL_VERSION,
 };
 use super::wire::Writer;
 use crate::runtime::CaptureRow;
@@ -56,8 +56,17 @@ fn status() -> StatusMsg {
         error_um: 2,
         dac: -35,
         reference: 2,
+        manual: 0,
     });
     s
+}
+
+fn limits() -> MotionLimitsMsg {
+    MotionLimitsMsg {
+        vel_um_per_s: 20_000,
+        acc_um_per_s2: 200_000,
+        jerk_um_per_s3: 4_000_000,
+    }
 }
 
 fn info() -> Info {
@@ -225,6 +234,29 @@ fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
                 })
             )
         ),
+        (
+            "jog",
+            Req(
+                14,
+                Request::Jog {
+                    axis: 0,
+                    speed: -5000 << 8,
+                    limits: limits(),
+                }
+            )
+        ),
+        (
+            "move_to",
+            Req(
+                15,
+                Request::MoveTo {
+                    axis: 0,
+                    to_um: 120_000 << 8,
+                    limits: limits(),
+                }
+            )
+        ),
+        ("approach", Req(16, Request::Approach { limits: limits() })),
         (
             "virtual_master",
             Req(

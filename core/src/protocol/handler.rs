@@ -65,6 +65,29 @@ pub enum Motion {
         /// Slave axis.
         axis: u8,
     },
+    /// Jog slave `axis` at `speed` (Idle or Manual; renews the deadman).
+    Jog {
+        /// Slave axis.
+        axis: u8,
+        /// Target speed, µm/s.
+        speed: crate::units::VelUmPerS,
+        /// Acceleration and jerk.
+        limits: crate::runtime::MotionLimits,
+    },
+    /// Move slave `axis` to `to` by the S-curve (Idle or Manual, at rest, referenced).
+    MoveTo {
+        /// Slave axis.
+        axis: u8,
+        /// Target, µm.
+        to: crate::units::PosUm,
+        /// Velocity, acceleration and jerk limits.
+        limits: crate::runtime::MotionLimits,
+    },
+    /// Move every slave to the table at the present master, then follow.
+    Approach {
+        /// Velocity, acceleration and jerk limits.
+        limits: crate::runtime::MotionLimits,
+    },
 }
 
 /// What the handler needs from the machine it controls: the runtime on the board, the
@@ -686,6 +709,33 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                     }
                 }),
             Request::Home { axis } => dev.command(Motion::Home { axis }),
+            Request::Jog {
+                axis,
+                speed,
+                limits,
+            } => dev.command(Motion::Jog {
+                axis,
+                speed: crate::units::VelUmPerS::from_bits(speed),
+                limits: limits.into(),
+            }),
+            Request::MoveTo {
+                axis,
+                to_um,
+                limits,
+            } => dev.command(Motion::MoveTo {
+                axis,
+                to: crate::units::PosUm::from_bits(to_um),
+                limits: limits.into(),
+            }),
+            Request::Approach { limits } => dev
+                .command(Motion::Approach {
+                    limits: limits.into(),
+                })
+                .map(|()| {
+                    // Following starts at the approach's end: the link watchdog watches.
+                    self.link.host_started = true;
+                    self.link.lost = false;
+                }),
             Request::GetParam { axis, param } => {
                 let value = match ParamId::from_u8(param) {
                     Some(ParamId::LinkTimeoutMs) => Ok(self.link.timeout_ms as f32),

@@ -108,6 +108,9 @@ impl Device<S, N> for Mock {
                 Ok(())
             }
             Motion::Home { .. } => Ok(()),
+            Motion::Jog { .. } | Motion::MoveTo { .. } | Motion::Approach { .. } => {
+                Err(Nak::with(NakCode::BadState, 0, 1))
+            }
         }
     }
     fn persisted_offset_um(&self, _axis: u8) -> Option<f32> {

@@ -14,7 +14,7 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 /// Protocol version reported in `Info`.
-pub const PROTOCOL_VERSION: u8 = 4;
+pub const PROTOCOL_VERSION: u8 = 5;
 /// Most axes a `Status`/`Telemetry` message can describe.
 pub const MAX_AXES: usize = 8;
 /// "No table" in id fields.
@@ -48,6 +48,12 @@ pub mod ty {
     pub const SET_POSITION: u8 = 0x24;
     /// Request: arm homing of a slave (referenced at its next reference edge).
     pub const HOME: u8 = 0x25;
+    /// Request: jog a slave (renew every 100 ms: the deadman stops it after 300 ms).
+    pub const JOG: u8 = 0x26;
+    /// Request: move a slave to a position by the S-curve.
+    pub const MOVE_TO: u8 = 0x27;
+    /// Request: move every slave to the table at the present master, then follow.
+    pub const APPROACH: u8 = 0x28;
     /// Request: set one parameter.
     pub const SET_PARAM: u8 = 0x30;
     /// Request: persist the active table to flash.
@@ -172,13 +178,30 @@ pub enum NakCode {
     /// VirtualMaster on a board whose master is a real encoder (or an unknown operation:
     /// `detail` = the operation).
     NoVirtualMaster = 38,
+    /// Jog / MoveTo / Approach refused (`detail` = axis, `detail2` = why: see
+    /// [`motion_reason`]).
+    Motion = 39,
+}
+
+/// `detail2` of a [`NakCode::Motion`] Nak.
+pub mod motion_reason {
+    /// A limit (speed, acceleration, jerk) is zero or unrepresentable at the period.
+    pub const LIMITS: u8 = 1;
+    /// The target is outside the axis' limits, or a jog points out of them.
+    pub const OUTSIDE_LIMITS: u8 = 2;
+    /// The axis is moving (a move starts only from rest).
+    pub const MOVING: u8 = 3;
+    /// The move cannot be planned (too long).
+    pub const PLAN: u8 = 4;
+    /// The speed is above the axis' `limits/max_speed_um_per_s`.
+    pub const TOO_FAST: u8 = 5;
 }
 
 impl NakCode {
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use NakCode::*;
-        const ALL: [NakCode; 38] = [
+        const ALL: [NakCode; 39] = [
             UnknownType,
             Truncated,
             Oversized,
@@ -217,6 +240,7 @@ impl NakCode {
             CaptureTooLong,
             CaptureTrigger,
             NoVirtualMaster,
+            Motion,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -357,6 +381,30 @@ pub enum Request<'a> {
         /// Slave axis (0-based).
         axis: u8,
     },
+    /// Jog slave `axis` at `speed` (0: brake to rest); the host renews it every 100 ms.
+    Jog {
+        /// Slave axis (0-based).
+        axis: u8,
+        /// Target speed, `I24F8` µm/s raw (signed).
+        speed: i32,
+        /// Acceleration and jerk (`vel_um_per_s` unused).
+        limits: MotionLimitsMsg,
+    },
+    /// Move slave `axis` to `to_um` by the S-curve of `limits`.
+    MoveTo {
+        /// Slave axis (0-based).
+        axis: u8,
+        /// Target, `I24F8` µm raw.
+        to_um: i32,
+        /// Velocity, acceleration and jerk limits.
+        limits: MotionLimitsMsg,
+    },
+    /// Move every slave to the table at the present master by the S-curve of `limits`,
+    /// then follow.
+    Approach {
+        /// Velocity, acceleration and jerk limits.
+        limits: MotionLimitsMsg,
+    },
     /// Set one parameter.
     SetParam {
         /// Axis (ignored by board-wide parameters).
@@ -442,6 +490,25 @@ impl<'a> Request<'a> {
             ty::HOME => Request::Home {
                 axis: body(payload)?,
             },
+            ty::JOG => {
+                let (axis, speed, limits) = body(payload)?;
+                Request::Jog {
+                    axis,
+                    speed,
+                    limits,
+                }
+            }
+            ty::MOVE_TO => {
+                let (axis, to_um, limits) = body(payload)?;
+                Request::MoveTo {
+                    axis,
+                    to_um,
+                    limits,
+                }
+            }
+            ty::APPROACH => Request::Approach {
+                limits: body(payload)?,
+            },
             ty::SET_PARAM => {
                 let (axis, param, value) = body(payload)?;
                 Request::SetParam { axis, param, value }
@@ -484,6 +551,9 @@ impl<'a> Request<'a> {
             Request::ClearFault => ty::CLEAR_FAULT,
             Request::SetPosition { .. } => ty::SET_POSITION,
             Request::Home { .. } => ty::HOME,
+            Request::Jog { .. } => ty::JOG,
+            Request::MoveTo { .. } => ty::MOVE_TO,
+            Request::Approach { .. } => ty::APPROACH,
             Request::SetParam { .. } => ty::SET_PARAM,
             Request::Save => ty::SAVE,
             Request::SetTelemetry { .. } => ty::SET_TELEMETRY,
@@ -517,6 +587,17 @@ impl<'a> Request<'a> {
             Request::Activate { id } => put(&id, buf),
             Request::SetPosition { axis, pos_um } => put(&(axis, pos_um), buf),
             Request::Home { axis } => put(&axis, buf),
+            Request::Jog {
+                axis,
+                speed,
+                limits,
+            } => put(&(axis, speed, limits), buf),
+            Request::MoveTo {
+                axis,
+                to_um,
+                limits,
+            } => put(&(axis, to_um, limits), buf),
+            Request::Approach { limits } => put(&limits, buf),
             Request::SetParam { axis, param, value } => put(&(axis, param, value), buf),
             Request::SetTelemetry { decimation } => put(&decimation, buf),
             Request::GetParam { axis, param } => put(&(axis, param), buf),
@@ -644,12 +725,35 @@ pub struct AxisStatus {
     pub dac: i16,
     /// Reference: 0 not referenced, 1 homing armed (waiting for the edge), 2 referenced.
     pub reference: u8,
+    /// Manual motion (state Manual): 0 holding, 1 jogging, 2 moving by an S-curve.
+    pub manual: u8,
+}
+
+impl From<MotionLimitsMsg> for crate::runtime::MotionLimits {
+    fn from(m: MotionLimitsMsg) -> Self {
+        Self {
+            vel_um_per_s: m.vel_um_per_s,
+            acc_um_per_s2: m.acc_um_per_s2,
+            jerk_um_per_s3: m.jerk_um_per_s3,
+        }
+    }
+}
+
+/// The limits of a manual motion (Jog, MoveTo, Approach), integers in µm-based units.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MotionLimitsMsg {
+    /// Velocity limit, µm/s.
+    pub vel_um_per_s: u32,
+    /// Acceleration limit, µm/s².
+    pub acc_um_per_s2: u32,
+    /// Jerk limit, µm/s³.
+    pub jerk_um_per_s3: u32,
 }
 
 /// `Status`.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct StatusMsg {
-    /// Runtime state: 0 Idle, 1 Following, 2 Holding, 3 Fault.
+    /// Runtime state: 0 Idle, 1 Following, 2 Holding, 3 Fault, 4 Manual.
     pub state: u8,
     /// Flags: bit 0 end of table, bit 1 activation pending, bit 2 upload in progress,
     /// bit 3 a committed table waits, bit 4 session open, bit 5 a slave is not
@@ -882,7 +986,8 @@ mod tests {
         assert_eq!(NakCode::from_u8(36), Some(NakCode::CaptureTooLong));
         assert_eq!(NakCode::from_u8(37), Some(NakCode::CaptureTrigger));
         assert_eq!(NakCode::from_u8(38), Some(NakCode::NoVirtualMaster));
-        assert_eq!(NakCode::from_u8(39), None);
+        assert_eq!(NakCode::from_u8(39), Some(NakCode::Motion));
+        assert_eq!(NakCode::from_u8(40), None);
     }
 
     #[test]
@@ -968,6 +1073,7 @@ mod tests {
                 error_um: 3,
                 dac: -4,
                 reference: 2,
+                manual: 1,
             })
             .unwrap();
         let mut tm = Telemetry {

@@ -3,10 +3,12 @@
 
 use super::handler::Motion;
 use super::msg::{
-    AxisStatus, Nak, NakCode, StatusMsg, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED, INPUT_ESTOP,
-    INPUT_VALVE_POWER,
+    motion_reason, AxisStatus, Nak, NakCode, StatusMsg, FLAG_PRESSURE_STALE, FLAG_UNREFERENCED,
+    INPUT_ESTOP, INPUT_VALVE_POWER,
 };
-use crate::runtime::{Command, CommandError, Fault, RefState, State, Status};
+use crate::runtime::{Command, CommandError, Fault, MotionError, RefState, State, Status};
+use crate::table::TableLimits;
+use crate::units::PosUm;
 
 /// `Refused` detail: the device's law cannot be built from the table with the present
 /// parameters.
@@ -14,16 +16,63 @@ pub const REFUSED_LAW: u16 = 0;
 /// `Refused` detail: the runtime was not at a safe point.
 pub const REFUSED_NOT_SAFE: u16 = 1;
 
-/// The runtime command of a protocol motion request.
-pub const fn motion_command(m: Motion) -> Command {
-    match m {
+/// The runtime command of a protocol motion request; a manual motion takes the slave's
+/// position limits from `limits` (a missing slave gets an empty range: the runtime
+/// answers `NoAxis`). A speed above the slave's `max_speed_um_per_s` is refused here
+/// ([`motion_reason::TOO_FAST`]).
+pub fn motion_command<const S: usize>(m: Motion, limits: &TableLimits<S>) -> Result<Command, Nak> {
+    let axis_limits = |axis: u8| limits.axes.get(usize::from(axis));
+    let range =
+        |axis: u8| axis_limits(axis).map_or((PosUm::ZERO, PosUm::ZERO), |a| (a.min_um, a.max_um));
+    let speed_ok = |axis: u8, v: i64| {
+        axis_limits(axis).is_none_or(|a| v <= i64::from(a.max_speed_um_per_s.to_num::<i32>()))
+    };
+    let too_fast = |axis: u8| Nak::with(NakCode::Motion, u16::from(axis), motion_reason::TOO_FAST);
+    Ok(match m {
         Motion::Start => Command::Start,
         Motion::Stop => Command::Stop,
         Motion::Hold => Command::Hold,
         Motion::ClearFault => Command::ClearFault,
         Motion::SetPosition { axis, pos_um } => Command::SetPosition { axis, pos_um },
         Motion::Home { axis } => Command::Home { axis },
-    }
+        Motion::Jog {
+            axis,
+            speed,
+            limits,
+        } => {
+            if !speed_ok(axis, i64::from(speed.to_num::<i32>().saturating_abs())) {
+                return Err(too_fast(axis));
+            }
+            Command::Jog {
+                axis,
+                speed,
+                limits,
+                range: range(axis),
+            }
+        }
+        Motion::MoveTo { axis, to, limits } => {
+            if !speed_ok(axis, i64::from(limits.vel_um_per_s)) {
+                return Err(too_fast(axis));
+            }
+            Command::MoveTo {
+                axis,
+                to,
+                limits,
+                range: range(axis),
+            }
+        }
+        Motion::Approach { limits } => {
+            if let Some(axis) = (0..S).find(|&i| {
+                !speed_ok(
+                    u8::try_from(i).unwrap_or(u8::MAX),
+                    i64::from(limits.vel_um_per_s),
+                )
+            }) {
+                return Err(too_fast(u8::try_from(axis).unwrap_or(u8::MAX)));
+            }
+            Command::Approach { limits }
+        }
+    })
 }
 
 /// The Nak of a command the runtime refused with `e` in state `state`: the typed codes
@@ -33,6 +82,16 @@ pub const fn command_nak(state: u8, e: CommandError) -> Nak {
     match e {
         CommandError::NotReferenced { axis } => Nak::with(NakCode::NotReferenced, axis as u16, 0),
         CommandError::NoAxis { axis } => Nak::with(NakCode::NoAxis, axis as u16, 0),
+        CommandError::Motion { axis, error } => Nak::with(
+            NakCode::Motion,
+            axis as u16,
+            match error {
+                MotionError::Limits => motion_reason::LIMITS,
+                MotionError::OutsideLimits => motion_reason::OUTSIDE_LIMITS,
+                MotionError::Moving => motion_reason::MOVING,
+                MotionError::Plan => motion_reason::PLAN,
+            },
+        ),
         _ => Nak::with(NakCode::BadState, state as u16, refusal_reason(e)),
     }
 }
@@ -48,6 +107,7 @@ pub const fn refusal_reason(e: CommandError) -> u8 {
         CommandError::Busy => 6,
         CommandError::NotReferenced { .. } => 7,
         CommandError::NoAxis { .. } => 8,
+        CommandError::Motion { .. } => 9,
     }
 }
 
@@ -99,13 +159,14 @@ pub fn fill_status<const S: usize, const P: usize>(
     out.axes.clear();
     out.inputs =
         if st.estop { INPUT_ESTOP } else { 0 } | if st.enable { INPUT_VALVE_POWER } else { 0 };
-    for ((((p, t), e), d), r) in st
+    for (((((p, t), e), d), r), m) in st
         .pos_um
         .iter()
         .zip(&st.target_um)
         .zip(&st.error_um)
         .zip(&st.dac)
         .zip(&st.reference)
+        .zip(&st.manual)
     {
         let _ = out.axes.push(AxisStatus {
             pos_um: p.to_bits(),
@@ -117,6 +178,7 @@ pub fn fill_status<const S: usize, const P: usize>(
                 RefState::Homing => 1,
                 RefState::Referenced => 2,
             },
+            manual: m.code(),
         });
     }
 }
@@ -148,6 +210,7 @@ mod tests {
             timing,
             reference: [RefState::Referenced; 2],
             pressure_ok: true,
+            manual: [crate::runtime::ManualKind::Hold; 2],
         }
     }
 
@@ -197,10 +260,72 @@ mod tests {
 
     #[test]
     fn motions_map_to_commands_and_naks_carry_their_detail() {
-        assert_eq!(motion_command(Motion::Start), Command::Start);
-        assert_eq!(motion_command(Motion::Stop), Command::Stop);
-        assert_eq!(motion_command(Motion::Hold), Command::Hold);
-        assert_eq!(motion_command(Motion::ClearFault), Command::ClearFault);
+        let lim = crate::table::TableLimits::<1> {
+            master_speed_per_s: crate::units::MasterRate::from_num(10_000),
+            axes: [crate::table::AxisLimits {
+                min_um: PosUm::from_num(-10),
+                max_um: PosUm::from_num(500),
+                max_speed_um_per_s: crate::units::VelUmPerS::from_num(20_000),
+            }],
+        };
+        let mc = |m| motion_command(m, &lim);
+        assert_eq!(mc(Motion::Start), Ok(Command::Start));
+        assert_eq!(mc(Motion::Stop), Ok(Command::Stop));
+        assert_eq!(mc(Motion::Hold), Ok(Command::Hold));
+        assert_eq!(mc(Motion::ClearFault), Ok(Command::ClearFault));
+        // A manual motion carries the axis' range; too fast is refused before the runtime.
+        let limits = crate::runtime::MotionLimits {
+            vel_um_per_s: 20_000,
+            acc_um_per_s2: 1,
+            jerk_um_per_s3: 1,
+        };
+        let to = PosUm::from_num(3);
+        assert_eq!(
+            mc(Motion::MoveTo {
+                axis: 0,
+                to,
+                limits
+            }),
+            Ok(Command::MoveTo {
+                axis: 0,
+                to,
+                limits,
+                range: (PosUm::from_num(-10), PosUm::from_num(500))
+            })
+        );
+        let fast = crate::runtime::MotionLimits {
+            vel_um_per_s: 20_001,
+            ..limits
+        };
+        let too_fast = Err(Nak::with(NakCode::Motion, 0, motion_reason::TOO_FAST));
+        assert_eq!(
+            mc(Motion::MoveTo {
+                axis: 0,
+                to,
+                limits: fast
+            }),
+            too_fast
+        );
+        assert_eq!(mc(Motion::Approach { limits: fast }), too_fast);
+        let speed = crate::units::VelUmPerS::from_num(-20_001);
+        assert_eq!(
+            mc(Motion::Jog {
+                axis: 0,
+                speed,
+                limits
+            }),
+            too_fast
+        );
+        assert_eq!(
+            command_nak(
+                4,
+                CommandError::Motion {
+                    axis: 1,
+                    error: MotionError::Moving
+                }
+            ),
+            Nak::with(NakCode::Motion, 1, motion_reason::MOVING)
+        );
         assert_eq!(
             (bad_state(2).code, bad_state(2).detail),
             (NakCode::BadState, 2)

@@ -7,6 +7,7 @@
 //! [`Controller::restart`] whenever control begins (Idle → Following/Holding), so the law
 //! can clear its history and integrators and start bumplessly from the measured state.
 
+use crate::axis::PosRef;
 use crate::units::{DacCode, Master, PosUm};
 
 /// What the law gets each tick.
@@ -65,6 +66,17 @@ pub trait Controller<const S: usize> {
     /// One control period. Must not fail or panic for any input.
     fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S>;
 
+    /// One period of manual control (`super::manual`): each slave's position law toward
+    /// `refs` (position, velocity and acceleration feed-forward) instead of the table.
+    /// `end_of_table` is false. Must not fail or panic for any input.
+    fn tick_manual(&mut self, inputs: &ControlInputs<S>, refs: &[PosRef; S]) -> ControlOutputs<S>;
+
+    /// Every slave's table position at `master` (the approach's targets), if the law has
+    /// a table.
+    fn table_position_um(&self, _master: Master) -> Option<[PosUm; S]> {
+        None
+    }
+
     /// The code that puts each slave's valve spool at its null (the calibrated safe
     /// output written in Idle and Fault).
     fn null_codes(&self) -> [DacCode; S];
@@ -93,6 +105,18 @@ macro_rules! forward_controller {
 
             fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S> {
                 (**self).tick(inputs)
+            }
+
+            fn tick_manual(
+                &mut self,
+                inputs: &ControlInputs<S>,
+                refs: &[PosRef; S],
+            ) -> ControlOutputs<S> {
+                (**self).tick_manual(inputs, refs)
+            }
+
+            fn table_position_um(&self, master: Master) -> Option<[PosUm; S]> {
+                (**self).table_position_um(master)
             }
 
             fn null_codes(&self) -> [DacCode; S] {
@@ -182,6 +206,26 @@ pub(crate) mod mock {
             }
             out.end_of_table = inputs.master.to_num::<i64>() > self.end_master;
             out
+        }
+
+        fn tick_manual(
+            &mut self,
+            inputs: &ControlInputs<S>,
+            refs: &[PosRef; S],
+        ) -> ControlOutputs<S> {
+            let mut out = ControlOutputs::at(self.nulls);
+            for i in 0..S {
+                let e = refs[i].x_ref_um.saturating_sub(inputs.pos_um[i]);
+                out.error_um[i] = e;
+                let code = e.to_num::<i32>().saturating_mul(self.gain);
+                out.dac[i] = DacCode::new_clamped(code.saturating_add(self.nulls[i].get().into()));
+                out.axis_fault[i] = self.axis_fault[i];
+            }
+            out
+        }
+
+        fn table_position_um(&self, master: Master) -> Option<[PosUm; S]> {
+            Some([self.target(master); S])
         }
 
         fn null_codes(&self) -> [DacCode; S] {

@@ -12,6 +12,7 @@
 //! flag is not mapped: the runtime's encoder plausibility check is stricter.
 
 use super::controller::{ControlInputs, ControlOutputs, Controller, LawFault};
+use crate::axis::PosRef;
 use crate::follower::{AxisFault, Follower, FollowerInputs};
 use crate::units::{DacCode, Master};
 
@@ -40,6 +41,22 @@ impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
                 })
             }),
         }
+    }
+
+    fn tick_manual(&mut self, inputs: &ControlInputs<S>, refs: &[PosRef; S]) -> ControlOutputs<S> {
+        let out = Follower::tick_manual(self, &inputs.pos_um, refs);
+        ControlOutputs {
+            dac: out.dac,
+            error_um: out.error_um,
+            end_of_table: false,
+            axis_fault: out
+                .fault
+                .map(|f| f.map(|AxisFault::FollowingError| LawFault::FollowingError)),
+        }
+    }
+
+    fn table_position_um(&self, master: Master) -> Option<[crate::units::PosUm; S]> {
+        (!self.table().is_empty()).then(|| Follower::table_position_um(self, master))
     }
 
     fn null_codes(&self) -> [DacCode; S] {

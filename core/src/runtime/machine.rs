@@ -1,4 +1,4 @@
-//! The runtime state machine: Idle, Following, Holding, Fault.
+//! The runtime state machine: Idle, Following, Holding, Manual, Fault.
 //!
 //! ```text
 //!            Start                         Hold
@@ -7,7 +7,17 @@
 //!    │  ◀─────────────────── Stop ─────────────────┘    end of table)
 //!    │ ClearFault (cause gone)
 //!   Fault ◀──────── any fault, from every state (latched)
+//!
+//!   Idle ── Jog / MoveTo / Approach ──▶ Manual ── Stop ──▶ Idle
+//!   Manual ── Start (every slave at rest), or the approach's end ──▶ Following
 //! ```
+//!
+//! In `Manual` every slave follows its own reference (`super::manual`: hold, jog, S-curve
+//! move) under the law's position control ([`Controller::tick_manual`]); Hold brakes every
+//! moving slave to rest and stays in `Manual`. Approach moves every slave to the table's
+//! value at the present master and starts following in the tick the last one arrives, if
+//! the master is still within `resume_window_counts` of where it was (else the slaves
+//! hold in `Manual`).
 //!
 //! One [`Runtime::step`] per control period, in this order:
 //! 1. encoder counts → master (counts) and slave positions (µm);
@@ -30,16 +40,20 @@
 //! instantaneous causes (E-stop, overrun, encoder step) is present; the latched record
 //! keeps the first cause and a set of every kind seen since.
 
+#[path = "machine_manual.rs"]
+mod manual_cmd;
+
 use super::config::{MasterSource, RuntimeCoeffs};
 use super::controller::{ControlInputs, Controller, LawFault};
 use super::encoder::{plausible, step};
 use super::fault::{Fault, FaultEvent, FaultHistory, FaultRecord, FaultSet};
 use super::io::{Board, EncoderSample};
+use super::manual::{Manual, ManualKind, MotionError, MotionLimits};
 use super::reference::{RefState, References};
 use super::stall::StallMonitor;
 use super::timing::TickTiming;
 use crate::fixed_point::sat_i32;
-use crate::units::{Counts, DacCode, Master, PosUm, PressureBar};
+use crate::units::{Counts, DacCode, Master, PosUm, PressureBar, VelUmPerS};
 
 /// Why the runtime is holding.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -63,17 +77,20 @@ pub enum State {
     Holding(HoldReason),
     /// Latched fault: valves at null, enable off.
     Fault,
+    /// Slaves moved by hand (jog, move, approach) under position control.
+    Manual,
 }
 
 impl State {
     /// The state's code in Status and in a tick sample's state bits: 0 Idle,
-    /// 1 Following, 2 Holding, 3 Fault.
+    /// 1 Following, 2 Holding, 3 Fault, 4 Manual.
     pub const fn code(self) -> u8 {
         match self {
             State::Idle => 0,
             State::Following => 1,
             State::Holding(_) => 2,
             State::Fault => 3,
+            State::Manual => 4,
         }
     }
 }
@@ -103,6 +120,36 @@ pub enum Command {
         /// Slave axis (0-based).
         axis: u8,
     },
+    /// Idle or Manual: jog slave `axis` at `speed` (0: brake to rest); renews its deadman
+    /// (`super::manual::JOG_DEADMAN_US`). Within `range` once the slave is referenced.
+    Jog {
+        /// Slave axis (0-based).
+        axis: u8,
+        /// Target speed, µm/s (signed).
+        speed: VelUmPerS,
+        /// Acceleration and jerk (the velocity limit is not used: `speed` is the jog's).
+        limits: MotionLimits,
+        /// The slave's position limits (min, max), µm.
+        range: (PosUm, PosUm),
+    },
+    /// Idle or Manual, slave at rest and referenced: move slave `axis` to `to` by the
+    /// S-curve of `limits`; refused outside `range`.
+    MoveTo {
+        /// Slave axis (0-based).
+        axis: u8,
+        /// Target, µm.
+        to: PosUm,
+        /// Velocity, acceleration and jerk limits.
+        limits: MotionLimits,
+        /// The slave's position limits (min, max), µm.
+        range: (PosUm, PosUm),
+    },
+    /// Idle or Manual at rest, every slave referenced: move every slave to the table's
+    /// value at the present master, then follow (module docs).
+    Approach {
+        /// Velocity, acceleration and jerk limits of every slave's move.
+        limits: MotionLimits,
+    },
 }
 
 /// Why a command was refused (nothing changed).
@@ -131,6 +178,13 @@ pub enum CommandError {
     NoAxis {
         /// The axis asked for.
         axis: u8,
+    },
+    /// A manual motion of slave `axis` refused for `error`.
+    Motion {
+        /// The slave.
+        axis: u8,
+        /// Why.
+        error: MotionError,
     },
 }
 
@@ -205,6 +259,8 @@ pub struct Status<const S: usize, const P: usize> {
     pub reference: [RefState; S],
     /// The pressure inputs were live this tick ([`super::io::PressureInput::healthy`]).
     pub pressure_ok: bool,
+    /// What each slave does in manual control (`Hold` outside `Manual`).
+    pub manual: [ManualKind; S],
 }
 
 /// The runtime: states, fault rules and outputs around a control law `C`.
@@ -227,6 +283,10 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     pos_offset_um: [PosUm; S],
     /// The board's pressure inputs were live at the last `tick_io`.
     pressure_ok: bool,
+    /// The slaves' references in `Manual`.
+    manual: Manual<S>,
+    /// The master an approach started at (following begins when it ends).
+    approach: Option<Master>,
 }
 
 /// Slave position from a count: `count · scale + offset` (scale in Q.32, result I24F8).
@@ -267,10 +327,13 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 timing: TickTiming::default(),
                 reference: [RefState::Unreferenced; S],
                 pressure_ok: true,
+                manual: [ManualKind::Hold; S],
             },
             refs: References::new(cfg.slave_reference, cfg.home_position_um),
             pos_offset_um: cfg.slave_offset_um,
             pressure_ok: true,
+            manual: Manual::holding(&[PosUm::ZERO; S], cfg.period_us),
+            approach: None,
         };
         rt.status.reference = *rt.refs.states();
         rt.status.dac = rt.null_codes();
@@ -506,7 +569,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         })
     }
 
-    fn begin_control(&mut self, inputs: &ControlInputs<S>) {
+    pub(super) fn begin_control(&mut self, inputs: &ControlInputs<S>) {
         if let Some(law) = self.law.as_mut() {
             law.restart(inputs);
         }
@@ -522,7 +585,17 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
     ) -> Result<(), CommandError> {
         let has_law = self.law.is_some();
         let unreferenced = self.refs.first_unreferenced();
+        let manual_at_rest = self.state == State::Manual && self.manual.at_rest();
         match (cmd, self.state) {
+            (Command::Jog { .. } | Command::MoveTo { .. } | Command::Approach { .. }, _) => {
+                self.manual_command(cmd, master, pos_um)
+            }
+            (Command::Hold, State::Manual) => {
+                self.manual.stop_all();
+                self.approach = None;
+                Ok(())
+            }
+            (Command::Start, State::Manual) if !manual_at_rest => Err(CommandError::Busy),
             (Command::SetPosition { axis, pos_um: at }, State::Idle | State::Fault) => {
                 let measured = *pos_um
                     .get(usize::from(axis))
@@ -548,26 +621,28 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 }
             },
             (Command::ClearFault | Command::Stop, _) => {
-                if matches!(self.state, State::Following | State::Holding(_)) {
+                if matches!(
+                    self.state,
+                    State::Following | State::Holding(_) | State::Manual
+                ) {
                     self.state = State::Idle;
+                    self.approach = None;
                 }
                 Ok(())
             }
             (Command::Start | Command::Hold, State::Fault) => Err(CommandError::Faulted),
             (Command::Start | Command::Hold, _) if !has_law => Err(CommandError::NoController),
             (Command::Start, State::Following) | (Command::Hold, State::Holding(_)) => Ok(()),
-            (Command::Start | Command::Hold, State::Idle) if unreferenced.is_some() => {
+            (Command::Start | Command::Hold, State::Idle | State::Manual)
+                if unreferenced.is_some() =>
+            {
                 Err(CommandError::NotReferenced {
                     axis: unreferenced.unwrap_or(0),
                 })
             }
-            (Command::Start | Command::Hold, State::Idle) => {
+            (Command::Start | Command::Hold, State::Idle | State::Manual) => {
                 self.time_master = 0;
-                let m = if self.cfg.master_source == MasterSource::Time {
-                    Master::ZERO
-                } else {
-                    master
-                };
+                let m = self.run_master(master);
                 self.begin_control(&ControlInputs {
                     master: m,
                     pos_um: *pos_um,
@@ -631,7 +706,12 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         let mut error_um = [PosUm::ZERO; S];
         let mut law_dac = None;
         let mut fed_master = live_master;
-        if matches!(self.state, State::Following | State::Holding(_)) {
+        if self.state == State::Manual {
+            if let Some(out) = self.manual_tick(live_master, &pos_um) {
+                error_um = out.error_um;
+                law_dac = Some(out.dac);
+            }
+        } else if matches!(self.state, State::Following | State::Holding(_)) {
             if self.cfg.master_source == MasterSource::Time {
                 fed_master = self.master_from(s.enc.master);
             }
@@ -670,7 +750,10 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         }
 
         // 5. outputs.
-        let controlling = matches!(self.state, State::Following | State::Holding(_));
+        let controlling = matches!(
+            self.state,
+            State::Following | State::Holding(_) | State::Manual
+        );
         let (dac, enable) = match (controlling, law_dac) {
             (true, Some(d)) => (d, true),
             _ => (self.null_codes(), false),
@@ -702,10 +785,15 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         st.pressure_bar = s.pressure_bar;
         st.reference = *self.refs.states();
         st.pressure_ok = self.pressure_ok;
+        st.manual = if self.state == State::Manual {
+            self.manual.kinds()
+        } else {
+            [ManualKind::Hold; S]
+        };
         TickOutputs { dac, enable, reply }
     }
 
-    fn check_law(&mut self, error_um: &[PosUm; S], axis_fault: &[Option<LawFault>; S]) {
+    pub(super) fn check_law(&mut self, error_um: &[PosUm; S], axis_fault: &[Option<LawFault>; S]) {
         let per_axis = error_um
             .iter()
             .zip(axis_fault.iter())

@@ -15,7 +15,8 @@
 //! - [`tick`]: the board's per-period entry point ([`TickLoop::run`]) both boards call;
 //! - [`stall`]: master-stall detection; [`timing`]: tick execution-time statistics;
 //! - [`pressure`]: transducer scaling;
-//! - [`reference`]: where each slave is (set-position, homing, absolute encoders).
+//! - [`reference`]: where each slave is (set-position, homing, absolute encoders);
+//! - [`manual`]: moving slaves by hand (jog with a deadman, S-curve moves, the approach).
 
 pub mod capture;
 pub mod config;
@@ -25,6 +26,7 @@ pub mod fault;
 pub mod follower_law;
 pub mod io;
 pub mod machine;
+pub mod manual;
 pub mod pressure;
 pub mod reference;
 pub mod stall;
@@ -33,6 +35,8 @@ pub mod timing;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_manual;
 #[cfg(test)]
 mod tests_reference;
 
@@ -49,6 +53,7 @@ pub use io::{Board, EncoderInput, EncoderSample, PressureInput, SafetyInput, Val
 pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
 };
+pub use manual::{ManualKind, MotionError, MotionLimits, JOG_DEADMAN_US};
 pub use reference::{RefState, ReferenceMode, References};
 pub use tick::{
     Reply, TickCommand, TickHost, TickLoop, TickSample, FLAG_COMMAND, FLAG_END_OF_TABLE,

@@ -357,6 +357,14 @@ struct Ev {
     end: bool,
 }
 
+fn manual_limits() -> MotionLimits {
+    MotionLimits {
+        vel_um_per_s: 50_000,
+        acc_um_per_s2: 500_000,
+        jerk_um_per_s3: 5_000_000,
+    }
+}
+
 fn ev() -> impl Strategy<Value = Ev> {
     let cmd = prop_oneof![
         12 => Just(None),
@@ -364,6 +372,19 @@ fn ev() -> impl Strategy<Value = Ev> {
         1 => Just(Some(Command::Hold)),
         1 => Just(Some(Command::Stop)),
         2 => Just(Some(Command::ClearFault)),
+        1 => (0u8..3, -20_000i32..20_000).prop_map(|(axis, v)| Some(Command::Jog {
+            axis,
+            speed: crate::units::VelUmPerS::from_num(v),
+            limits: manual_limits(),
+            range: (PosUm::from_num(-1e6), PosUm::from_num(1e6)),
+        })),
+        1 => (0u8..3, -2000i32..2000).prop_map(|(axis, to)| Some(Command::MoveTo {
+            axis,
+            to: PosUm::from_num(to),
+            limits: manual_limits(),
+            range: (PosUm::from_num(-1e6), PosUm::from_num(1e6)),
+        })),
+        1 => Just(Some(Command::Approach { limits: manual_limits() })),
     ];
     let master_step = prop_oneof![90 => -3i32..=3, 8 => Just(0), 2 => -200i32..=200];
     let dev = prop_oneof![97 => -50i32..=50, 3 => -3000i32..=3000];
@@ -394,7 +415,7 @@ proptest! {
 
     /// Safety invariants over random command/fault sequences:
     /// - Fault or Idle ⇒ every valve at its null and the enable off, in that very tick;
-    /// - enable on ⇔ Following or Holding;
+    /// - enable on ⇔ Following, Holding or Manual;
     /// - an instantaneous cause (E-stop, overrun, encoder step) ⇒ Fault after the tick;
     /// - Fault is left only by an accepted ClearFault in a tick without a cause;
     /// - a latched record exists ⇔ Fault;
@@ -439,7 +460,7 @@ proptest! {
                     prop_assert_eq!(out.dac, nulls());
                     prop_assert!(!out.enable);
                 }
-                State::Following | State::Holding(_) => {
+                State::Following | State::Holding(_) | State::Manual => {
                     prop_assert!(out.enable);
                     for (err, l) in r.status().error_um.iter().zip(lim.iter()) {
                         prop_assert!(err.unsigned_abs() <= l.unsigned_abs());
@@ -457,15 +478,19 @@ proptest! {
                 prop_assert!(!cause);
                 prop_assert_eq!(after, State::Idle);
             }
+            // The law's end of table may move Following → Holding in the tick of a refusal.
+            let law_moved = before == State::Following
+                && after == State::Holding(HoldReason::EndOfTable);
             if let Some(Err(_)) = out.reply {
-                prop_assert!(after == before || after == State::Fault,
+                prop_assert!(after == before || after == State::Fault || law_moved,
                     "refused command changed {:?} → {:?}", before, after);
             }
             if e.cmd.is_none() && before != after {
                 // Without a command only a fault or the end of the table changes state.
+                // (or the end of an approach starts following).
                 prop_assert!(after == State::Fault
-                    || (before == State::Following
-                        && after == State::Holding(HoldReason::EndOfTable)));
+                    || law_moved
+                    || (before == State::Manual && after == State::Following));
             }
         }
     }

@@ -3,6 +3,9 @@
 //! referenced: `set-position --axis N --mm X` (the slave is at X mm now) or `home --axis N`
 //! (referenced at its next index / reference-switch edge).
 //!
+//! `host-sim motion --port PORT jog --axis N --speed-mm-s V [--seconds S]`, `motion move
+//! --axis N --to-mm X`, `motion start --approach`: moving slaves by hand (`manual`).
+//!
 //! `host-sim motion --port PORT master start|stop|rewind|status [--speed-scale K]`: the
 //! virtual board's simulated master (`serve`), so a run can be repeated without
 //! restarting it; prints where the master is and whether it reached its end (a real
@@ -28,6 +31,11 @@ pub enum What {
     Home,
     /// The virtual board's master: start, stop, rewind or status.
     Master,
+    /// Jog slave `--axis` at `--speed-mm-s` (renewed every 100 ms; stops when the host
+    /// stops sending).
+    Jog,
+    /// Move slave `--axis` to `--to-mm` by the S-curve; returns when it is there.
+    Move,
 }
 
 /// What to do with a virtual board's master.
@@ -64,6 +72,9 @@ pub struct Args {
     /// Master: its speed relative to the scenario's profile (0.01 … 100).
     #[arg(long)]
     pub speed_scale: Option<f64>,
+    /// Manual motion limits and options (jog, move, start --approach).
+    #[command(flatten)]
+    pub manual: super::manual::ManualArgs,
 }
 
 /// The request of `args`, or why it cannot be sent.
@@ -72,6 +83,7 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
         args.axis
             .ok_or_else(|| anyhow::anyhow!("{:?} needs --axis N (the slave, 0-based)", args.what))
     };
+    super::manual::check_args(args.what, &args.manual)?;
     anyhow::ensure!(
         args.what == What::Master || (args.master_op.is_none() && args.speed_scale.is_none()),
         "{:?} takes no master operation or --speed-scale (those are `motion master …`)",
@@ -82,6 +94,11 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
         "motion master status only reads: set --speed-scale with start"
     );
     Ok(match args.what {
+        What::Start if args.manual.approach => Request::Approach {
+            limits: args.manual.limits()?,
+        },
+        What::Jog => super::manual::jog_request(axis()?, &args.manual, args.manual.speed()?)?,
+        What::Move => super::manual::move_request(axis()?, &args.manual)?,
         What::Start => Request::Start,
         What::Stop => Request::Stop,
         What::Hold => Request::Hold,
@@ -125,6 +142,18 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let q = request(args)?;
     let mut link = Link::open(&args.port)?;
+    match q {
+        Request::Jog { axis, .. } => return super::manual::jog(&mut link, axis, &args.manual),
+        Request::MoveTo { axis, to_um, .. } => {
+            link.expect_ack(&q)?;
+            return super::manual::wait_in_position(&mut link, axis, to_um, &args.manual);
+        }
+        Request::Approach { .. } => {
+            link.expect_ack(&q)?;
+            return super::manual::wait_following(&mut link, &args.manual);
+        }
+        _ => {}
+    }
     if let Request::VirtualMaster { .. } = q {
         return match link.request(&q)? {
             Response::MasterState(m) => {
@@ -167,6 +196,7 @@ mod tests {
             mm,
             master_op: None,
             speed_scale: None,
+            manual: Default::default(),
         }
     }
 

@@ -44,6 +44,7 @@ pub fn explain(nak: &Nak) -> String {
         1 => "following",
         2 => "holding",
         3 => "in fault",
+        4 => "in manual (moving slaves by hand)",
         _ => "in an unknown state",
     };
     match nak.code {
@@ -54,7 +55,7 @@ pub fn explain(nak: &Nak) -> String {
                 3 => "the fault's cause is still present (e.g. the E-stop chain is open)",
                 4 => "the master moved while holding: stop, then start again",
                 5 => "holding at the end of the table: stop, then start again",
-                6 => "only possible while idle or in fault",
+                6 => "not possible now (idle or fault only; in manual, wait until every slave is at rest)",
                 _ => "not allowed now",
             };
             format!("the board is {state}: {why}")
@@ -63,6 +64,20 @@ pub fn explain(nak: &Nak) -> String {
             format!("slave {d} is not referenced: set its position or home it first")
         }
         C::NoAxis => format!("the board has no slave {d}"),
+        C::Motion => {
+            use hydra_core::protocol::msg::motion_reason as m;
+            let why = match d2 {
+                m::LIMITS => "a speed, acceleration or jerk limit is zero or too large",
+                m::OUTSIDE_LIMITS => {
+                    "the target is outside its limits/min_um … max_um (or the jog points out of them)"
+                }
+                m::MOVING => "it is moving: wait until it is at rest (or hold)",
+                m::PLAN => "the move is too long to plan",
+                m::TOO_FAST => "the speed is above its limits/max_speed_um_per_s",
+                _ => "refused",
+            };
+            format!("slave {d}: {why}")
+        }
         C::NoSession => "no session (say Hello first)".into(),
         C::TooManyRows => format!("more rows than the board holds ({d})"),
         C::Columns => format!("the board has {d} slave column(s)"),

@@ -89,6 +89,8 @@ pub struct AxisReport {
     pub dac: i16,
     /// `referenced`, `homing` (waiting for the reference edge) or `unreferenced`.
     pub reference: String,
+    /// In state manual: `hold`, `jog` (jogging or braking) or `move` (an S-curve move).
+    pub manual: String,
 }
 
 /// The status in engineering units (the `--json` schema).
@@ -170,6 +172,7 @@ pub fn state_name(code: u8) -> &'static str {
         1 => "following",
         2 => "holding",
         3 => "fault",
+        4 => "manual",
         _ => "unknown",
     }
 }
@@ -279,6 +282,12 @@ pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: 
                     2 => "referenced",
                     1 => "homing",
                     _ => "unreferenced",
+                }
+                .to_string(),
+                manual: match a.manual {
+                    1 => "jog",
+                    2 => "move",
+                    _ => "hold",
                 }
                 .to_string(),
             })
@@ -478,8 +487,17 @@ pub fn text(r: &Report) -> String {
     for (i, a) in r.axes.iter().enumerate() {
         let _ = writeln!(
             o,
-            "axis {i}       pos {:.3} mm, target {:.3} mm, error {:.3} mm, dac {}, {}",
-            a.pos_mm, a.target_mm, a.error_mm, a.dac, a.reference
+            "axis {i}       pos {:.3} mm, target {:.3} mm, error {:.3} mm, dac {}, {}{}",
+            a.pos_mm,
+            a.target_mm,
+            a.error_mm,
+            a.dac,
+            a.reference,
+            if r.state == "manual" {
+                format!(", {}", a.manual)
+            } else {
+                String::new()
+            }
         );
     }
     if r.faults.is_empty() {

@@ -209,6 +209,19 @@ impl<P: ParametricPath> Controller<2> for XyLaw<'_, P> {
         o
     }
 
+    /// The contouring law has no per-axis position mode: manual motion is a controller
+    /// fault on both axes (the runtime latches it, valves at null).
+    fn tick_manual(
+        &mut self,
+        _inputs: &ControlInputs<2>,
+        _refs: &[hydra_core::axis::PosRef; 2],
+    ) -> ControlOutputs<2> {
+        ControlOutputs {
+            axis_fault: [Some(hydra_core::runtime::LawFault::Other); 2],
+            ..ControlOutputs::at(self.null_codes())
+        }
+    }
+
     fn null_codes(&self) -> [DacCode; 2] {
         [DacCode::NULL; 2]
     }

@@ -1,0 +1,249 @@
+//! Runtime tests of the `Manual` state: entering and leaving it, the refusals, the
+//! deadman through the runtime, and the approach that starts following.
+
+use super::controller::mock::MockLaw;
+use super::*;
+use crate::units::{Counts, DacCode, PosUm, PressureBar, VelUmPerS};
+
+type Rt = Runtime<MockLaw<2>, 2, 1>;
+
+fn rt() -> Rt {
+    let cfg = RuntimeConfig::<2>::default().build().unwrap();
+    Runtime::new(cfg, Some(MockLaw::new()), BootCause::Normal)
+}
+
+fn sample(master: i32, slaves: [i32; 2]) -> Sample<2, 1> {
+    Sample {
+        enc: EncoderSample {
+            master: Counts(master),
+            slaves: [Counts(slaves[0]), Counts(slaves[1])],
+        },
+        pressure_bar: [PressureBar::from_num(100)],
+        estop: false,
+        overrun: false,
+    }
+}
+
+const LIM: MotionLimits = MotionLimits {
+    vel_um_per_s: 20_000,
+    acc_um_per_s2: 200_000,
+    jerk_um_per_s3: 4_000_000,
+};
+
+const RANGE: (PosUm, PosUm) = (PosUm::ZERO, PosUm::from_bits(100_000 << 8));
+
+fn jog(axis: u8, mm_s: f64) -> Command {
+    Command::Jog {
+        axis,
+        speed: VelUmPerS::from_num(mm_s * 1000.0),
+        limits: LIM,
+        range: RANGE,
+    }
+}
+
+fn move_to(axis: u8, to_um: i32) -> Command {
+    Command::MoveTo {
+        axis,
+        to: PosUm::from_num(to_um),
+        limits: LIM,
+        range: RANGE,
+    }
+}
+
+/// Ticks with the slaves exactly on last tick's target (a perfect axis, µm counts).
+fn follow(r: &mut Rt, master: i32, n: usize) {
+    for _ in 0..n {
+        let t = r
+            .status()
+            .target_um
+            .map(|t| t.to_num::<f64>().round() as i32);
+        r.step(&sample(master, t), None);
+    }
+}
+
+#[test]
+fn a_jog_enters_manual_with_valves_powered_and_stop_leaves_it() {
+    let mut r = rt();
+    r.step(&sample(0, [1000, 2000]), None);
+    let out = r.step(&sample(0, [1000, 2000]), Some(jog(0, 5.0)));
+    assert_eq!(out.reply, Some(Ok(())));
+    assert_eq!(r.state(), State::Manual);
+    assert!(out.enable);
+    assert_eq!(r.law().unwrap().restarts, 1);
+    assert_eq!(r.status().manual, [ManualKind::Jog, ManualKind::Hold]);
+    follow(&mut r, 0, 100);
+    // Axis 0 moved up, axis 1 holds where it was.
+    assert!(r.status().pos_um[0] > PosUm::from_num(1100));
+    assert_eq!(r.status().target_um[1], PosUm::from_num(2000));
+    // Start while a slave moves: Busy; Stop: valves to null at once.
+    let out = r.step(&sample(0, [1200, 2000]), Some(Command::Start));
+    assert_eq!(out.reply, Some(Err(CommandError::Busy)));
+    let out = r.step(&sample(0, [1200, 2000]), Some(Command::Stop));
+    assert_eq!(r.state(), State::Idle);
+    assert_eq!(out.dac, r.null_codes());
+    assert!(!out.enable);
+    assert_eq!(r.status().manual, [ManualKind::Hold; 2]);
+}
+
+#[test]
+fn the_deadman_brakes_a_jog_nobody_renews() {
+    let mut r = rt();
+    let out = r.step(&sample(0, [0, 50_000]), Some(jog(1, -10.0)));
+    assert_eq!(out.reply, Some(Ok(())));
+    follow(&mut r, 0, 299);
+    assert_eq!(r.status().manual[1], ManualKind::Jog);
+    // 300 ms after the last renewal the target speed is 0; braking takes ≈ 0.1 s.
+    follow(&mut r, 0, 200);
+    assert_eq!(r.status().manual[1], ManualKind::Hold);
+    assert_eq!(r.state(), State::Manual, "holding under control");
+    let x = r.status().target_um[1];
+    follow(&mut r, 0, 50);
+    assert_eq!(r.status().target_um[1], x);
+}
+
+#[test]
+fn manual_motions_are_refused_where_they_make_no_sense() {
+    let mut r = rt();
+    r.step(&sample(0, [0, 0]), Some(Command::Start));
+    let out = r.step(&sample(0, [0, 0]), Some(jog(0, 1.0)));
+    assert_eq!(out.reply, Some(Err(CommandError::Busy)), "while following");
+    r.step(&sample(0, [0, 0]), Some(Command::Stop));
+    // Outside the range, a missing axis, impossible limits: nothing changes.
+    let out = r.step(&sample(0, [0, 0]), Some(move_to(0, 150_000)));
+    let outside = CommandError::Motion {
+        axis: 0,
+        error: MotionError::OutsideLimits,
+    };
+    assert_eq!(out.reply, Some(Err(outside)));
+    assert_eq!(r.state(), State::Idle);
+    let out = r.step(&sample(0, [0, 0]), Some(move_to(2, 1000)));
+    assert_eq!(out.reply, Some(Err(CommandError::NoAxis { axis: 2 })));
+    let zero = Command::MoveTo {
+        axis: 0,
+        to: PosUm::from_num(10),
+        limits: MotionLimits {
+            jerk_um_per_s3: 0,
+            ..LIM
+        },
+        range: RANGE,
+    };
+    let out = r.step(&sample(0, [0, 0]), Some(zero));
+    let limits = CommandError::Motion {
+        axis: 0,
+        error: MotionError::Limits,
+    };
+    assert_eq!(out.reply, Some(Err(limits)));
+    assert_eq!(r.state(), State::Idle);
+    // A move on a moving axis is refused; Hold brakes it to rest and stays in Manual.
+    r.step(&sample(0, [0, 0]), Some(move_to(0, 50_000)));
+    follow(&mut r, 0, 200);
+    let out = r.step(
+        &sample(0, [r.status().pos_um[0].to_num(), 0]),
+        Some(move_to(0, 0)),
+    );
+    let moving = CommandError::Motion {
+        axis: 0,
+        error: MotionError::Moving,
+    };
+    assert_eq!(out.reply, Some(Err(moving)));
+    r.step(
+        &sample(0, [r.status().pos_um[0].to_num(), 0]),
+        Some(Command::Hold),
+    );
+    follow(&mut r, 0, 500);
+    assert_eq!(r.state(), State::Manual);
+    assert_eq!(r.status().manual, [ManualKind::Hold; 2]);
+    assert!(
+        r.status().pos_um[0] < PosUm::from_num(49_000),
+        "braked short"
+    );
+    // In Fault: Faulted; without a law: NoController.
+    let mut s = sample(0, [0, 0]);
+    s.estop = true;
+    r.step(&s, None);
+    let out = r.step(&s, Some(jog(0, 1.0)));
+    assert_eq!(out.reply, Some(Err(CommandError::Faulted)));
+    let cfg = RuntimeConfig::<2>::default().build().unwrap();
+    let mut bare: Rt = Runtime::new(cfg, None, BootCause::Normal);
+    let out = bare.step(&sample(0, [0, 0]), Some(jog(0, 1.0)));
+    assert_eq!(out.reply, Some(Err(CommandError::NoController)));
+}
+
+#[test]
+fn a_move_reaches_its_target_and_an_unreferenced_axis_cannot_move() {
+    let mut r = rt();
+    r.step(&sample(0, [10_000, 0]), Some(move_to(0, 30_000)));
+    assert_eq!(r.status().manual[0], ManualKind::Move);
+    // 20 mm at 20 mm/s, 200 mm/s², 4 m/s³: ≈ 1.15 s.
+    follow(&mut r, 0, 1300);
+    assert_eq!(r.status().manual[0], ManualKind::Hold);
+    assert_eq!(r.status().target_um[0], PosUm::from_num(30_000));
+    assert_eq!(r.status().pos_um[0], PosUm::from_num(30_000));
+
+    let cfg = RuntimeConfig::<2> {
+        slave_reference: [ReferenceMode::Incremental, ReferenceMode::Absolute],
+        ..RuntimeConfig::default()
+    };
+    let mut r: Rt = Runtime::new(
+        cfg.build().unwrap(),
+        Some(MockLaw::new()),
+        BootCause::Normal,
+    );
+    let out = r.step(&sample(0, [0, 0]), Some(move_to(0, 1000)));
+    assert_eq!(
+        out.reply,
+        Some(Err(CommandError::NotReferenced { axis: 0 }))
+    );
+    // A jog is allowed unreferenced (to find the home switch), without position limits.
+    let out = r.step(&sample(0, [0, 0]), Some(jog(0, -1.0)));
+    assert_eq!(out.reply, Some(Ok(())));
+    let out = r.step(&sample(0, [0, 0]), Some(Command::Approach { limits: LIM }));
+    assert_eq!(
+        out.reply,
+        Some(Err(CommandError::Busy)),
+        "a slave is moving"
+    );
+}
+
+#[test]
+fn the_approach_moves_to_the_table_then_follows_bumplessly() {
+    let mut r = rt();
+    // The mock's table: target = master (µm per count); master at 5 000, slaves at 0 / 9 000.
+    r.step(&sample(5000, [0, 9000]), None);
+    let out = r.step(
+        &sample(5000, [0, 9000]),
+        Some(Command::Approach { limits: LIM }),
+    );
+    assert_eq!(out.reply, Some(Ok(())));
+    assert_eq!(r.state(), State::Manual);
+    assert_eq!(r.status().manual, [ManualKind::Move; 2]);
+    follow(&mut r, 5000, 1000);
+    assert_eq!(r.state(), State::Following);
+    assert_eq!(r.law().unwrap().restarts, 2, "restarted for the run");
+    assert_eq!(r.status().error_um, [PosUm::ZERO; 2], "on the table");
+    // Master moved beyond the resume window (100) during an approach: the slaves hold.
+    let mut r = rt();
+    r.step(
+        &sample(5000, [0, 9000]),
+        Some(Command::Approach { limits: LIM }),
+    );
+    for m in 0..1000 {
+        follow(&mut r, 5000 + 2 * m.min(100), 1);
+    }
+    assert_eq!(r.state(), State::Manual);
+    assert_eq!(r.status().manual, [ManualKind::Hold; 2]);
+}
+
+#[test]
+fn manual_keeps_the_safety_rules() {
+    // A following error beyond the runtime's limit latches a fault from Manual too.
+    let mut r = rt();
+    r.step(&sample(0, [0, 0]), Some(move_to(0, 50_000)));
+    for _ in 0..2000 {
+        r.step(&sample(0, [0, 0]), None);
+    }
+    assert_eq!(r.state(), State::Fault);
+    assert_eq!(r.fault().unwrap().fault, Fault::FollowingError { axis: 0 });
+    assert_eq!(r.status().dac, [DacCode::new_clamped(7); 2]);
+    assert!(!r.status().enable);
+}
