@@ -37,6 +37,9 @@ fn cmd_name(c: Command) -> &'static str {
         Command::ClearFault => "clear",
         Command::SetPosition { .. } => "set-position",
         Command::Home { .. } => "home",
+        Command::Jog { .. } => "jog",
+        Command::MoveTo { .. } => "move",
+        Command::Approach { .. } => "approach",
     }
 }
 
@@ -47,6 +50,7 @@ fn state_name(s: State) -> &'static str {
         State::Holding(hydra_core::runtime::HoldReason::Commanded) => "Holding",
         State::Holding(hydra_core::runtime::HoldReason::EndOfTable) => "HoldingAtEnd",
         State::Fault => "Fault",
+        State::Manual => "Manual",
     }
 }
 
@@ -60,6 +64,7 @@ fn error_text(e: CommandError, out: &mut String<96>) {
         CommandError::Busy => write!(out, "busy"),
         CommandError::NotReferenced { axis } => write!(out, "not-referenced {}", axis),
         CommandError::NoAxis { axis } => write!(out, "no-axis {}", axis),
+        CommandError::Motion { axis, .. } => write!(out, "motion-refused {}", axis),
     };
 }
 
