@@ -69,6 +69,19 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
             mm,
             master_op: None,
             speed_scale: None,
+            manual: Default::default(),
+        })
+    };
+    // A manual motion with its options (`motion move --to-mm`, `start --approach`).
+    let manual = |what, axis, m: host_sim::cmd::manual::ManualArgs| {
+        host_sim::cmd::motion::run(&host_sim::cmd::motion::Args {
+            port: port.clone(),
+            what,
+            axis,
+            mm: None,
+            master_op: None,
+            speed_scale: None,
+            manual: m,
         })
     };
     use host_sim::cmd::motion::What;
@@ -86,6 +99,19 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
         r => panic!("{r:?}"),
     }
     drop(link);
+    motion(What::Stop, None, None).expect("Stop");
+    // By hand: slave 0 2 mm off the table's start by an S-curve (returns when there),
+    // then start --approach moves it back and follows.
+    let off = host_sim::cmd::manual::ManualArgs {
+        to_mm: Some(t.columns[0][0] + 2.0),
+        ..Default::default()
+    };
+    manual(What::Move, Some(0), off).expect("motion move");
+    let approach = host_sim::cmd::manual::ManualArgs {
+        approach: true,
+        ..Default::default()
+    };
+    manual(What::Start, None, approach).expect("motion start --approach");
     motion(What::Stop, None, None).expect("Stop");
     // `table list` and a refused `table activate` (nothing committed under that id).
     let tables = |what, id| {

@@ -28,6 +28,7 @@ fn reference_all(port: &str) {
             mm: Some(a.pos_mm),
             master_op: None,
             speed_scale: None,
+            manual: Default::default(),
         })
         .unwrap();
     }

@@ -208,6 +208,7 @@ pub(crate) mod mock {
             out
         }
 
+        #[allow(clippy::needless_range_loop)] // four arrays indexed alike
         fn tick_manual(
             &mut self,
             inputs: &ControlInputs<S>,

@@ -115,7 +115,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         live_master: Master,
         pos_um: &[PosUm; S],
     ) -> Option<ControlOutputs<S>> {
-        let refs = self.manual.next();
+        let refs = self.manual.step();
         let inputs = ControlInputs {
             master: live_master,
             pos_um: *pos_um,

@@ -125,6 +125,9 @@ pub struct Move {
 /// One slave's manual reference.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+// Every slave's slot can hold any of the three (no heap in `no_std`): its size is the
+// move's, whichever it holds.
+#[allow(clippy::large_enum_variant)]
 enum AxisMotion {
     Hold(PosUm),
     Ramp(Ramp),
@@ -439,7 +442,7 @@ impl<const S: usize> Manual<S> {
     }
 
     /// This tick's reference of every slave; finished moves and ramps at rest become holds.
-    pub fn next(&mut self) -> [PosRef; S] {
+    pub fn step(&mut self) -> [PosRef; S] {
         let period = self.period_us;
         let mut out = [PosRef::default(); S];
         for (m, o) in self.axes.iter_mut().zip(out.iter_mut()) {

@@ -555,6 +555,7 @@ mod tests {
             error_um: 0,
             dac: 0,
             reference: 1,
+            manual: 0,
         });
         let r = report_with(&s, &FaultsMsg::default(), 1000, 0.0);
         assert_eq!(r.fault_name.as_deref(), Some("following_error"));

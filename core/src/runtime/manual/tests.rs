@@ -36,7 +36,7 @@ fn ramp_state(m: &Manual<1>) -> Option<(f64, f64, f64)> {
 
 /// Runs `n` ticks; the references.
 fn run(m: &mut Manual<1>, n: usize) -> Vec<PosRef> {
-    (0..n).map(|_| m.next()[0]).collect()
+    (0..n).map(|_| m.step()[0]).collect()
 }
 
 #[test]
@@ -47,7 +47,7 @@ fn a_jog_respects_acceleration_and_jerk_then_the_deadman_stops_it() {
     let (mut prev_a, mut top_v) = (0.0f64, 0.0f64);
     let mut reached = None;
     for k in 0..2000 {
-        m.next();
+        m.step();
         let Some((_, v, a)) = ramp_state(&m) else {
             break;
         };
