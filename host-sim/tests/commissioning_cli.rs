@@ -79,20 +79,7 @@ fn status_capture_around_a_command_and_a_fault() {
         up.contains(&format!("CRC-32 {crc}")),
         "upload said {up:?}, status {crc}"
     );
-    for k in 0..2 {
-        let pos = st["axes"][k]["pos_mm"].as_f64().expect("pos").to_string();
-        ok(
-            &s,
-            &[
-                "motion",
-                "set-position",
-                "--axis",
-                &k.to_string(),
-                "--mm",
-                &pos,
-            ],
-        );
-    }
+    common::reference_where_they_are(&s);
 
     // Armed, then Start from another process: the capture freezes around the command.
     ok(

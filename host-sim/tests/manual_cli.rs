@@ -4,14 +4,8 @@
 //! words, and `start --approach` from off the table to following.
 
 mod common;
-use common::{cli, json, ok, refused, serve};
+use common::{cli, json, ok, pos, refused, serve};
 use std::time::Duration;
-
-fn pos(s: &common::Serve, axis: usize) -> f64 {
-    json(&ok(s, &["status", "--json"]))["axes"][axis]["pos_mm"]
-        .as_f64()
-        .expect("pos_mm")
-}
 
 #[test]
 fn jog_move_deadman_and_approach() {
@@ -25,20 +19,7 @@ fn jog_move_deadman_and_approach() {
     // Unreferenced: a move is refused (a jog would be allowed, to find a home switch).
     let e = refused(&s, &["motion", "move", "--axis", "0", "--to-mm", "30"]);
     assert!(e.contains("slave 0 is not referenced"), "{e}");
-    for k in 0..2 {
-        let p = pos(&s, k).to_string();
-        ok(
-            &s,
-            &[
-                "motion",
-                "set-position",
-                "--axis",
-                &k.to_string(),
-                "--mm",
-                &p,
-            ],
-        );
-    }
+    common::reference_where_they_are(&s);
 
     // A move returns when the slave is there.
     let x0 = pos(&s, 0);

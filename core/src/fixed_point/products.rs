@@ -147,8 +147,9 @@ pub const fn mul_shr32_i64_small(a: i64, b: i64) -> i64 {
         .wrapping_add(low)
 }
 
-/// `(u² · k + 2^67) >> 68` (round to nearest, ties toward +∞), saturated, for
-/// |u| ≤ 2^39 and |k| < 2^63: equal to `sat_i64(shr_round_i128(u²·k, 68))` (a parabola's
+/// `(u² · k + 2^67) >> 68` (round to nearest, ties toward +∞), saturated, for any u and
+/// k: equal to `sat_i64(shr_round_i128(u²·k, 68))` where u²·k fits an `i128`, and
+/// `i64::MAX` / `i64::MIN` (the sign of k) beyond (a parabola's
 /// y_l = u²/(2p): u in Q16, 1/(2p) in Q48, result Q12). When |u| < 2^32 (|x_l| < 65.5 mm)
 /// u² is one `u32×u32→u64` product and u²·|k| an unsigned 64×64-bit product (no sign
 /// handling in the 128-bit part); a negative k rounds the magnitude with ties toward 0
@@ -157,8 +158,13 @@ pub const fn mul_shr32_i64_small(a: i64, b: i64) -> i64 {
 pub fn sq_mul_shr68(u: i64, k: i64) -> i64 {
     let ua = u.unsigned_abs();
     if ua >> 32 != 0 {
+        // u² ≤ 2^126 fits; u²·k may not (|u| > 2^32 with |k| near 2^63): saturate.
         let sq = i128::from(u).wrapping_mul(i128::from(u));
-        return sat_i64(shr_round_i128(sq.wrapping_mul(i128::from(k)), 68));
+        return match sq.checked_mul(i128::from(k)) {
+            Some(x) => sat_i64(shr_round_i128(x, 68)),
+            None if k < 0 => i64::MIN,
+            None => i64::MAX,
+        };
     }
     // ua < 2^32: ua² < 2^64; ·|k| < 2^127; the rounding add < 2^128.
     let sq = ua.wrapping_mul(ua);
@@ -432,10 +438,12 @@ mod tests {
             u in prop_oneof![-(1i64 << 39)..=(1i64 << 39), -(1i64 << 32)..(1i64 << 32), -100_000i64..100_000],
             k in prop_oneof![any::<i64>(), -(1i64 << 48)..(1i64 << 48), Just(i64::MIN), Just(i64::MAX)],
         ) {
-            let exact = sat_i64(shr_round_i128(
-                i128::from(u) * i128::from(u) * i128::from(k),
-                68,
-            ));
+            // u²·k beyond i128 (|u| > 2^32, |k| near 2^63) saturates to k's sign.
+            let exact = (i128::from(u) * i128::from(u))
+                .checked_mul(i128::from(k))
+                .map_or(if k < 0 { i64::MIN } else { i64::MAX }, |x| {
+                    sat_i64(shr_round_i128(x, 68))
+                });
             prop_assert_eq!(sq_mul_shr68(u, k), exact);
         }
 

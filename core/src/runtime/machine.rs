@@ -48,7 +48,7 @@ use super::controller::{ControlInputs, Controller, LawFault};
 use super::encoder::{plausible, step};
 use super::fault::{Fault, FaultEvent, FaultHistory, FaultRecord, FaultSet};
 use super::io::{Board, EncoderSample};
-use super::manual::{Manual, ManualKind, MotionError, MotionLimits};
+use super::manual::{Manual, ManualKind, MotionError, MotionLimits, JOG_DEADMAN_US};
 use super::reference::{RefState, References};
 use super::stall::StallMonitor;
 use super::timing::TickTiming;
@@ -285,8 +285,12 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     pressure_ok: bool,
     /// The slaves' references in `Manual`.
     manual: Manual<S>,
-    /// The master an approach started at (following begins when it ends).
-    approach: Option<Master>,
+    /// A pending approach: the master of its command and its limits (following begins
+    /// when the slaves have arrived at the table's value at the live master).
+    approach: Option<(Master, MotionLimits)>,
+    /// Ticks left in which a Jog may not re-enter `Manual` from Idle: a host still
+    /// renewing a jog must not undo a Stop (or a fault) by its next renewal.
+    jog_lockout_ticks: u32,
 }
 
 /// Slave position from a count: `count · scale + offset` (scale in Q.32, result I24F8).
@@ -334,6 +338,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             pressure_ok: true,
             manual: Manual::holding(&[PosUm::ZERO; S], cfg.period_us),
             approach: None,
+            jog_lockout_ticks: 0,
         };
         rt.status.reference = *rt.refs.states();
         rt.status.dac = rt.null_codes();
@@ -764,6 +769,16 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         if law_dac.is_none() {
             error_um = [PosUm::ZERO; S];
         }
+        self.jog_lockout_ticks =
+            if self.status.state == State::Manual && self.state != State::Manual {
+                JOG_DEADMAN_US.div_ceil(self.cfg.period_us.max(1))
+            } else {
+                self.jog_lockout_ticks.saturating_sub(1)
+            };
+        if self.state != State::Manual {
+            // An approach lives only in Manual (a fault, Stop or Start ends it).
+            self.approach = None;
+        }
         let st = &mut self.status;
         st.state = self.state;
         st.fault = self.fault;
@@ -850,7 +865,17 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             }
         }
         if homed {
+            let before = self.pos_offset_um;
             self.refresh_offsets();
+            if self.state == State::Manual {
+                // Homing while jogging to the switch: the measured position moved by the
+                // offset change; the manual reference moves with it (no step).
+                for (i, (&new, &old)) in self.pos_offset_um.iter().zip(before.iter()).enumerate() {
+                    if new != old {
+                        self.manual.rebase(i, new.saturating_sub(old));
+                    }
+                }
+            }
         }
         let estop = board.estop_active();
         let pressure_bar = super::io::PressureInput::read(board);

@@ -3,10 +3,16 @@
 
 use super::super::config::MasterSource;
 use super::super::controller::{ControlInputs, ControlOutputs, Controller};
-use super::super::manual::{Manual, MotionError};
+use super::super::manual::{Manual, MotionError, MotionLimits};
 use super::super::reference::RefState;
 use super::{Command, CommandError, Runtime, State};
+use crate::axis::PosRef;
 use crate::units::{Master, PosUm};
+
+/// How close every slave must be to the table's value at the live master for an
+/// approach to start following, µm: the law then starts from an error of at most this
+/// (1.1 LSB/µm × 10 µm = 11 LSB, 0.5 % of the valve's range, with the shipped gains).
+pub const APPROACH_TOLERANCE_UM: i32 = 10;
 
 impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
     /// Jog, MoveTo or Approach (Idle or Manual; Idle enters Manual on success).
@@ -25,8 +31,19 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             return Err(CommandError::NoController);
         }
         let entering = self.state == State::Idle;
+        if entering && self.jog_lockout_ticks > 0 {
+            // Within the deadman time after leaving Manual: a renewal of the jog that was
+            // stopped, not a new command.
+            return Err(CommandError::Busy);
+        }
         if entering {
             self.manual = Manual::holding(pos_um, self.cfg.period_us);
+            self.approach = None;
+        }
+        if self.approach.is_some() && !matches!(cmd, Command::Approach { .. }) {
+            // Following starts when the approach ends: nothing may move the slaves
+            // off their way to the table meanwhile (Hold cancels the approach).
+            return Err(CommandError::Busy);
         }
         let referenced = |rt: &Self, axis: u8| -> Result<bool, CommandError> {
             rt.refs
@@ -77,15 +94,10 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                     .as_ref()
                     .and_then(|l| l.table_position_um(m))
                     .ok_or(CommandError::NoController)?;
-                let before = self.manual;
-                for (i, &to) in targets.iter().enumerate() {
-                    let axis = u8::try_from(i).unwrap_or(u8::MAX);
-                    if let Err(e) = self.manual.move_to(i, to, &limits) {
-                        self.manual = before;
-                        return Err(motion(axis)(e));
-                    }
+                if let Err((axis, e)) = self.plan_approach(&targets, &limits) {
+                    return Err(motion(axis)(e));
                 }
-                self.approach = Some(master);
+                self.approach = Some((master, limits));
             }
             _ => return Err(CommandError::Busy),
         }
@@ -123,17 +135,68 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         let out = self.law.as_mut()?.tick_manual(&inputs, &refs);
         self.check_law(&out.error_um, &out.axis_fault);
         if self.state == State::Manual && self.manual.at_rest() {
-            if let Some(m0) = self.approach.take() {
-                if live_master.saturating_sub(m0).unsigned_abs() <= self.cfg.resume_window_counts {
-                    self.time_master = 0;
-                    self.begin_control(&ControlInputs {
-                        master: self.run_master(live_master),
-                        pos_um: *pos_um,
-                    });
-                    self.state = State::Following;
-                }
+            if let Some((m0, limits)) = self.approach.take() {
+                self.end_approach(m0, &limits, live_master, &refs, pos_um);
             }
         }
         Some(out)
+    }
+
+    /// Plans a move of every slave (all at rest) to `targets`; on a refusal every slave
+    /// holds where it was and the slave and reason are returned. (No copy of the manual
+    /// state — two planned moves, over a kilobyte — on the tick's stack: the slaves were
+    /// at rest, so their hold positions are all there is to restore.)
+    fn plan_approach(
+        &mut self,
+        targets: &[PosUm; S],
+        limits: &MotionLimits,
+    ) -> Result<(), (u8, MotionError)> {
+        let Some(held) = self.manual.held_positions() else {
+            return Err((0, MotionError::Moving));
+        };
+        for (i, &to) in targets.iter().enumerate() {
+            if let Err(e) = self.manual.move_to(i, to, limits) {
+                self.manual = Manual::holding(&held, self.cfg.period_us);
+                return Err((u8::try_from(i).unwrap_or(u8::MAX), e));
+            }
+        }
+        Ok(())
+    }
+
+    /// Every slave has arrived (`held`: this tick's references, at rest). Following
+    /// starts when each is within [`APPROACH_TOLERANCE_UM`] of the table's value at the
+    /// live master; a master that moved meanwhile (still within the resume window of the
+    /// command's `m0`) gets a new approach to its value, one beyond the window leaves
+    /// the slaves holding in `Manual`.
+    fn end_approach(
+        &mut self,
+        m0: Master,
+        limits: &MotionLimits,
+        live_master: Master,
+        held: &[PosRef; S],
+        pos_um: &[PosUm; S],
+    ) {
+        if live_master.saturating_sub(m0).unsigned_abs() > self.cfg.resume_window_counts {
+            return;
+        }
+        let m = self.run_master(live_master);
+        let Some(targets) = self.law.as_ref().and_then(|l| l.table_position_um(m)) else {
+            return;
+        };
+        let tol = PosUm::from_num(APPROACH_TOLERANCE_UM);
+        let arrived = targets
+            .iter()
+            .zip(held.iter())
+            .all(|(t, h)| t.saturating_sub(h.x_ref_um).saturating_abs() <= tol);
+        if arrived {
+            self.time_master = 0;
+            self.begin_control(&ControlInputs {
+                master: m,
+                pos_um: *pos_um,
+            });
+            self.state = State::Following;
+        } else if self.plan_approach(&targets, limits).is_ok() {
+            self.approach = Some((m0, *limits));
+        }
     }
 }

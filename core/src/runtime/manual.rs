@@ -151,6 +151,9 @@ fn tail(a: i64, j: i64) -> i64 {
 
 /// The acceleration x with `v + x + tail(x) = v_t`: the root of x² ± j·x − 2j·|v_t − v|,
 /// `x = ±(√(j² + 8j·|v_t − v|) − j)/2`, signed as v_t − v.
+/// Not inlined (nor [`mul_div`]): the 128-bit arithmetic is large on the M4 and only
+/// the manual motions use it.
+#[inline(never)]
 fn accel_to_reach(v: i64, vt: i64, j: i64) -> i64 {
     let d = i128::from(vt).saturating_sub(i128::from(v));
     let j = i128::from(j.max(1));
@@ -168,6 +171,7 @@ fn accel_to_reach(v: i64, vt: i64, j: i64) -> i64 {
 }
 
 /// `x · num / den` in i128, saturated to i64 (0 for den = 0).
+#[inline(never)]
 fn mul_div(x: i64, num: i64, den: i64) -> i64 {
     let p = i128::from(x).saturating_mul(i128::from(num));
     let q = p.checked_div(i128::from(den)).unwrap_or(0);
@@ -273,7 +277,10 @@ impl Ramp {
         self.v = v;
         self.p = self.p.saturating_add(v);
         if let Some((lo, hi)) = self.limits {
-            if self.p > hi || self.p < lo {
+            // The last guard, only on the side the ramp moves toward: a slave that
+            // starts outside the limits (set-position, drift with valves off) and is
+            // jogged back in is never stepped onto the limit.
+            if (v > 0 && self.p > hi) || (v < 0 && self.p < lo) {
                 self.p = self.p.clamp(lo, hi);
                 self.v = 0;
                 self.a = 0;
@@ -350,6 +357,18 @@ impl<const S: usize> Manual<S> {
         self.axes.iter().all(|m| matches!(m, AxisMotion::Hold(_)))
     }
 
+    /// Where every slave holds, when all are at rest.
+    pub fn held_positions(&self) -> Option<[PosUm; S]> {
+        let mut out = [PosUm::ZERO; S];
+        for (o, m) in out.iter_mut().zip(self.axes.iter()) {
+            let AxisMotion::Hold(p) = m else {
+                return None;
+            };
+            *o = *p;
+        }
+        Some(out)
+    }
+
     /// Jogs slave `axis` at `speed` (renews the deadman; 0 brakes to rest) with the
     /// acceleration and jerk of `lim`; `limits` (min, max) once the axis is referenced.
     pub fn jog(
@@ -396,6 +415,10 @@ impl<const S: usize> Manual<S> {
                 return Err(MotionError::OutsideLimits);
             }
         }
+        // A renewal takes the jog's own acceleration and jerk (also after a braked move,
+        // whose ramp had the move's).
+        ramp.acc = acc;
+        ramp.jerk = jerk;
         ramp.v_target = vt;
         ramp.limits = lims;
         ramp.deadman = JOG_DEADMAN_US.div_ceil(period.max(1)).saturating_add(1);
@@ -417,6 +440,24 @@ impl<const S: usize> Manual<S> {
         };
         *slot = AxisMotion::Move(plan_move(from, to, lim, period)?);
         Ok(())
+    }
+
+    /// Shifts slave `axis`' reference by `delta` (µm): its measured position moved by
+    /// `delta` because the axis was just referenced (a home edge while jogging), so the
+    /// reference follows and the error does not step.
+    pub fn rebase(&mut self, axis: usize, delta: PosUm) {
+        let shift = |p: PosUm| p.saturating_add(delta);
+        let Some(m) = self.axes.get_mut(axis) else {
+            return;
+        };
+        match m {
+            AxisMotion::Hold(p) => *p = shift(*p),
+            AxisMotion::Ramp(r) => r.p = r.p.saturating_add(q36_of(delta)),
+            AxisMotion::Move(mv) => {
+                mv.from = shift(mv.from);
+                mv.to = shift(mv.to);
+            }
+        }
     }
 
     /// Brakes every moving slave to rest (a move becomes a ramp to speed 0).

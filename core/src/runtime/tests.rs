@@ -6,14 +6,14 @@ use super::*;
 use crate::units::{Counts, DacCode, Master, PosUm, PressureBar};
 use proptest::prelude::*;
 
-type Rt = Runtime<MockLaw<2>, 2, 1>;
+pub(super) type Rt = Runtime<MockLaw<2>, 2, 1>;
 
-fn rt() -> Rt {
+pub(super) fn rt() -> Rt {
     let cfg = RuntimeConfig::<2>::default().build().unwrap();
     Runtime::new(cfg, Some(MockLaw::new()), BootCause::Normal)
 }
 
-fn sample(master: i32, slaves: [i32; 2]) -> Sample<2, 1> {
+pub(super) fn sample(master: i32, slaves: [i32; 2]) -> Sample<2, 1> {
     Sample {
         enc: EncoderSample {
             master: Counts(master),

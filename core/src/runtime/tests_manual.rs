@@ -2,27 +2,9 @@
 //! deadman through the runtime, and the approach that starts following.
 
 use super::controller::mock::MockLaw;
+use super::tests::{rt, sample, Rt};
 use super::*;
-use crate::units::{Counts, DacCode, PosUm, PressureBar, VelUmPerS};
-
-type Rt = Runtime<MockLaw<2>, 2, 1>;
-
-fn rt() -> Rt {
-    let cfg = RuntimeConfig::<2>::default().build().unwrap();
-    Runtime::new(cfg, Some(MockLaw::new()), BootCause::Normal)
-}
-
-fn sample(master: i32, slaves: [i32; 2]) -> Sample<2, 1> {
-    Sample {
-        enc: EncoderSample {
-            master: Counts(master),
-            slaves: [Counts(slaves[0]), Counts(slaves[1])],
-        },
-        pressure_bar: [PressureBar::from_num(100)],
-        estop: false,
-        overrun: false,
-    }
-}
+use crate::units::{DacCode, PosUm, VelUmPerS};
 
 const LIM: MotionLimits = MotionLimits {
     vel_um_per_s: 20_000,
@@ -221,6 +203,7 @@ fn the_approach_moves_to_the_table_then_follows_bumplessly() {
     assert_eq!(r.state(), State::Following);
     assert_eq!(r.law().unwrap().restarts, 2, "restarted for the run");
     assert_eq!(r.status().error_um, [PosUm::ZERO; 2], "on the table");
+    assert_eq!(r.status().target_um, [PosUm::from_num(5000); 2]);
     // Master moved beyond the resume window (100) during an approach: the slaves hold.
     let mut r = rt();
     r.step(
@@ -232,6 +215,95 @@ fn the_approach_moves_to_the_table_then_follows_bumplessly() {
     }
     assert_eq!(r.state(), State::Manual);
     assert_eq!(r.status().manual, [ManualKind::Hold; 2]);
+}
+
+/// Ticks with a perfect axis; the largest change of any slave's target from one tick to
+/// the next, µm.
+fn largest_target_step(r: &mut Rt, master: impl Fn(usize) -> i32, n: usize) -> f64 {
+    let mut worst = 0.0f64;
+    for k in 0..n {
+        let before = r.status().target_um;
+        follow(r, master(k), 1);
+        for (a, b) in before.iter().zip(r.status().target_um.iter()) {
+            worst = worst.max((*b - *a).to_num::<f64>().abs());
+        }
+    }
+    worst
+}
+
+#[test]
+fn an_approach_whose_master_crept_replans_and_starts_following_without_a_step() {
+    let mut r = rt();
+    r.step(&sample(5000, [0, 9000]), None);
+    r.step(
+        &sample(5000, [0, 9000]),
+        Some(Command::Approach { limits: LIM }),
+    );
+    // The master creeps 60 counts (60 µm of table, within the resume window of 100)
+    // during the approach: the slaves arrive at the old value, then at the new one.
+    let master = |k: usize| 5000 + (k as i32 / 10).min(60);
+    let step = largest_target_step(&mut r, master, 1500);
+    assert_eq!(r.state(), State::Following);
+    assert_eq!(r.status().target_um, [PosUm::from_num(5060); 2]);
+    // At 20 mm/s the S-curve moves ≤ 20 µm per tick; the switch adds nothing.
+    assert!(step <= 20.5, "the target stepped by {step} µm");
+}
+
+#[test]
+fn nothing_revives_an_approach_that_was_interrupted() {
+    // A jog while an approach is on its way is refused; Hold cancels the approach.
+    let mut r = rt();
+    r.step(
+        &sample(5000, [0, 9000]),
+        Some(Command::Approach { limits: LIM }),
+    );
+    follow(&mut r, 5000, 10);
+    let out = r.step(&sample(5000, [10, 8990]), Some(jog(0, 1.0)));
+    assert_eq!(out.reply, Some(Err(CommandError::Busy)));
+    r.step(&sample(5000, [10, 8990]), Some(Command::Hold));
+    follow(&mut r, 5000, 1500);
+    assert_eq!(r.state(), State::Manual, "held, not following");
+    // A fault during an approach, ClearFault, then a jog that ends at rest: it stays in
+    // Manual instead of starting to follow from wherever the jog left the slaves.
+    let mut r = rt();
+    r.step(
+        &sample(5000, [0, 9000]),
+        Some(Command::Approach { limits: LIM }),
+    );
+    follow(&mut r, 5000, 10);
+    let mut s = sample(5000, [10, 8990]);
+    s.estop = true;
+    r.step(&s, None);
+    assert_eq!(r.state(), State::Fault);
+    follow(&mut r, 5000, 400);
+    assert_eq!(
+        r.step(&sample(5000, [10, 8990]), Some(Command::ClearFault))
+            .reply,
+        Some(Ok(()))
+    );
+    let out = r.step(&sample(5000, [10, 8990]), Some(jog(0, 1.0)));
+    assert_eq!(out.reply, Some(Ok(())));
+    follow(&mut r, 5000, 1000);
+    assert_eq!(r.status().manual, [ManualKind::Hold; 2]);
+    assert_eq!(r.state(), State::Manual);
+}
+
+#[test]
+fn a_stopped_jog_is_not_revived_by_its_next_renewal() {
+    let mut r = rt();
+    r.step(&sample(0, [0, 0]), Some(jog(0, 1.0)));
+    follow(&mut r, 0, 50);
+    r.step(&sample(0, [50, 0]), Some(Command::Stop));
+    assert_eq!(r.state(), State::Idle);
+    // The jogging host renews 100 ms later: refused, the valves stay off.
+    follow(&mut r, 0, 99);
+    let out = r.step(&sample(0, [50, 0]), Some(jog(0, 1.0)));
+    assert_eq!(out.reply, Some(Err(CommandError::Busy)));
+    assert!(!out.enable);
+    // After the deadman time a jog is a new command again.
+    follow(&mut r, 0, 300);
+    let out = r.step(&sample(0, [50, 0]), Some(jog(0, 1.0)));
+    assert_eq!(out.reply, Some(Ok(())));
 }
 
 #[test]

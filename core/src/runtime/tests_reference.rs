@@ -146,6 +146,45 @@ fn homing_references_at_the_latched_edge_count() {
 }
 
 #[test]
+fn homing_while_jogging_to_the_switch_moves_the_reference_with_the_frame() {
+    // Home armed in Idle, then a jog toward the switch (the commissioning workflow): the
+    // edge re-references the axis mid-jog, and the manual reference follows the new
+    // frame, so the error the law sees does not step.
+    let mut r = rt(incremental());
+    let mut b = Board1::default();
+    r.tick_io(&mut b, Some(Command::Home { axis: 0 }), false);
+    let jog = Command::Jog {
+        axis: 0,
+        speed: crate::units::VelUmPerS::from_num(-5_000),
+        limits: MotionLimits {
+            vel_um_per_s: 10_000,
+            acc_um_per_s2: 100_000,
+            jerk_um_per_s3: 1_000_000,
+        },
+        range: (PosUm::ZERO, PosUm::from_num(500_000)),
+    };
+    assert_eq!(r.tick_io(&mut b, Some(jog), false), Some(Ok(())));
+    let mut worst = 0.0f64;
+    for k in 0..200 {
+        // A perfect axis: it is where the last target was (1 µm per count).
+        let target = r.status().target_um[0] - r.status().pos_um[0];
+        b.slaves[0] += target.to_num::<f64>().round() as i32;
+        if k == 100 {
+            b.edge[0] = Some(Counts(b.slaves[0]));
+        }
+        r.tick_io(&mut b, None, false);
+        worst = worst.max(r.status().error_um[0].to_num::<f64>().abs());
+    }
+    assert_eq!(r.status().reference[0], RefState::Referenced);
+    assert_eq!(r.state(), State::Manual);
+    assert!(
+        r.status().pos_um[0] > PosUm::from_num(149_000),
+        "in the new frame"
+    );
+    assert!(worst < 10.0, "the error stepped by {worst} µm at the edge");
+}
+
+#[test]
 fn absolute_offsets_are_restored_and_reported() {
     let mut r = rt(RuntimeConfig::default());
     assert_eq!(r.absolute_offset_um(1), Some(PosUm::ZERO));

@@ -56,10 +56,12 @@ pub struct Reply {
     pub result: Result<(), Option<CommandError>>,
 }
 
-/// [`TickSample::flags`]: the state bits — 0 Idle, 1 Following, 2 Holding, 3 Fault, plus
-/// [`FLAG_END_OF_TABLE`] (holding at the end of the table).
+/// [`TickSample::flags`]: the state bits, one 3-bit value — 0 Idle, 1 Following,
+/// 2 Holding, 3 Fault, 4 Manual ([`super::State::code`]), 6 = 2 | [`FLAG_END_OF_TABLE`]
+/// holding at the end of the table. Decode the value, not the bits one by one: bit 2
+/// alone is Manual.
 pub const STATE_MASK: u8 = 0b111;
-/// [`TickSample::flags`]: holding because the table ended.
+/// [`TickSample::flags`]: with Holding (2), holding because the table ended (the value 6).
 pub const FLAG_END_OF_TABLE: u8 = 1 << 2;
 /// [`TickSample::flags`]: valve power (the enable output) on.
 pub const FLAG_VALVE_POWER: u8 = 1 << 3;

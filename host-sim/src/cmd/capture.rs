@@ -224,12 +224,13 @@ pub fn collect(link: &mut Link, timeout: Duration) -> anyhow::Result<Captured> {
     })
 }
 
-/// The state name of a flags byte (`holding_end`: holding at the end of the table).
+/// The state name of a flags byte's 3-bit state value (`holding_end`: holding at the
+/// end of the table, 2 | [`FLAG_END_OF_TABLE`]; 4 is Manual).
 fn state_name(flags: u8) -> &'static str {
-    if flags & STATE_MASK == 2 | FLAG_END_OF_TABLE {
-        return "holding_end";
+    match flags & STATE_MASK {
+        v if v == 2 | FLAG_END_OF_TABLE => "holding_end",
+        v => super::status::state_name(v),
     }
-    super::status::state_name(flags & STATE_MASK & !FLAG_END_OF_TABLE)
 }
 
 /// The CSV text of a capture (module docs for the columns).
@@ -372,6 +373,15 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_state_value_of_a_flags_byte_has_its_name() {
+        use hydra_core::runtime::FLAG_VALVE_POWER;
+        let names = [(0, "idle"), (1, "following"), (2, "holding"), (3, "fault")];
+        for (v, name) in names.into_iter().chain([(4, "manual"), (6, "holding_end")]) {
+            assert_eq!(state_name(v | FLAG_VALVE_POWER), name, "value {v}");
+        }
+    }
 
     #[test]
     fn triggers_parse_in_engineering_units_and_nonsense_is_refused() {

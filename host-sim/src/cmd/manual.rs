@@ -51,7 +51,8 @@ pub struct ManualArgs {
     /// Move: the slave is "there" within this distance of the target, mm [default 0.05].
     #[arg(long)]
     pub in_position_mm: Option<f64>,
-    /// Move / approach: give up after this long, s [default: the planned time + 10 s].
+    /// Move / approach: give up after this long, s [default: a move's planned time + 10 s;
+    /// an approach 120 s].
     #[arg(long)]
     pub timeout_s: Option<f64>,
     /// Start: first move every slave to the table at the present master, then follow.

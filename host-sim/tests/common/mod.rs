@@ -62,3 +62,19 @@ pub fn refused(s: &Serve, args: &[&str]) -> String {
 pub fn json(text: &str) -> serde_json::Value {
     serde_json::from_str(text.trim()).expect("JSON")
 }
+
+/// Slave `axis`' position from `status --json`, mm.
+pub fn pos(s: &Serve, axis: usize) -> f64 {
+    json(&ok(s, &["status", "--json"]))["axes"][axis]["pos_mm"]
+        .as_f64()
+        .expect("pos_mm")
+}
+
+/// References both slaves where they are (`motion set-position` at their position).
+pub fn reference_where_they_are(s: &Serve) {
+    for k in 0..2 {
+        let p = pos(s, k).to_string();
+        let axis = k.to_string();
+        ok(s, &["motion", "set-position", "--axis", &axis, "--mm", &p]);
+    }
+}

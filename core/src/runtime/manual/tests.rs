@@ -98,20 +98,28 @@ fn a_referenced_jog_stops_inside_the_limits_and_cannot_jog_out() {
     let range = Some((um(0.0), um(100_000.0)));
     let l = lim(0, 300, 3000);
     let mut m = Manual::<1>::holding(&[um(90_000.0)], T_US);
-    let mut last = um(0.0);
+    let mut refs = Vec::new();
     for k in 0..30 {
         // Renewed every 100 ms; once against the limit a renewal may be refused.
         let r = m.jog(0, speed(80.0), &l, range);
         assert!(k > 5 || r.is_ok(), "{r:?}");
-        for r in run(&mut m, 100) {
-            assert!(r.x_ref_um <= um(100_000.0), "{:?}", r.x_ref_um);
-            last = r.x_ref_um;
-        }
+        refs.extend(run(&mut m, 100));
     }
-    run(&mut m, 1000);
+    refs.extend(run(&mut m, 1000));
     assert!(m.at_rest(), "at rest against the limit");
-    // Stopped by braking (within 2 mm of the limit), not by the clamp's step.
-    assert!(last > um(98_000.0), "{last:?}");
+    let last = refs.last().map_or(um(0.0), |r| r.x_ref_um);
+    // Stopped by braking within 2 mm of the limit and short of it: the clamp (the last
+    // guard) never acted, so the speed changed by at most A·T² per tick throughout.
+    assert!(last > um(98_000.0) && last < um(100_000.0), "{last:?}");
+    let a_t2 = 300_000.0 * 1e-6 + 2.0 / 256.0;
+    for w in refs.windows(3) {
+        let [a, b, c] = [w[0], w[1], w[2]].map(|r| r.x_ref_um.to_num::<f64>());
+        assert!(
+            (c - 2.0 * b + a).abs() <= a_t2,
+            "Δv {} µm/tick",
+            c - 2.0 * b + a
+        );
+    }
     // From there a jog further out is refused, back in is allowed.
     let mut at_max = Manual::<1>::holding(&[um(100_000.0)], T_US);
     assert_eq!(
@@ -121,6 +129,59 @@ fn a_referenced_jog_stops_inside_the_limits_and_cannot_jog_out() {
     at_max.jog(0, speed(-1.0), &l, range).unwrap();
     // Unreferenced (no range): no position limit.
     at_max.jog(0, speed(1.0), &l, None).unwrap();
+}
+
+#[test]
+fn a_jog_from_outside_the_limits_back_in_never_steps_the_reference() {
+    // Referenced below the minimum (set-position, drift with the valves off): a jog in
+    // is allowed and starts from where the slave is, not from the limit.
+    let range = Some((um(0.0), um(100_000.0)));
+    let l = lim(0, 300, 3000);
+    let mut m = Manual::<1>::holding(&[um(-5_000.0)], T_US);
+    assert_eq!(
+        m.jog(0, speed(-1.0), &l, range),
+        Err(MotionError::OutsideLimits)
+    );
+    m.jog(0, speed(10.0), &l, range).unwrap();
+    let refs = run(&mut m, 250);
+    let mut prev = -5_000.0;
+    for r in &refs {
+        let x = r.x_ref_um.to_num::<f64>();
+        assert!((0.0..=10.0 + 1e-3).contains(&(x - prev)), "{prev} → {x}");
+        prev = x;
+    }
+    assert!(prev < 0.0, "still on its way in: {prev}");
+}
+
+#[test]
+fn a_renewal_takes_the_new_acceleration_and_rebase_moves_every_kind_of_reference() {
+    let mut m = Manual::<1>::holding(&[um(0.0)], T_US);
+    m.jog(0, speed(5.0), &lim(0, 10, 100), None).unwrap();
+    run(&mut m, 100);
+    m.jog(0, speed(5.0), &lim(0, 500, 5000), None).unwrap();
+    let AxisMotion::Ramp(r) = m.axes[0] else {
+        panic!("a ramp")
+    };
+    assert_eq!(Some(r.acc), per_tick_q36(500_000.0, T_US, 2));
+    assert_eq!(Some(r.jerk), per_tick_q36(5_000_000.0, T_US, 3));
+    // Rebase: a ramp, a hold and a move all shift by the offset, nothing else changes.
+    let before = m.step()[0].x_ref_um;
+    m.rebase(0, um(-1_000.0));
+    let after = m.step()[0].x_ref_um;
+    let d = (after - before).to_num::<f64>();
+    assert!((-1_000.0 + 0.0..=-1_000.0 + 6.0).contains(&d), "{d}");
+    let mut h = Manual::<1>::holding(&[um(200.0)], T_US);
+    h.rebase(0, um(50.0));
+    assert_eq!(h.step()[0].x_ref_um, um(250.0));
+    h.move_to(0, um(1_250.0), &lim(50, 500, 5000)).unwrap();
+    h.rebase(0, um(-250.0));
+    run(&mut h, 2_000);
+    assert_eq!(
+        h.step()[0].x_ref_um,
+        um(1_000.0),
+        "the target moved with it"
+    );
+    h.rebase(7, um(1.0)); // no such axis: nothing
 }
 
 #[test]
