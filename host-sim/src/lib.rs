@@ -12,6 +12,7 @@ pub mod die;
 pub mod machine;
 pub mod plant;
 pub mod plot;
+pub mod robust;
 pub mod scenario;
 pub mod sim;
 pub mod tablecheck;

@@ -14,6 +14,9 @@ struct Cli {
 enum Command {
     /// Run one scenario file with one controller.
     Run(cmd::run::Args),
+    /// The robustness box: the shipped gains on the machine off nominal (mass, oil,
+    /// valve, supply), max / RMS error and oscillation per case.
+    Robust(cmd::robust::Args),
     /// Drive the plant with a recorded valve command.
     OpenLoop(cmd::open_loop::Args),
     /// Plan a jerk-limited 7-phase move (N-axis straight line) and sample it.
@@ -62,6 +65,7 @@ fn dispatch() -> anyhow::Result<()> {
     match cli.command {
         None => cmd::run::run_default(),
         Some(Command::Run(a)) => cmd::run::run(&a),
+        Some(Command::Robust(a)) => cmd::robust::run(&a),
         Some(Command::OpenLoop(a)) => cmd::open_loop::run(&a),
         Some(Command::Scurve(a)) => cmd::scurve::run(&a),
         Some(Command::ContourEstimate(a)) => cmd::contour_estimate::run(&a),

@@ -6,6 +6,7 @@ pub mod manual;
 pub mod motion;
 pub mod open_loop;
 pub mod param;
+pub mod robust;
 pub mod run;
 pub mod scurve;
 pub mod serial;
