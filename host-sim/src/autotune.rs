@@ -19,6 +19,10 @@
 //!    DAC LSB, 1/Kp µm of error, that a slow loop shows against the leakage creep; a
 //!    steady offset is not an oscillation). Found by doubling from 0.01 LSB/µm, then 6
 //!    bisections (±1.1 %).
+//!    With `--margins box` (`Margins::Box`) the test runs on every machine of the
+//!    robustness box (`crate::robust`: nominal, 16 corners, 8 face centres) and `K_u` is
+//!    the smallest — on the reference machine the softest oil column, mass ×2 with bulk
+//!    modulus ×0.5, at 0.49 LSB/µm against 2.22 nominal (1 ms).
 //! 2. `Kp = K_u / 2` — a gain margin of 2 (6 dB).
 //! 3. `Ki = Kp·ω_c/4`, `ω_c = Kp·K_vel` the crossover of the P loop around the
 //!    integrating plant, `K_vel` the valve's velocity gain (µm/s per LSB: the slower,
@@ -27,7 +31,8 @@
 //!    signal is mostly quantisation noise.
 //! 5. Integral separation zone `m` = 10 mm (the integral only drops out on gross
 //!    errors: start-up, faults); integrator clamp: full range, except `feedforward`
-//!    whose integral only trims the feed-forward: 200 LSB.
+//!    whose integral only trims the feed-forward: 200 LSB (`--margins box`: the
+//!    shortfall of the feed-forward on the box's slowest valve, 630 LSB).
 //! 6. `feedforward` only: `kv± = 2047 / v_max±` from the closed-form full-opening speeds
 //!    (PLANT.md's "known" valve), aimed past the valve lag `2ζ_v/ω_v`.
 //! 7. Master filter bandwidth: 8 Hz (core default), or the filter's limit `0.2/T`
@@ -238,19 +243,87 @@ pub fn ultimate_gain(
     Ok(hi)
 }
 
+/// The ultimate gain over the robustness box ([`crate::robust`]): the smallest `K_u` of
+/// the nominal machine, the box's 16 corners and its 8 face centres (each the step test
+/// on that plant), and the machine it was found on. A force axis is not varied by the
+/// box: its nominal `K_u`.
+pub fn box_ultimate_gain(
+    s: &Scenario,
+    axis: &AxisCfg,
+    mode: ControlMode,
+    period_us: u32,
+) -> Result<(f64, String), ScenarioError> {
+    use rayon::prelude::*;
+    if axis.role != Role::Follower {
+        return Ok((ultimate_gain(s, axis, mode, period_us)?, "nominal".into()));
+    }
+    let nominal_supply = s.supply.supply_bar;
+    let found = crate::robust::cases(s)
+        .par_iter()
+        .map(|v| {
+            let sv = v.apply(s);
+            let a = sv.axes.iter().find(|a| a.name == axis.name).unwrap_or(axis);
+            Ok((
+                ultimate_gain(&sv, a, mode, period_us)?,
+                v.label(nominal_supply),
+            ))
+        })
+        .collect::<Result<Vec<_>, ScenarioError>>()?;
+    Ok(found.into_iter().fold(
+        (f64::MAX, String::new()),
+        |m, k| if k.0 < m.0 { k } else { m },
+    ))
+}
+
+/// The feed-forward integrator's clamp, LSB: the command the feed-forward lacks on the
+/// box's slowest valve (rated flow ×0.8 at 120 bar: `(1 − 0.8·√(120/p_s))·2047`), so
+/// the integral can make up the whole shortfall there; at least 200 LSB.
+pub fn ff_integrator_limit_lsb(s: &Scenario) -> f64 {
+    let slow = crate::robust::FLOW.0
+        * (crate::robust::SUPPLY_BAR.0 / s.supply.supply_bar.max(1.0))
+            .min(1.0)
+            .sqrt();
+    round2(((1.0 - slow) * f64::from(DacCode::MAX)).max(200.0))
+}
+
 /// Master-filter bandwidth of the rule, Hz.
 pub fn master_filter_hz(period_us: u32) -> f64 {
     filter_limit_hz(period_us).min(8.0)
 }
 
-/// Position gains of one follower axis by the rule.
+/// Which machine the rule's gain margin of 2 (6 dB) holds on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Margins {
+    /// The scenario's own machine (the shipped reference sets).
+    #[default]
+    Nominal,
+    /// Every machine of the robustness box ([`box_ultimate_gain`]); the feed-forward
+    /// integrator clamp from the box's slowest valve ([`ff_integrator_limit_lsb`]).
+    Box,
+}
+
+/// Position gains of one follower axis by the rule (the shipped sets: [`Margins::Nominal`]).
 pub fn position_gains(
     s: &Scenario,
     axis: &AxisCfg,
     controller: Controller,
     period_us: u32,
 ) -> Result<(PositionGains, f64), ScenarioError> {
-    let ku = ultimate_gain(s, axis, controller.mode(), period_us)?;
+    position_gains_with(s, axis, controller, period_us, Margins::Nominal)
+}
+
+/// Position gains of one follower axis by the rule, the gain margin on `margins`.
+pub fn position_gains_with(
+    s: &Scenario,
+    axis: &AxisCfg,
+    controller: Controller,
+    period_us: u32,
+    margins: Margins,
+) -> Result<(PositionGains, f64), ScenarioError> {
+    let ku = match margins {
+        Margins::Nominal => ultimate_gain(s, axis, controller.mode(), period_us)?,
+        Margins::Box => box_ultimate_gain(s, axis, controller.mode(), period_us)?.0,
+    };
     let kp = round2(ku / 2.0);
     let kvel = velocity_gain(axis, s);
     let ki = round2(kp * kp * kvel / 4.0);
@@ -264,7 +337,11 @@ pub fn position_gains(
             ki_lsb_per_um_s: ki as f32,
             kd_lsb_s_per_um: 0.0,
             i_zone_um: 10_000.0,
-            i_limit_lsb: if ff { 200.0 } else { 2047.0 },
+            i_limit_lsb: match (ff, margins) {
+                (true, Margins::Nominal) => 200.0,
+                (true, Margins::Box) => ff_integrator_limit_lsb(s) as f32,
+                (false, _) => 2047.0,
+            },
             kv_pos_lsb_per_um_s: if ff {
                 round4(2047.0 / (p.no_load_speed_m_per_s(true) * 1e6)) as f32
             } else {
@@ -394,6 +471,7 @@ pub fn tune(
     s: &Scenario,
     controller: Controller,
     period_us: u32,
+    margins: Margins,
 ) -> Result<(Tuning, Vec<(String, f64)>), ScenarioError> {
     let mut t = Tuning {
         controller,
@@ -407,7 +485,7 @@ pub fn tune(
     for a in &s.axes {
         match a.role {
             Role::Follower => {
-                let (g, k) = position_gains(s, a, controller, period_us)?;
+                let (g, k) = position_gains_with(s, a, controller, period_us, margins)?;
                 t.axes.insert(a.name.clone(), g);
                 ku.push((a.name.clone(), k));
             }
@@ -477,6 +555,49 @@ mod tests {
             assert!(ok.stable() && ok.late_um < 5.0, "{mode:?} {ok:?}");
             assert!(!bad.stable() && bad.late_um > 500.0, "{mode:?} {bad:?}");
         }
+    }
+
+    /// The box's binding machine is the softest oil column (mass ×2, bulk modulus ×0.5:
+    /// half the hydraulic frequency); the shipped 1 ms gains oscillate there, the box
+    /// rule's do not.
+    #[test]
+    fn the_box_rule_holds_on_the_softest_machine_where_the_shipped_gains_oscillate() {
+        let s = Scenario::default();
+        let a = &s.axes[0];
+        let nominal = ultimate_gain(&s, a, ControlMode::Feedforward, 1000).unwrap();
+        let (ku, worst) = box_ultimate_gain(&s, a, ControlMode::Feedforward, 1000).unwrap();
+        assert!(ku < 0.4 * nominal, "box K_u {ku} vs nominal {nominal}");
+        assert!(worst.contains("mass×2 bulk×0.5"), "{worst}");
+        let (g, _) =
+            position_gains_with(&s, a, Controller::Feedforward, 1000, Margins::Box).unwrap();
+        assert_eq!(g.i_limit_lsb, 630.0);
+        let soft = crate::robust::Variant {
+            mass: 2.0,
+            bulk: 0.5,
+            ..crate::robust::Variant::nominal(&s)
+        };
+        let table = s.load_table(None).unwrap();
+        let mut shipped = soft.apply(&s);
+        shipped.sim.duration_s = Some(8.0);
+        let mut boxed = shipped.clone();
+        for t in boxed.tuning.iter_mut() {
+            if let Some(x) = t.axes.get_mut(&a.name) {
+                *x = g;
+            }
+        }
+        let run = |sc: &Scenario| {
+            let spec = RunSpec {
+                controller: Controller::Feedforward,
+                period_us: 1000,
+                trace_every_s: None,
+            };
+            simulate(sc, &table, &spec, &mut |_| {}).unwrap()
+        };
+        let excess = |r: &crate::sim::RunReport| {
+            r.oscillation.iter().map(|o| o.excess()).sum::<u32>() + r.faults.len() as u32
+        };
+        assert!(excess(&run(&shipped)) > 10, "the shipped gains shake");
+        assert_eq!(excess(&run(&boxed)), 0, "the box gains hold");
     }
 
     #[test]

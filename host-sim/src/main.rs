@@ -17,6 +17,9 @@ enum Command {
     /// The robustness box: the shipped gains on the machine off nominal (mass, oil,
     /// valve, supply), max / RMS error and oscillation per case.
     Robust(cmd::robust::Args),
+    /// Fit an axis' valve, oil, mass and friction to an open-loop recording; write the
+    /// machine file.
+    Identify(cmd::identify::Args),
     /// Drive the plant with a recorded valve command.
     OpenLoop(cmd::open_loop::Args),
     /// Plan a jerk-limited 7-phase move (N-axis straight line) and sample it.
@@ -66,6 +69,7 @@ fn dispatch() -> anyhow::Result<()> {
         None => cmd::run::run_default(),
         Some(Command::Run(a)) => cmd::run::run(&a),
         Some(Command::Robust(a)) => cmd::robust::run(&a),
+        Some(Command::Identify(a)) => cmd::identify::run(&a),
         Some(Command::OpenLoop(a)) => cmd::open_loop::run(&a),
         Some(Command::Scurve(a)) => cmd::scurve::run(&a),
         Some(Command::ContourEstimate(a)) => cmd::contour_estimate::run(&a),

@@ -122,6 +122,9 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
 
     /// One tick in `Manual`: every slave's reference, the law toward it, the fault
     /// checks; the end of an approach starts following.
+    /// Out of line: `Runtime::step`'s following path (the hot one, `runtime_step_2axes`
+    /// in bench-m4) must not carry the manual tick's code and registers.
+    #[inline(never)]
     pub(super) fn manual_tick(
         &mut self,
         live_master: Master,

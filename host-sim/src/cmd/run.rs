@@ -41,6 +41,12 @@ pub struct Args {
     /// (default: all three) at `--period-us` and print the `[[tuning]]` sets as TOML.
     #[arg(long, conflicts_with_all = ["json", "csv", "plot"])]
     pub tune: bool,
+    /// With `--tune`: the machine(s) the gain margin of 6 dB must hold on — `nominal`
+    /// (the scenario's machine, the shipped sets) or `box` (every machine of the
+    /// robustness box of `host-sim robust`: mass ×0.5–2, bulk modulus ×0.5–1.5, valve
+    /// flow ±20 %, supply 120–180 bar).
+    #[arg(long, value_enum, default_value = "nominal", requires = "tune")]
+    pub margins: crate::autotune::Margins,
 }
 
 /// Trace period of `--csv` and the plots, s.
@@ -230,10 +236,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             None => Controller::ALL.to_vec(),
         };
         for c in controllers {
-            let (t, ku) = crate::autotune::tune(&s, c, period_us)?;
+            let (t, ku) = crate::autotune::tune(&s, c, period_us, args.margins)?;
+            let over = match args.margins {
+                crate::autotune::Margins::Nominal => "",
+                crate::autotune::Margins::Box => ", smallest over the robustness box",
+            };
             for (axis, k) in ku {
                 println!(
-                    "# {axis}: ultimate gain K_u = {k:.4} ({} @ {period_us} µs)",
+                    "# {axis}: ultimate gain K_u = {k:.4} ({} @ {period_us} µs{over})",
                     c.name()
                 );
             }

@@ -1,0 +1,217 @@
+//! `host-sim identify`: fit an axis' valve, oil, mass and friction to an open-loop
+//! recording (`crate::identify`) and write them as a machine file in the scenario
+//! format (`run`, `robust` and `run --tune` read it).
+//!
+//! The recording: one CSV with the header `t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool` (s,
+//! normalised command, mm, mm/s, bar, bar, normalised spool) — `host-sim open-loop`'s
+//! output joined with its command — or `open-loop`'s output alone with `--command-csv`
+//! (the `t,u` command it was driven with, held between rows).
+
+use crate::cmd::open_loop::parse_command;
+use crate::identify::{identify, Identified, Sample};
+use crate::scenario::Scenario;
+use anyhow::Context as _;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `host-sim identify`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The recording: CSV `t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool` (or without `u`, with
+    /// `--command-csv`).
+    #[arg(long, value_name = "REC.csv")]
+    pub trace: PathBuf,
+    /// The `t,u` command the recording was driven with, when the trace has no `u` column.
+    #[arg(long, value_name = "CMD.csv")]
+    pub command_csv: Option<PathBuf>,
+    /// The machine's known geometry and supply (default: the reference machine).
+    #[arg(long, value_name = "S.toml")]
+    pub scenario: Option<PathBuf>,
+    /// Axis of the scenario (default: the first).
+    #[arg(long)]
+    pub axis: Option<String>,
+    /// Write the identified machine here (scenario format).
+    #[arg(long, value_name = "MACHINE.toml")]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object: every parameter with its value and 1σ uncertainty.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Reads the recording; errors name the file and line.
+fn read_recording(trace: &Path, command: Option<&Path>) -> anyhow::Result<Vec<Sample>> {
+    let mut r = csv::Reader::from_path(trace)
+        .with_context(|| format!("reading the recording {}", trace.display()))?;
+    let header: Vec<String> = r
+        .headers()
+        .with_context(|| format!("{}: no header", trace.display()))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let col = |name: &str| header.iter().position(|h| h == name);
+    let need = ["t", "x_mm", "v_mm_s", "pA_bar", "pB_bar", "spool"];
+    let mut idx = Vec::new();
+    for n in need {
+        idx.push(col(n).with_context(|| {
+            format!(
+                "{}: no `{n}` column (header: {}); expected t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool",
+                trace.display(),
+                header.join(",")
+            )
+        })?);
+    }
+    let u_col = col("u");
+    let cmd = match (u_col, command) {
+        (Some(_), _) => None,
+        (None, Some(p)) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("reading the command {}", p.display()))?;
+            Some(parse_command(&text, p)?)
+        }
+        (None, None) => anyhow::bail!(
+            "{}: no `u` column; give the command it was driven with (--command-csv)",
+            trace.display()
+        ),
+    };
+    let mut out = Vec::new();
+    for (k, rec) in r.records().enumerate() {
+        let line = k + 2;
+        let rec = rec.with_context(|| format!("{}:{line}", trace.display()))?;
+        let f = |i: usize, name: &str| -> anyhow::Result<f64> {
+            rec.get(i)
+                .and_then(|s| s.trim().parse::<f64>().ok())
+                .filter(|v| v.is_finite())
+                .with_context(|| format!("{}:{line}: `{name}` is not a number", trace.display()))
+        };
+        let t = f(idx[0], "t")?;
+        let u = match (&cmd, u_col) {
+            (_, Some(i)) => f(i, "u")?,
+            (Some(c), None) => c
+                .iter()
+                .take_while(|(tc, _)| *tc <= t + 1e-9)
+                .last()
+                .map_or(0.0, |c| c.1),
+            (None, None) => 0.0,
+        };
+        if let Some(prev) = out.last().map(|s: &Sample| s.t) {
+            anyhow::ensure!(
+                t > prev,
+                "{}:{line}: time {t} s does not increase (previous {prev} s)",
+                trace.display()
+            );
+        }
+        out.push(Sample {
+            t,
+            u,
+            x_m: f(idx[1], "x_mm")? * 1e-3,
+            v_m_s: f(idx[2], "v_mm_s")? * 1e-3,
+            pa_pa: f(idx[3], "pA_bar")? * 1e5,
+            pb_pa: f(idx[4], "pB_bar")? * 1e5,
+            spool: f(idx[5], "spool")?,
+        });
+    }
+    Ok(out)
+}
+
+/// The machine file: the scenario's supply and axis geometry with the fitted values.
+fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &Path) -> String {
+    let v = |n: &str| id.get(n).map_or(0.0, |p| p.value);
+    let line = |n: &str, key: &str| -> String {
+        id.get(n).map_or(String::new(), |p| {
+            format!("{key} = {:.6e}   # ± {:.2e} (1σ)\n", p.value, p.std)
+        })
+    };
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "# Identified by `host-sim identify` from {} ({} of {} samples used).\n\
+         # The valve's flow gain per direction: extend {:.3} l/min, retract {:.3} l/min\n\
+         # (rated at 35 bar; the model has one, their mean); overlap {:.4} of the travel;\n\
+         # oil column at mid-stroke {:.1} Hz, damping {:.4}.",
+        source.display(),
+        id.used_samples,
+        id.samples,
+        v("rated_flow_extend_l_per_min"),
+        v("rated_flow_retract_l_per_min"),
+        v("overlap"),
+        v("hydraulic_frequency_hz"),
+        v("hydraulic_damping"),
+    );
+    let _ = writeln!(o, "name = \"{}_identified\"\n", s.name());
+    let _ = writeln!(
+        o,
+        "[supply]\nsupply_bar = {}\ntank_bar = {}\nclamp_factor = {}\n",
+        s.supply.supply_bar, s.supply.tank_bar, s.supply.clamp_factor
+    );
+    let Some(a) = s.axes.iter().find(|a| a.name == axis) else {
+        return o;
+    };
+    let _ = writeln!(o, "[[axis]]\nname = \"{}\"\nrole = \"follower\"\n", a.name);
+    o.push_str("[axis.valve]\n");
+    o.push_str(&line("valve_bandwidth_hz", "bandwidth_hz"));
+    o.push_str(&line("valve_damping", "damping"));
+    let _ = writeln!(
+        o,
+        "rated_flow_l_per_min = {:.6e}\nrated_dp_bar = 35\nleakage_m3_per_s_pa = {}\n",
+        0.5 * (v("rated_flow_extend_l_per_min") + v("rated_flow_retract_l_per_min")),
+        a.valve.leakage_m3_per_s_pa
+    );
+    let c = &a.cylinder;
+    let _ = writeln!(
+        o,
+        "[axis.cylinder]\nbore_mm = {}\nrod_mm = {}\nstroke_mm = {}\ndead_volume_a_l = {}\ndead_volume_b_l = {}\ncoulomb_smoothing_mm_per_s = {}",
+        c.bore_mm, c.rod_mm, c.stroke_mm, c.dead_volume_a_l, c.dead_volume_b_l,
+        c.coulomb_smoothing_mm_per_s
+    );
+    o.push_str(&line("bulk_modulus_pa", "bulk_modulus_pa"));
+    o.push_str(&line("mass_kg", "mass_kg"));
+    o.push_str(&line("viscous_n_s_per_m", "viscous_n_s_per_m"));
+    o.push_str(&line("coulomb_n", "coulomb_n"));
+    o.push_str(&line("load_n", "load_n"));
+    o
+}
+
+/// Runs `host-sim identify`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let s = match &args.scenario {
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::default(),
+    };
+    let a = match &args.axis {
+        Some(n) => s
+            .axes
+            .iter()
+            .find(|a| &a.name == n)
+            .with_context(|| format!("--axis {n}: the scenario has no axis of that name"))?,
+        None => s.axes.first().context("the scenario has no axis")?,
+    };
+    if let Some(out) = &args.out {
+        crate::csvout::writable(out)?;
+    }
+    let rec = read_recording(&args.trace, args.command_csv.as_deref())?;
+    let known = a.plant(s.supply(), 0.5 * a.cylinder.stroke_mm * 1e-3);
+    let id = identify(&known, &rec).with_context(|| {
+        format!(
+            "identifying axis `{}` from {}",
+            a.name,
+            args.trace.display()
+        )
+    })?;
+    if args.json {
+        println!("{}", serde_json::json!({ "axis": a.name, "fit": id }));
+    } else {
+        println!(
+            "axis `{}`: {} of {} samples used",
+            a.name, id.used_samples, id.samples
+        );
+        for p in &id.params {
+            println!("  {:<30} {:>14.6e} ± {:.2e}", p.name, p.value, p.std);
+        }
+    }
+    if let Some(out) = &args.out {
+        let text = machine_toml(&s, &a.name, &id, &args.trace);
+        crate::csvout::save(out, &text)?;
+        eprintln!("identify: machine written to {}", out.display());
+    }
+    Ok(())
+}
