@@ -47,6 +47,7 @@ fn args(scenario: PathBuf, allow_fault: bool) -> Args {
         json: true,
         allow_fault,
         tune: false,
+        margins: host_sim::autotune::Margins::Nominal,
     }
 }
 

@@ -161,7 +161,9 @@ pub fn sq_mul_shr68(u: i64, k: i64) -> i64 {
         // u² ≤ 2^126 fits; u²·k may not (|u| > 2^32 with |k| near 2^63): saturate.
         let sq = i128::from(u).wrapping_mul(i128::from(u));
         return match sq.checked_mul(i128::from(k)) {
-            Some(x) => sat_i64(shr_round_i128(x, 68)),
+            // (x >> 68) + bit 67: the rounded shift without the add that could wrap
+            // within 2^67 of i128::MAX.
+            Some(x) => sat_i64((x >> 68).wrapping_add((x >> 67) & 1)),
             None if k < 0 => i64::MIN,
             None => i64::MAX,
         };
@@ -435,14 +437,16 @@ mod tests {
 
         #[test]
         fn sq_mul_shr68_matches_the_i128_form(
-            u in prop_oneof![-(1i64 << 39)..=(1i64 << 39), -(1i64 << 32)..(1i64 << 32), -100_000i64..100_000],
+            u in prop_oneof![-(1i64 << 39)..=(1i64 << 39), -(1i64 << 32)..(1i64 << 32), -100_000i64..100_000, Just(1i64 << 32), Just(-(1i64 << 32))],
             k in prop_oneof![any::<i64>(), -(1i64 << 48)..(1i64 << 48), Just(i64::MIN), Just(i64::MAX)],
         ) {
-            // u²·k beyond i128 (|u| > 2^32, |k| near 2^63) saturates to k's sign.
+            // u²·k beyond i128 (|u| > 2^32, |k| near 2^63) saturates to k's sign; the
+            // rounding by Euclidean division, independent of the shifts under test.
             let exact = (i128::from(u) * i128::from(u))
                 .checked_mul(i128::from(k))
                 .map_or(if k < 0 { i64::MIN } else { i64::MAX }, |x| {
-                    sat_i64(shr_round_i128(x, 68))
+                    let d = 1i128 << 68;
+                    sat_i64(x.div_euclid(d) + i128::from(x.rem_euclid(d) >= d / 2))
                 });
             prop_assert_eq!(sq_mul_shr68(u, k), exact);
         }
@@ -501,5 +505,21 @@ mod mulhi_tests {
             };
             prop_assert_eq!(i128::from(shl_signed_sat(x, s)), want);
         }
+    }
+}
+
+#[cfg(test)]
+mod edge_tests {
+    use super::*;
+
+    /// u²·k within 2^67 of `i128::MAX`: the rounding must not wrap the sign.
+    #[test]
+    fn sq_mul_shr68_near_the_top_of_i128_keeps_its_sign() {
+        let want = ((1i128 << 64) * i128::from(i64::MAX)) >> 68; // exact: bit 67 is 1 → +1
+        let got = sq_mul_shr68(1 << 32, i64::MAX);
+        assert!(got > 0 && i128::from(got) - want <= 1, "{got} vs {want}");
+        assert_eq!(sq_mul_shr68(-(1 << 32), i64::MAX), got);
+        assert_eq!(sq_mul_shr68(1 << 40, i64::MAX), i64::MAX);
+        assert_eq!(sq_mul_shr68(1 << 40, i64::MIN), i64::MIN);
     }
 }

@@ -275,12 +275,13 @@ impl Ramp {
         }
         self.a = a_next;
         self.v = v;
+        let before = self.p;
         self.p = self.p.saturating_add(v);
         if let Some((lo, hi)) = self.limits {
-            // The last guard, only on the side the ramp moves toward: a slave that
-            // starts outside the limits (set-position, drift with valves off) and is
-            // jogged back in is never stepped onto the limit.
-            if (v > 0 && self.p > hi) || (v < 0 && self.p < lo) {
+            // The last guard, only when this tick crosses a limit: a slave outside the
+            // limits (set-position, drift with the valves off, re-referenced while
+            // jogging) is braked, never stepped onto the limit.
+            if (v > 0 && before <= hi && self.p > hi) || (v < 0 && before >= lo && self.p < lo) {
                 self.p = self.p.clamp(lo, hi);
                 self.v = 0;
                 self.a = 0;
@@ -410,8 +411,14 @@ impl<const S: usize> Manual<S> {
         };
         let lims = limits.map(|(lo, hi)| (q36_of(lo), q36_of(hi)));
         if let Some((lo, hi)) = lims {
-            // Refused when the jog points out of the limits from where the axis is.
+            // Refused when the jog points out of the limits from where the axis is. A slave
+            // already jogging that way (it was just referenced by a home edge and is past
+            // a limit in the new frame) brakes to rest, with the limits in force.
             if (vt > 0 && ramp.p >= hi) || (vt < 0 && ramp.p <= lo) {
+                if let AxisMotion::Ramp(r) = slot {
+                    r.v_target = 0;
+                    r.limits = lims;
+                }
                 return Err(MotionError::OutsideLimits);
             }
         }

@@ -74,6 +74,7 @@ fn read_recording(trace: &Path, command: Option<&Path>) -> anyhow::Result<Vec<Sa
         ),
     };
     let mut out = Vec::new();
+    let mut cmd_at = 0usize; // the command row in force (times increase: a walking index)
     for (k, rec) in r.records().enumerate() {
         let line = k + 2;
         let rec = rec.with_context(|| format!("{}:{line}", trace.display()))?;
@@ -86,11 +87,14 @@ fn read_recording(trace: &Path, command: Option<&Path>) -> anyhow::Result<Vec<Sa
         let t = f(idx[0], "t")?;
         let u = match (&cmd, u_col) {
             (_, Some(i)) => f(i, "u")?,
-            (Some(c), None) => c
-                .iter()
-                .take_while(|(tc, _)| *tc <= t + 1e-9)
-                .last()
-                .map_or(0.0, |c| c.1),
+            (Some(c), None) => {
+                while c.get(cmd_at + 1).is_some_and(|(tc, _)| *tc <= t + 1e-9) {
+                    cmd_at += 1;
+                }
+                c.get(cmd_at)
+                    .filter(|(tc, _)| *tc <= t + 1e-9)
+                    .map_or(0.0, |c| c.1)
+            }
             (None, None) => 0.0,
         };
         if let Some(prev) = out.last().map(|s: &Sample| s.t) {
@@ -118,7 +122,7 @@ fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &Path) -> Str
     let v = |n: &str| id.get(n).map_or(0.0, |p| p.value);
     let line = |n: &str, key: &str| -> String {
         id.get(n).map_or(String::new(), |p| {
-            format!("{key} = {:.6e}   # ± {:.2e} (1σ)\n", p.value, p.std)
+            format!("{key} = {:.6e}   # fit residual σ {:.2e}\n", p.value, p.std)
         })
     };
     let mut o = String::new();
@@ -126,7 +130,8 @@ fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &Path) -> Str
         o,
         "# Identified by `host-sim identify` from {} ({} of {} samples used).\n\
          # The valve's flow gain per direction: extend {:.3} l/min, retract {:.3} l/min\n\
-         # (rated at 35 bar; the model has one, their mean); overlap {:.4} of the travel;\n\
+         # (rated at 35 bar; the model has one, their mean); overlap {:.4} of the travel\n\
+         # (the model has none: a fitted overlap is not simulated);\n\
          # oil column at mid-stroke {:.1} Hz, damping {:.4}.",
         source.display(),
         id.used_samples,
@@ -210,6 +215,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     if let Some(out) = &args.out {
         let text = machine_toml(&s, &a.name, &id, &args.trace);
+        // What is written must load as a scenario (its validation names a bad value).
+        Scenario::parse(&text, out).context("the identified machine is not a valid scenario")?;
         crate::csvout::save(out, &text)?;
         eprintln!("identify: machine written to {}", out.display());
     }

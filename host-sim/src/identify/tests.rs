@@ -1,5 +1,5 @@
 //! The fit on host-sim's own plant: a machine off nominal in every parameter the fit
-//! claims, recovered within 10 %.
+//! claims, recovered within 4 %.
 
 use super::*;
 use crate::cmd::open_loop::simulate;
@@ -48,7 +48,7 @@ fn record(axis: &mut HydraulicAxis, step_s: f64) -> Vec<Sample> {
 }
 
 #[test]
-fn an_off_nominal_machine_is_recovered_within_ten_percent() {
+fn an_off_nominal_machine_is_recovered_within_four_percent() {
     let nominal = Scenario::default();
     let mut truth = nominal.clone();
     let a = &mut truth.axes[0];
@@ -87,7 +87,7 @@ fn an_off_nominal_machine_is_recovered_within_ten_percent() {
         let p = id.get(name).unwrap();
         let err = (p.value / truth - 1.0).abs();
         assert!(
-            err < 0.10,
+            err < 0.04,
             "{name}: fitted {} ± {}, true {truth} ({:.1} %)",
             p.value,
             p.std,

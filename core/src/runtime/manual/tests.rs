@@ -154,6 +154,29 @@ fn a_jog_from_outside_the_limits_back_in_never_steps_the_reference() {
 }
 
 #[test]
+fn a_jog_found_past_a_limit_by_its_renewal_brakes_without_a_step() {
+    // Jogging up unreferenced; a home edge puts the slave at 101 mm in a frame whose
+    // limit is 100 mm; the next renewal (with the limits) is refused and brakes it.
+    let range = Some((um(0.0), um(100_000.0)));
+    let l = lim(0, 300, 3000);
+    let mut m = Manual::<1>::holding(&[um(0.0)], T_US);
+    m.jog(0, speed(10.0), &l, None).unwrap();
+    run(&mut m, 200);
+    m.rebase(0, um(101_000.0));
+    assert_eq!(
+        m.jog(0, speed(10.0), &l, range),
+        Err(MotionError::OutsideLimits)
+    );
+    let mut prev = m.step()[0].x_ref_um.to_num::<f64>();
+    for r in run(&mut m, 300) {
+        let x = r.x_ref_um.to_num::<f64>();
+        assert!((0.0..=10.0 + 1e-3).contains(&(x - prev)), "{prev} → {x}");
+        prev = x;
+    }
+    assert!(m.at_rest(), "braked to rest");
+}
+
+#[test]
 fn a_renewal_takes_the_new_acceleration_and_rebase_moves_every_kind_of_reference() {
     let mut m = Manual::<1>::holding(&[um(0.0)], T_US);
     m.jog(0, speed(5.0), &lim(0, 10, 100), None).unwrap();
