@@ -42,7 +42,10 @@
 //! **Force law** (side press): the same rule on the force loop. `K_u` from the press
 //! scenario itself (approach, contact, 1 s ramp, hold) with P-only force control: unstable
 //! when the force still swings by more than 10 % of the set-point in the last second of
-//! the hold. `Kp_F = K_u/2`, `Ki_F = Kp_F·ω_c/4` with `ω_c = Kp_F·k_c·K_vel`
+//! the hold, peak-to-peak about its least-squares line (a weak P loop still creeping
+//! toward its balance — the approach's feed-forward carried over bumplessly keeps
+//! pushing — is slow, not unstable: measured without the trend, the eleventh session's
+//! rule took that creep for an oscillation and printed `kp_lsb_per_n = 0.00064`). `Kp_F = K_u/2`, `Ki_F = Kp_F·ω_c/4` with `ω_c = Kp_F·k_c·K_vel`
 //! (`k_c` the contact stiffness: N/s per LSB of the force plant). The approach gains
 //! are the position rule's `Kp` for the `feedforward` law and `kv = 2047/v_max+`.
 
@@ -410,15 +413,36 @@ fn press_stable(
     let f = tr
         .column(&format!("{}_force_n", axis.name))
         .unwrap_or_default();
-    let last: Vec<f64> = t
+    let last: Vec<(f64, f64)> = t
         .iter()
         .zip(&f)
         .filter(|(t, _)| **t >= duration - 1.0)
-        .map(|(_, f)| *f)
+        .map(|(t, f)| (*t, *f))
         .collect();
-    let lo = last.iter().copied().fold(f64::MAX, f64::min);
-    let hi = last.iter().copied().fold(f64::MIN, f64::max);
-    Ok(hi - lo < 0.1 * press && hi.is_finite())
+    Ok(swing_about_trend(&last).is_some_and(|s| s < 0.1 * press))
+}
+
+/// The peak-to-peak of `(t, y)` about its least-squares line, or `None` if it is not
+/// finite or there are fewer than 2 samples: an oscillation, not a slow creep (a weak
+/// P-only force loop still creeping toward its balance is not unstable).
+fn swing_about_trend(s: &[(f64, f64)]) -> Option<f64> {
+    let n = s.len() as f64;
+    if s.len() < 2 {
+        return None;
+    }
+    let (mt, my) = s
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (t, y)| (a + t / n, b + y / n));
+    let (sty, stt) = s.iter().fold((0.0, 0.0), |(a, b), (t, y)| {
+        (a + (t - mt) * (y - my), b + (t - mt) * (t - mt))
+    });
+    let slope = if stt > 0.0 { sty / stt } else { 0.0 };
+    let (lo, hi) = s.iter().fold((f64::MAX, f64::MIN), |(lo, hi), (t, y)| {
+        let r = y - my - slope * (t - mt);
+        (lo.min(r), hi.max(r))
+    });
+    let swing = hi - lo;
+    swing.is_finite().then_some(swing)
 }
 
 /// Press gains of one force axis by the rule; returns the gains and the force loop's

@@ -1,6 +1,6 @@
 //! The shipped gain sets are the output of the documented tuning procedure.
 
-use host_sim::autotune::{master_filter_hz, position_gains};
+use host_sim::autotune::{master_filter_hz, position_gains, press_gains};
 use host_sim::scenario::{Controller, Scenario};
 use std::path::Path;
 
@@ -38,6 +38,26 @@ fn shipped_position_gains_are_the_procedure_output() {
                 "{c:?} @ {period} µs"
             );
             assert_eq!(g.kv_pos_lsb_per_um_s, 0.0);
+        }
+    }
+}
+
+/// The side press's force gains of `tangent.toml` are the procedure's output at every
+/// tuned period (the same for every controller: the press law is one), and with them the
+/// press holds its set-point.
+#[test]
+fn shipped_press_gains_are_the_procedure_output() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios/tangent.toml");
+    let s = Scenario::load(&path).unwrap();
+    let press = s.axes.iter().find(|a| a.name == "side_press").unwrap();
+    for period in [1000, 10_000, 72_000] {
+        let (want, ku) = press_gains(&s, press, period).unwrap();
+        for t in s.tuning.iter().filter(|t| t.period_us == period) {
+            assert_eq!(
+                t.press["side_press"], want,
+                "{:?} @ {period} µs (K_u = {ku})",
+                t.controller
+            );
         }
     }
 }
