@@ -75,6 +75,13 @@ pub struct Args {
     /// C's part of the procedure).
     #[arg(long)]
     pub tune: bool,
+    /// Y's valve flow at run time against the machine the feed-forward was identified
+    /// on (a drift: worn valve, another valve of the series), ×.
+    #[arg(long, default_value_t = 1.0)]
+    pub y_flow: f64,
+    /// Y's moving mass at run time against the identified machine (tooling), ×.
+    #[arg(long, default_value_t = 1.0)]
+    pub y_mass: f64,
 }
 
 /// A switch.
@@ -115,6 +122,10 @@ pub fn run(args: &Args) -> Result<()> {
         radius_mm: args.radius_mm,
         disturbance: args.disturbance_n.zip(args.disturbance_at_s),
         following_error_um: args.following_error_um,
+        y_drift: crate::xy::YDrift {
+            y_flow: args.y_flow,
+            y_mass: args.y_mass,
+        },
     };
     let r = simulate(&s)?;
     if let Some(p) = &args.plot {

@@ -123,6 +123,27 @@ pub struct XyScenario {
     pub gains: Gains,
     /// The runtime's following-error limit of each axis, µm (10 … 100 000).
     pub following_error_um: f32,
+    /// The Y axis at run time against the machine its feed-forward was identified on:
+    /// valve flow ×`y_flow`, moving mass ×`y_mass` (1, 1: the same machine).
+    pub y_drift: YDrift,
+}
+
+/// The Y plant's drift from the identified machine (multipliers, 0.25 … 4).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct YDrift {
+    /// Valve flow gain ×.
+    pub y_flow: f64,
+    /// Moving mass ×.
+    pub y_mass: f64,
+}
+
+impl Default for YDrift {
+    fn default() -> Self {
+        Self {
+            y_flow: 1.0,
+            y_mass: 1.0,
+        }
+    }
 }
 
 impl Default for XyScenario {
@@ -135,6 +156,7 @@ impl Default for XyScenario {
             disturbance: None,
             gains: Gains::default(),
             following_error_um: FOLLOWING_ERROR_LIMIT_UM,
+            y_drift: YDrift::default(),
         }
     }
 }
@@ -290,6 +312,17 @@ pub fn simulate(s: &XyScenario) -> Result<XyReport> {
             bail!("disturbance must be |N| ≤ 50 kN at a time ≥ 0 s");
         }
     }
+    let d = s.y_drift;
+    if !([d.y_flow, d.y_mass]
+        .iter()
+        .all(|k| k.is_finite() && (0.25..=4.0).contains(k)))
+    {
+        bail!(
+            "--y-flow and --y-mass must be in [0.25, 4], got {} and {}",
+            d.y_flow,
+            d.y_mass
+        );
+    }
     let (core_path, truth) = build_path(s)?;
     match &core_path {
         CorePath::Line(p) => run(s, p, &truth),
@@ -301,6 +334,10 @@ pub fn simulate(s: &XyScenario) -> Result<XyReport> {
 fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result<XyReport> {
     let start = truth.r(truth.domain().0);
     let (mut ax, mut ay, _) = axes(start);
+    // The drift acts on the plant only: the law keeps the gains and feed-forward it was
+    // given (identified on the nominal machine).
+    ay.valve.kv *= s.y_drift.y_flow;
+    ay.cylinder.mass_kg *= s.y_drift.y_mass;
     let law = XyLaw::new(s, path, truth)?;
     let rc = runtime_config(s.following_error_um);
     let coeffs = rc

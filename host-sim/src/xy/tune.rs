@@ -51,6 +51,7 @@ pub fn tuning_scenario(controller: ControllerKind, gains: Gains) -> XyScenario {
         disturbance: Some((2000.0, 3.39)),
         gains,
         following_error_um: super::FOLLOWING_ERROR_LIMIT_UM,
+        y_drift: super::YDrift::default(),
     }
 }
 
