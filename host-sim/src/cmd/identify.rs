@@ -216,7 +216,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         let text = machine_toml(&s, &a.name, &id, &args.trace);
         // What is written must load as a scenario (its validation names a bad value).
-        Scenario::parse(&text, out).context("the identified machine is not a valid scenario")?;
+        Scenario::parse(&text, out)
+            .and_then(|m| m.validate())
+            .context("the identified machine is not a valid scenario")?;
         crate::csvout::save(out, &text)?;
         eprintln!("identify: machine written to {}", out.display());
     }

@@ -33,6 +33,7 @@ impl Default for SupplyCfg {
             supply_bar: 160.0,
             tank_bar: 0.0,
             clamp_factor: 1.1,
+            drift: None,
         }
     }
 }
@@ -118,6 +119,8 @@ impl Default for AxisCfg {
             sensors: SensorCfg::default(),
             calibration: hydra_core::valve::ValveCal::default(),
             press: None,
+            load: None,
+            drift: None,
         }
     }
 }

@@ -21,6 +21,7 @@ mod defaults;
 pub mod gains;
 mod physics;
 mod validate;
+pub mod varying;
 
 pub use defaults::reference_tuning;
 /// The gain sets of `[tuning.axes.<name>]` and `[tuning.press.<name>]` are core's own
@@ -132,6 +133,8 @@ pub struct SupplyCfg {
     pub tank_bar: f64,
     /// Chamber pressures are clamped to `[0, clamp_factor·p_s]` (PLANT.md: 1.1).
     pub clamp_factor: f64,
+    /// The supply moving during the run.
+    pub drift: Option<varying::SupplyDrift>,
 }
 
 /// `[master]`: the rotary table's motion and encoder.
@@ -203,6 +206,10 @@ pub struct AxisCfg {
     pub calibration: hydra_core::valve::ValveCal,
     /// The press process of a force axis (`role = "force"`).
     pub press: Option<PressCfg>,
+    /// An external load over time (adds to `cylinder.load_n`).
+    pub load: Option<varying::LoadProfile>,
+    /// The valve and oil drifting during the run.
+    pub drift: Option<varying::AxisDrift>,
 }
 
 /// `[axis.press]`: the press process of a force axis (PLANT.md's side press).

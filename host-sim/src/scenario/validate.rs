@@ -63,6 +63,9 @@ impl Scenario {
             ));
         }
         check("supply.clamp_factor", s.clamp_factor, 1.0, true, 10.0)?;
+        if let Some(d) = &s.drift {
+            d.validate(s.tank_bar, s.clamp_factor * s.supply_bar)?;
+        }
         let m = &self.master;
         check("master.start_deg", m.start_deg, -1e6, true, 1e6)?;
         check("master.end_deg", m.end_deg, -1e6, true, 1e6)?;
@@ -112,6 +115,12 @@ impl Scenario {
                 ));
             }
             a.validate(self.step_s())?;
+            if let Some(l) = &a.load {
+                l.validate(&format!("axis.{}.load", a.name))?;
+            }
+            if let Some(d) = &a.drift {
+                d.validate(&format!("axis.{}.drift", a.name))?;
+            }
         }
         validate_tuning(self)
     }

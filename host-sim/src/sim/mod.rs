@@ -308,8 +308,10 @@ pub fn run(
     let mut step: u64 = 0;
     let progress_every = (n_periods / 100).max(1);
 
+    let varying = Varying::new(&sc, &plants);
     for k in 0..n_periods {
         let t_k = k as f64 * period_s;
+        varying.apply(t_k, &mut plants);
         // 1–2. sample and compute
         if let Some(f) = follower.as_mut() {
             let m = menc.count(master.angle_deg(t_k));
@@ -588,4 +590,55 @@ fn table_reversals(master: &[f64], col: &[f64], a: f64, b: f64) -> u32 {
         sign = s;
     }
     n
+}
+
+/// The scenario's load profiles and drifts (`crate::scenario::varying`), applied to the
+/// plants at each period (the controller is not told).
+struct Varying {
+    axes: Vec<VaryingAxis>,
+    /// The supply's drift and its nominal pressure, bar.
+    supply: Option<(crate::scenario::varying::SupplyDrift, f64)>,
+}
+
+/// One plant's load profile, drift and nominal (load N, valve kv, bulk modulus Pa).
+type VaryingAxis = (
+    Option<crate::scenario::varying::LoadProfile>,
+    Option<crate::scenario::varying::AxisDrift>,
+    (f64, f64, f64),
+);
+
+impl Varying {
+    fn new(sc: &Scenario, plants: &[HydraulicAxis]) -> Self {
+        Self {
+            axes: sc
+                .axes
+                .iter()
+                .zip(plants)
+                .map(|(a, p)| {
+                    (
+                        a.load.clone(),
+                        a.drift,
+                        (p.cylinder.load_n, p.valve.kv, p.cylinder.bulk_modulus_pa),
+                    )
+                })
+                .collect(),
+            supply: sc.supply.drift.map(|d| (d, sc.supply.supply_bar)),
+        }
+    }
+
+    fn apply(&self, t: f64, plants: &mut [HydraulicAxis]) {
+        for ((load, drift, (load0, kv0, beta0)), p) in self.axes.iter().zip(plants.iter_mut()) {
+            if let Some(l) = load {
+                p.cylinder.load_n = load0 + l.at(t);
+            }
+            if let Some(d) = drift {
+                let (flow, bulk) = d.at(t);
+                p.valve.kv = kv0 * flow;
+                p.cylinder.bulk_modulus_pa = beta0 * bulk;
+            }
+            if let Some((d, from)) = &self.supply {
+                p.supply.supply_pa = d.at(t, *from) * 1e5;
+            }
+        }
+    }
 }
