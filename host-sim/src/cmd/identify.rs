@@ -178,18 +178,9 @@ fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &Path) -> Str
 
 /// Runs `host-sim identify`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let s = match &args.scenario {
-        Some(p) => Scenario::load(p)?,
-        None => Scenario::default(),
-    };
-    let a = match &args.axis {
-        Some(n) => s
-            .axes
-            .iter()
-            .find(|a| &a.name == n)
-            .with_context(|| format!("--axis {n}: the scenario has no axis of that name"))?,
-        None => s.axes.first().context("the scenario has no axis")?,
-    };
+    let (s, a) =
+        crate::cmd::open_loop::scenario_axis(args.scenario.as_deref(), args.axis.as_deref())?;
+    let a = &a;
     if let Some(out) = &args.out {
         crate::csvout::writable(out)?;
     }

@@ -148,20 +148,32 @@ pub fn simulate(
     out
 }
 
-/// Runs `host-sim open-loop`.
-pub fn run(args: &Args) -> anyhow::Result<()> {
-    let scenario = match &args.scenario {
+/// The scenario of `--scenario` (default: the reference machine) and its axis `--axis`
+/// (default: the first) — `open-loop`'s and `identify`'s choice of the axis.
+pub fn scenario_axis(
+    scenario: Option<&Path>,
+    axis: Option<&str>,
+) -> anyhow::Result<(Scenario, crate::scenario::AxisCfg)> {
+    let s = match scenario {
         Some(p) => Scenario::load(p)?,
         None => Scenario::default(),
     };
-    let axis_cfg = match &args.axis {
-        Some(name) => scenario
+    let a = match axis {
+        Some(name) => s
             .axes
             .iter()
-            .find(|a| &a.name == name)
+            .find(|a| a.name == name)
             .with_context(|| format!("--axis {name}: the scenario has no axis of that name"))?,
-        None => scenario.axes.first().context("the scenario has no axis")?,
-    };
+        None => s.axes.first().context("the scenario has no axis")?,
+    }
+    .clone();
+    Ok((s, a))
+}
+
+/// Runs `host-sim open-loop`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let (scenario, axis_cfg) = scenario_axis(args.scenario.as_deref(), args.axis.as_deref())?;
+    let axis_cfg = &axis_cfg;
     let stroke = axis_cfg.cylinder.stroke_mm;
     let x0 = args.x0_mm.or(axis_cfg.x0_mm).unwrap_or(0.5 * stroke);
     if !(0.0..=stroke).contains(&x0) {
