@@ -151,9 +151,10 @@ fn derivative(s: &[Sample], f: impl Fn(&Sample) -> f64) -> Vec<Option<f64>> {
         .map(|i| {
             let w = s.get(i.checked_sub(2)?..i + 3)?;
             let h = w[2].t - w[1].t;
+            // Uniform within 0.1 % (timestamps with µs jitter or printed to 0.1 ms pass).
             let uniform = w
                 .windows(2)
-                .all(|p| ((p[1].t - p[0].t) - h).abs() <= 1e-6 * h.abs().max(1e-9));
+                .all(|p| ((p[1].t - p[0].t) - h).abs() <= 1e-3 * h.abs());
             (h > 0.0 && uniform)
                 .then(|| (f(&w[0]) - 8.0 * f(&w[1]) + 8.0 * f(&w[3]) - f(&w[4])) / (12.0 * h))
         })
@@ -217,7 +218,8 @@ pub fn identify(known: &HydraulicAxis, rec: &[Sample]) -> Result<Identified, Ide
     for k in 1..rec.len().saturating_sub(1) {
         let (p, s, n) = (&rec[k - 1], &rec[k], &rec[k + 1]);
         let clamp = [p, s, n].iter().any(|q| q.spool.abs() >= 0.999);
-        let uniform = ((n.t - s.t) - period).abs() < 1e-6 && ((s.t - p.t) - period).abs() < 1e-6;
+        let tol = 1e-3 * period;
+        let uniform = ((n.t - s.t) - period).abs() <= tol && ((s.t - p.t) - period).abs() <= tol;
         if !clamp && uniform {
             rows.push(vec![s.spool, p.spool, s.u, p.u]);
             y.push(n.spool);

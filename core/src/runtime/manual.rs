@@ -416,8 +416,10 @@ impl<const S: usize> Manual<S> {
             // a limit in the new frame) brakes to rest, with the limits in force.
             if (vt > 0 && ramp.p >= hi) || (vt < 0 && ramp.p <= lo) {
                 if let AxisMotion::Ramp(r) = slot {
-                    r.v_target = 0;
-                    r.limits = lims;
+                    if (vt > 0 && r.v > 0) || (vt < 0 && r.v < 0) {
+                        r.v_target = 0;
+                        r.limits = lims;
+                    }
                 }
                 return Err(MotionError::OutsideLimits);
             }

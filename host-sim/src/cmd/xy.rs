@@ -77,10 +77,10 @@ pub struct Args {
     pub tune: bool,
     /// Y's valve flow at run time against the machine the feed-forward was identified
     /// on (a drift: worn valve, another valve of the series), ×.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, conflicts_with = "tune")]
     pub y_flow: f64,
     /// Y's moving mass at run time against the identified machine (tooling), ×.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, conflicts_with = "tune")]
     pub y_mass: f64,
 }
 

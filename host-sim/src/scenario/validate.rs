@@ -64,7 +64,7 @@ impl Scenario {
         }
         check("supply.clamp_factor", s.clamp_factor, 1.0, true, 10.0)?;
         if let Some(d) = &s.drift {
-            d.validate(s.tank_bar, s.clamp_factor * s.supply_bar)?;
+            d.validate(s.tank_bar)?;
         }
         let m = &self.master;
         check("master.start_deg", m.start_deg, -1e6, true, 1e6)?;

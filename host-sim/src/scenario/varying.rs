@@ -84,10 +84,10 @@ impl LoadProfile {
 
 /// The ramp 0 → 1 between `start_s` and `end_s` (a step at `start_s` when they are equal).
 fn ramp(t: f64, start_s: f64, end_s: f64) -> f64 {
-    if t <= start_s {
-        0.0
-    } else if t >= end_s {
+    if t >= end_s {
         1.0
+    } else if t <= start_s {
+        0.0
     } else {
         (t - start_s) / (end_s - start_s)
     }
@@ -177,13 +177,14 @@ impl SupplyDrift {
         from_bar + (self.to_bar - from_bar) * ramp(t, self.start_s, self.end_s)
     }
 
-    /// Checks the values against the tank pressure and the chambers' clamp (`max_bar`).
-    pub fn validate(&self, tank_bar: f64, max_bar: f64) -> Result<(), ScenarioError> {
-        if !(self.to_bar.is_finite() && self.to_bar > tank_bar && self.to_bar <= max_bar) {
+    /// Checks the values against the tank pressure (the chambers' clamp follows the
+    /// supply: `clamp_factor · p_s(t)`).
+    pub fn validate(&self, tank_bar: f64) -> Result<(), ScenarioError> {
+        if !(self.to_bar.is_finite() && self.to_bar > tank_bar && self.to_bar <= 1000.0) {
             return Err(invalid(
                 "supply.drift.to_bar",
                 self.to_bar,
-                format!("must be above the tank ({tank_bar} bar) and at most the chambers' clamp ({max_bar} bar)"),
+                format!("must be above the tank ({tank_bar} bar) and at most 1000 bar"),
             ));
         }
         check_window("supply.drift", self.start_s, self.end_s)
@@ -251,9 +252,16 @@ mod tests {
             end_s: 10.0,
         };
         assert_eq!(s.at(5.0, 160.0), 150.0);
-        assert!(s.validate(0.0, 176.0).is_ok());
-        assert!(SupplyDrift { to_bar: 200.0, ..s }
-            .validate(0.0, 176.0)
-            .is_err());
+        assert!(s.validate(0.0).is_ok());
+        assert!(SupplyDrift {
+            to_bar: 2000.0,
+            ..s
+        }
+        .validate(0.0)
+        .is_err());
+        assert!(SupplyDrift { to_bar: -1.0, ..s }.validate(0.0).is_err());
+        // A drift of no duration is a step at its time (the later value, like a load step).
+        assert_eq!(ramp(3.0, 3.0, 3.0), 1.0);
+        assert_eq!(ramp(2.999, 3.0, 3.0), 0.0);
     }
 }

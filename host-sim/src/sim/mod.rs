@@ -596,8 +596,8 @@ fn table_reversals(master: &[f64], col: &[f64], a: f64, b: f64) -> u32 {
 /// plants at each period (the controller is not told).
 struct Varying {
     axes: Vec<VaryingAxis>,
-    /// The supply's drift and its nominal pressure, bar.
-    supply: Option<(crate::scenario::varying::SupplyDrift, f64)>,
+    /// The supply's drift, its nominal pressure (bar) and the chambers' clamp factor.
+    supply: Option<(crate::scenario::varying::SupplyDrift, f64, f64)>,
 }
 
 /// One plant's load profile, drift and nominal (load N, valve kv, bulk modulus Pa).
@@ -622,7 +622,10 @@ impl Varying {
                     )
                 })
                 .collect(),
-            supply: sc.supply.drift.map(|d| (d, sc.supply.supply_bar)),
+            supply: sc
+                .supply
+                .drift
+                .map(|d| (d, sc.supply.supply_bar, sc.supply.clamp_factor)),
         }
     }
 
@@ -636,8 +639,10 @@ impl Varying {
                 p.valve.kv = kv0 * flow;
                 p.cylinder.bulk_modulus_pa = beta0 * bulk;
             }
-            if let Some((d, from)) = &self.supply {
+            if let Some((d, from, clamp)) = &self.supply {
+                // The chambers' clamp follows the supply, as `Scenario::supply` builds it.
                 p.supply.supply_pa = d.at(t, *from) * 1e5;
+                p.supply.max_pa = clamp * p.supply.supply_pa;
             }
         }
     }

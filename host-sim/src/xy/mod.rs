@@ -240,6 +240,8 @@ pub struct XyReport {
     pub contour_sign_changes_per_s: f64,
     /// Faults the runtime latched (`[{code, name, axis, tick, t_s, value}]`; empty: none).
     pub faults: Vec<FaultEvent>,
+    /// The Y plant's drift from the identified machine in this run.
+    pub y_drift: YDrift,
     /// The trace, one sample per period.
     #[serde(skip)]
     pub trace: Vec<Sample>,
@@ -504,6 +506,7 @@ fn report(s: &XyScenario, trace: Vec<Sample>, faults: Vec<FaultEvent>) -> XyRepo
         max_command_lsb: max_cmd,
         contour_sign_changes_per_s: changes as f64 / dur,
         faults,
+        y_drift: s.y_drift,
         trace,
     }
 }
