@@ -57,31 +57,31 @@ fn a_load_step_during_the_run_shows_and_is_rejected() {
 fn a_drift_reached_at_once_is_the_robustness_box_machine() {
     // The valve at −20 % from the first period on (a drift of zero duration) runs as the
     // robustness box's `flow×0.8` machine within a few %.
-    let drifted = go(&scenario(
-        "[axis.drift]\nvalve_flow = 0.8\nstart_s = 0\nend_s = 0",
-        "",
-    ));
     let base = scenario("", "");
-    let boxed = go(&Variant {
-        flow: 0.8,
-        ..Variant::nominal(&base)
-    }
-    .apply(&base));
-    let (a, b) = (max_um(&drifted), max_um(&boxed));
-    assert!((a / b - 1.0).abs() < 0.05, "drift {a} vs box {b}");
+    // The drifted run's max error within 5 % of the box machine's.
+    let same = |drifted: &Scenario, machine: Variant, what: &str| {
+        let (a, b) = (max_um(&go(drifted)), max_um(&go(&machine.apply(&base))));
+        assert!((a / b - 1.0).abs() < 0.05, "{what} {a} vs box {b}");
+    };
+    let nominal = Variant::nominal(&base);
+    same(
+        &scenario("[axis.drift]\nvalve_flow = 0.8\nstart_s = 0\nend_s = 0", ""),
+        Variant {
+            flow: 0.8,
+            ..nominal
+        },
+        "drift",
+    );
     // A supply stepped to 120 bar at once is the box's 120 bar machine too (the chambers'
     // clamp follows the supply); nonsense is refused.
-    let sagged = go(&scenario(
-        "",
-        "[supply.drift]\nto_bar = 120\nstart_s = 0\nend_s = 0",
-    ));
-    let boxed = go(&Variant {
-        supply_bar: 120.0,
-        ..Variant::nominal(&base)
-    }
-    .apply(&base));
-    let (a, b) = (max_um(&sagged), max_um(&boxed));
-    assert!((a / b - 1.0).abs() < 0.05, "supply drift {a} vs box {b}");
+    same(
+        &scenario("", "[supply.drift]\nto_bar = 120\nstart_s = 0\nend_s = 0"),
+        Variant {
+            supply_bar: 120.0,
+            ..nominal
+        },
+        "supply drift",
+    );
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios");
     let bad = "name = \"x\"\n[[axis]]\nname = \"tangent\"\nrole = \"follower\"\n[axis.drift]\nvalve_flow = -1\n";
     let e = Scenario::parse(bad, &dir.join("bad.toml"))

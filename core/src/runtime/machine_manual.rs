@@ -14,6 +14,9 @@ use crate::units::{Master, PosUm};
 /// (1.1 LSB/µm × 10 µm = 11 LSB, 0.5 % of the valve's range, with the shipped gains).
 pub const APPROACH_TOLERANCE_UM: i32 = 10;
 
+/// [`APPROACH_TOLERANCE_UM`] as a position (I24F8), made once, not in the tick.
+const APPROACH_TOLERANCE: PosUm = PosUm::from_bits(APPROACH_TOLERANCE_UM << 8);
+
 impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
     /// Jog, MoveTo or Approach (Idle or Manual; Idle enters Manual on success).
     pub(super) fn manual_command(
@@ -186,7 +189,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         let Some(targets) = self.law.as_ref().and_then(|l| l.table_position_um(m)) else {
             return;
         };
-        let tol = PosUm::from_num(APPROACH_TOLERANCE_UM);
+        let tol = APPROACH_TOLERANCE;
         let arrived = targets
             .iter()
             .zip(held.iter())
