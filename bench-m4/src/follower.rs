@@ -19,7 +19,7 @@ use core::hint::black_box;
 use hydra_core::axis::{AxisConfig, ControlMode, PositionGains};
 use hydra_core::follower::{Follower, FollowerConfig, FollowerInputs, FollowerOutputs};
 use hydra_core::table::{AxisLimits, CamTable, Node, TableLimits};
-use hydra_core::units::{Master, MasterRate, PosUm, VelUmPerS};
+use hydra_core::units::{Master, MasterRate, PosUm, PressureBar, VelUmPerS};
 
 /// Table capacity of the benchmark (nodes).
 pub const NODES: usize = 256;
@@ -138,6 +138,8 @@ pub(crate) fn axis(mode: ControlMode) -> AxisConfig {
             ka_lsb_per_um_s2: 0.0001,
             valve_lag_us: 4200.0,
             following_error_um: 5000.0,
+            // Active damping off, as shipped (`follower_ff_1axis_damped` measures it on).
+            ..PositionGains::default()
         },
         mode,
         ..AxisConfig::default()
@@ -161,6 +163,8 @@ pub struct FollowerFig<const S: usize> {
     motion: Motion,
     inp: FollowerInputs<S>,
     out: FollowerOutputs<S>,
+    /// Whether the chamber pressures change from call to call (a damped figure).
+    pressures_move: bool,
 }
 
 impl<const S: usize> FollowerFig<S> {
@@ -170,10 +174,23 @@ impl<const S: usize> FollowerFig<S> {
         Self::with_motion(mode, Motion::Cruise)
     }
 
+    /// [`Self::new`] with active damping on every axis (16 LSB/kN, 5 Hz, the reference
+    /// cylinder's areas), the chamber pressures changing every call.
+    pub fn damped(mode: ControlMode) -> Option<Self> {
+        let mut a = axis(mode);
+        a.gains.dp_gain_lsb_per_kn = 16.0;
+        a.areas = hydra_core::profile::piston_areas();
+        Self::with_axes([a; S], Motion::Cruise)
+    }
+
     /// The follower on `motion`'s table and master, every axis in `mode`.
     pub fn with_motion(mode: ControlMode, motion: Motion) -> Option<Self> {
+        Self::with_axes([axis(mode); S], motion)
+    }
+
+    fn with_axes(axes: [AxisConfig; S], motion: Motion) -> Option<Self> {
         let cfg = FollowerConfig {
-            axes: [axis(mode); S],
+            axes,
             ..FollowerConfig::default()
         };
         let t = table_for::<S>(motion)?;
@@ -181,6 +198,7 @@ impl<const S: usize> FollowerFig<S> {
         let inp = FollowerInputs {
             master: Master::from_num(motion.master(0)),
             pos_um: [PosUm::ZERO; S],
+            pressure_bar: [[PressureBar::ZERO; 2]; S],
         };
         // Positions start on the table at the master start.
         let mut fig_inp = inp;
@@ -195,6 +213,7 @@ impl<const S: usize> FollowerFig<S> {
             motion,
             inp: fig_inp,
             out,
+            pressures_move: cfg.axes.iter().any(|a| a.gains.dp_gain_lsb_per_kn > 0.0),
         })
     }
 
@@ -205,6 +224,13 @@ impl<const S: usize> FollowerFig<S> {
         self.inp.master = Master::from_bits(self.motion.master(k) << 16);
         for (x, t) in self.inp.pos_um.iter_mut().zip(self.out.target_um.iter()) {
             *x = PosUm::from_bits((t.to_bits() & !0xFF).saturating_sub(LAG_BITS));
+        }
+        // Chamber A between 80 and 86 bar, B at 40 (only where an axis reads them).
+        if self.pressures_move {
+            let p_a = PressureBar::from_bits((80 + (k % 7) as i32) << 16);
+            for p in self.inp.pressure_bar.iter_mut() {
+                *p = [p_a, PressureBar::from_bits(40 << 16)];
+            }
         }
     }
 }

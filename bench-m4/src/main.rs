@@ -181,6 +181,10 @@ fn main() -> ! {
         FollowerFig::<1>::new(ControlMode::Feedforward),
     );
     r.run(
+        "follower_ff_1axis_damped",
+        FollowerFig::<1>::damped(ControlMode::Feedforward),
+    );
+    r.run(
         "follower_ff_2axes",
         FollowerFig::<2>::new(ControlMode::Feedforward),
     );

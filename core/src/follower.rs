@@ -24,7 +24,9 @@
 //!    - `Paper`: x_ref = X(θ̂(k+1)), the table at the eq. 4 prediction (eq. 5–6).
 //!    - `NextNode`: x_ref = the node at the far end of the current segment in the
 //!      direction of master motion.
-//! 4. The axis law ([`crate::axis::position_law`]) and the valve output stage give the DAC code.
+//! 4. The axis law ([`crate::axis::position_law`]), less the active damping's term where
+//!    the axis has it ([`crate::axis::damping`]), and the valve output stage give the DAC
+//!    code.
 //! 5. Following error e = X(θ_f(k)) − x(k) beyond the axis limit latches that axis'
 //!    fault: its valve goes to null, its controller state is cleared, until
 //!    [`Follower::clear_faults`].
@@ -34,6 +36,7 @@
 //! master and its look-ahead are in the cursor's segment: that tick takes the fast path
 //! (one segment read, no end test — `Follower::tick_ff_fast`).
 
+use crate::axis::damping::{damped_cmd, damping_bits, DampingCoeffs, DampingState};
 use crate::axis::position::{paper_law_bits, positional_law_ff};
 use crate::axis::{
     position_law, AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosRef, PosState,
@@ -43,7 +46,7 @@ use crate::master::{
 };
 use crate::master::{Predictor, PredictorKind};
 use crate::table::{Beyond, CamTable, Span};
-use crate::units::{CmdLsb, DacCode, Master, PosUm};
+use crate::units::{CmdLsb, DacCode, Master, PosUm, PressureBar};
 use ff_plan::FfPlan;
 
 mod ff_plan;
@@ -104,6 +107,9 @@ pub struct FollowerInputs<const S: usize> {
     pub master: Master,
     /// Slave positions x(k), µm.
     pub pos_um: [PosUm; S],
+    /// Per slave, chamber A and B pressures, bar (the active damping's input; unused by
+    /// an axis without it).
+    pub pressure_bar: [[PressureBar; 2]; S],
 }
 
 /// One tick's outputs.
@@ -148,6 +154,8 @@ struct AxisRt {
     fault: Option<AxisFault>,
     /// The feed-forward constants of the segment the axis' look-ahead was last in.
     ff: FfPlan,
+    /// The active damping's high-pass.
+    damp: DampingState,
 }
 
 /// The follower: validated coefficients, the table, and the loop state.
@@ -201,11 +209,13 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             lead_q16: 0,
             fe_limit: 0,
             valve: crate::valve::ValveCoeffs::UNSET,
+            damping: DampingCoeffs::OFF,
         };
         const RT: AxisRt = AxisRt {
             st: PosState::RESET,
             fault: None,
             ff: FfPlan::ZEROED,
+            damp: DampingState::RESET,
         };
         Self {
             axes: [AXIS; S],
@@ -331,14 +341,19 @@ impl<const S: usize, const N: usize> Follower<S, N> {
     /// feedback on e = x_ref − x plus kv±·v + ka·a for the positional laws) and the
     /// output stage; an error beyond the axis' limit latches its fault as in
     /// [`Follower::tick`]. The master history is not touched (a run restarts it).
-    pub fn tick_manual(&mut self, pos_um: &[PosUm; S], refs: &[PosRef; S]) -> FollowerOutputs<S> {
+    pub fn tick_manual(
+        &mut self,
+        pos_um: &[PosUm; S],
+        pressure_bar: &[[PressureBar; 2]; S],
+        refs: &[PosRef; S],
+    ) -> FollowerOutputs<S> {
         let mut out = FollowerOutputs::default();
         let axes = self
             .axes
             .iter()
             .zip(self.rt.iter_mut())
-            .zip(pos_um.iter().zip(refs.iter()));
-        for (i, ((c, rt), (&x, r))) in axes.enumerate() {
+            .zip(pos_um.iter().zip(refs.iter()).zip(pressure_bar.iter()));
+        for (i, ((c, rt), ((&x, r), p))) in axes.enumerate() {
             let err = r.x_ref_um.to_bits().saturating_sub(x.to_bits());
             if rt.fault.is_none() && err.saturating_abs() > c.fe_limit {
                 rt.fault = Some(AxisFault::FollowingError);
@@ -348,6 +363,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
                 (CmdLsb::ZERO, c.valve.null_code())
             } else {
                 let u = position_law(c, &mut rt.st, r, x);
+                let u = damped_cmd(&c.damping, &mut rt.damp, p, u, c.valve.clamp_lsb());
                 (u, c.valve.output(u))
             };
             if let (Some(d), Some(cl), Some(t), Some(e), Some(f)) = (
@@ -390,6 +406,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         for rt in &mut self.rt {
             rt.st.reset();
             rt.ff.invalidate();
+            rt.damp = DampingState::RESET;
         }
         self.ended = false;
     }
@@ -661,6 +678,7 @@ fn axes_loop<'t, const S: usize, const N: usize, const M: u8>(
         else {
             continue;
         };
+        let p = &inp.pressure_bar;
         if a.check_leads
             && (M == MODE_FF || c.mode == ControlMode::Feedforward)
             && c.lead_q16 != ctx.ff.lead
@@ -669,9 +687,9 @@ fn axes_loop<'t, const S: usize, const N: usize, const M: u8>(
         }
         if S == 1 {
             // One axis: no loop to keep registers for, so no call.
-            axis_step_inline::<S, M>(&ctx, c, rt, x.to_bits(), i, out);
+            axis_step_inline::<S, M>(&ctx, c, rt, x.to_bits(), p, i, out);
         } else {
-            axis_step::<S, M>(&ctx, c, rt, x.to_bits(), i, out);
+            axis_step::<S, M>(&ctx, c, rt, x.to_bits(), p, i, out);
         }
     }
 }
@@ -717,10 +735,38 @@ fn axis_step<const S: usize, const M: u8>(
     c: &AxisCoeffs,
     rt: &mut AxisRt,
     x: i32,
+    p: &[[PressureBar; 2]; S],
     i: usize,
     out: &mut FollowerOutputs<S>,
 ) {
-    axis_step_inline::<S, M>(ctx, c, rt, x, i, out);
+    axis_step_inline::<S, M>(ctx, c, rt, x, p, i, out);
+}
+
+/// The active damping's command correction of a Feedforward axis, `I16F16` LSB
+/// ([`crate::axis::damping`]; 0 when it is off). It enters the law as a (negative)
+/// feed-forward, so the law's clamp and its integrator's anti-windup see it.
+#[inline(always)]
+fn damping_term<const S: usize>(
+    c: &AxisCoeffs,
+    st: &mut DampingState,
+    p: &[[PressureBar; 2]; S],
+    i: usize,
+) -> i32 {
+    if !c.damping.is_on() {
+        return 0;
+    }
+    damping_term_on(c, st, p, i)
+}
+
+/// [`damping_term`] of a damped axis, out of line (an undamped axis pays one test).
+#[inline(never)]
+fn damping_term_on<const S: usize>(
+    c: &AxisCoeffs,
+    st: &mut DampingState,
+    p: &[[PressureBar; 2]; S],
+    i: usize,
+) -> i32 {
+    p.get(i).map_or(0, |p| damping_bits(&c.damping, st, p))
 }
 
 /// [`axis_step`]'s body.
@@ -730,6 +776,7 @@ fn axis_step_inline<const S: usize, const M: u8>(
     c: &AxisCoeffs,
     rt: &mut AxisRt,
     x: i32,
+    p: &[[PressureBar; 2]; S],
     i: usize,
     out: &mut FollowerOutputs<S>,
 ) {
@@ -768,6 +815,7 @@ fn axis_step_inline<const S: usize, const M: u8>(
                     // The look-ahead beyond an end of the table: no feed-forward.
                     None => 0,
                 };
+                let ff = ff.saturating_sub(damping_term(c, &mut rt.damp, p, i));
                 positional_law_ff(c, &mut rt.st, err, ff)
             }
             (ControlMode::NextNode, false) => {
@@ -779,9 +827,11 @@ fn axis_step_inline<const S: usize, const M: u8>(
                 };
                 positional_law_ff(c, &mut rt.st, node.saturating_sub(x), 0)
             }
-            (ControlMode::Feedforward | ControlMode::NextNode, true) => {
-                positional_law_ff(c, &mut rt.st, err, 0)
+            (ControlMode::Feedforward, true) => {
+                let d = damping_term(c, &mut rt.damp, p, i);
+                positional_law_ff(c, &mut rt.st, err, d.saturating_neg())
             }
+            (ControlMode::NextNode, true) => positional_law_ff(c, &mut rt.st, err, 0),
         };
         // The laws clamp u to the valve's clamp: the output stage need not again.
         (u, c.valve.output_within_clamp(CmdLsb::from_bits(u)))

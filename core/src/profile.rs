@@ -11,7 +11,7 @@
 //! | gains | the reference machine's feed-forward set at 1 ms ([`follower_config`]) |
 //! | limits | slaves 0 … 500 mm at ≤ 200 mm/s, master ≤ 10 °/s ([`table_limits`]) |
 
-use crate::axis::{AxisConfig, ControlMode, PositionGains};
+use crate::axis::{AxisConfig, ControlMode, PistonAreas, PositionGains};
 use crate::dac::DacRange;
 use crate::follower::FollowerConfig;
 use crate::runtime::{ReferenceMode, RuntimeConfig};
@@ -76,6 +76,16 @@ pub fn table_limits() -> TableLimits<SLAVES> {
     }
 }
 
+/// The reference cylinder's piston areas (PLANT.md: bore 80 mm, rod 45 mm): A = π/4·80²
+/// = 5 026.5 mm² on the piston side (chamber A), π/4·(80² − 45²) = 3 436.1 mm² on the
+/// rod side (B).
+pub fn piston_areas() -> PistonAreas {
+    PistonAreas {
+        area_a_mm2: 5026.5,
+        area_b_mm2: 3436.1,
+    }
+}
+
 /// The follower's configuration on every slave: the reference machine's feed-forward
 /// gain set at 1 ms (`host-sim/scenarios/tangent.toml`, `[[tuning]]` controller
 /// `feedforward`, `period_us = 1000`: the set `host-sim run` uses), so the board runs
@@ -96,12 +106,15 @@ pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {
             ka_lsb_per_um_s2: 0.0,
             valve_lag_us: 4244.0,
             following_error_um: 5000.0,
+            dp_gain_lsb_per_kn: 0.0,
+            dp_corner_hz: 5.0,
         },
         mode: ControlMode::Feedforward,
         valve: ValveCal {
             clamp_lsb,
             ..ValveCal::default()
         },
+        areas: piston_areas(),
     };
     FollowerConfig::<SLAVES> {
         period_us: PERIOD_US,

@@ -164,6 +164,7 @@ pub fn step_test(
         },
         mode,
         valve: axis.calibration,
+        areas: crate::scenario::gains::piston_areas(axis),
     };
     let c = cfg.build(period_us).map_err(|e| ScenarioError::Invalid {
         key: format!("axis.{}", axis.name),
@@ -358,6 +359,7 @@ pub fn position_gains_with(
             ka_lsb_per_um_s2: 0.0,
             valve_lag_us: lag_us.round() as f32,
             following_error_um: 20_000.0,
+            ..PositionGains::default()
         },
         ku,
     ))

@@ -5,6 +5,7 @@
 //! [`crate::units`] for a given control period T. The per-tick law
 //! ([`super::position`]) then never fails.
 
+use super::damping::{DampingCoeffs, DampingError, PistonAreas};
 use crate::units::CmdLsb;
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
 use fixed::types::{I0F32, I16F16, I24F8, I8F24};
@@ -59,6 +60,13 @@ pub struct PositionGains {
     pub valve_lag_us: f32,
     /// Following-error fault limit, µm (> 0).
     pub following_error_um: f32,
+    /// Active damping (ΔP feedback, [`super::damping`]): the command falls by this many
+    /// LSB per kN of high-passed hydraulic force A_A·p_A − A_B·p_B (0 … 1000; 0 = off,
+    /// the default). Needs the axis' piston areas.
+    pub dp_gain_lsb_per_kn: f32,
+    /// Active damping's high-pass corner, Hz (0.1 … 1000; default 5): below it the
+    /// force is a load, not the oil column's oscillation, and is not fed back.
+    pub dp_corner_hz: f32,
 }
 
 impl Default for PositionGains {
@@ -74,6 +82,8 @@ impl Default for PositionGains {
             ka_lsb_per_um_s2: 0.0,
             valve_lag_us: 4200.0,
             following_error_um: 5000.0,
+            dp_gain_lsb_per_kn: 0.0,
+            dp_corner_hz: 5.0,
         }
     }
 }
@@ -88,6 +98,8 @@ pub struct AxisConfig {
     pub gains: PositionGains,
     /// Valve output calibration.
     pub valve: ValveCal,
+    /// The cylinder's piston areas (used by the active damping only).
+    pub areas: PistonAreas,
 }
 
 /// An axis parameter out of range (the field it names).
@@ -117,6 +129,8 @@ pub enum AxisConfigError {
     Period,
     /// The valve calibration.
     Valve(ValveCalError),
+    /// The active damping's gain, corner or piston areas.
+    Damping(DampingError),
 }
 
 /// Validated fixed-point coefficients of one axis (see the format table in
@@ -149,6 +163,8 @@ pub struct AxisCoeffs {
     pub fe_limit: i32,
     /// Valve output stage.
     pub valve: ValveCoeffs,
+    /// Active damping (ΔP feedback).
+    pub damping: DampingCoeffs,
 }
 
 fn check(x: f32, lo: f32, hi: f32, e: AxisConfigError) -> Result<f32, AxisConfigError> {
@@ -183,6 +199,12 @@ impl AxisConfig {
         let lag = f64::from(check(g.valve_lag_us, 0.0, 100_000.0, E::ValveLag)?);
         let fe = f64::from(check(g.following_error_um, 1e-3, 1e6, E::FollowingError)?);
         let valve = self.valve.build().map_err(E::Valve)?;
+        let damping =
+            DampingCoeffs::build(g.dp_gain_lsb_per_kn, g.dp_corner_hz, &self.areas, period_us)
+                .map_err(E::Damping)?;
+        if damping.is_on() && self.mode != ControlMode::Feedforward {
+            return Err(E::Damping(DampingError::Law));
+        }
         let lead_ticks = 1.5 + lag / f64::from(period_us);
         // Below the master filter's extrapolation limit (2^14 ticks).
         if lead_ticks >= 16_384.0 {
@@ -209,6 +231,7 @@ impl AxisConfig {
             lead_q16: (lead_ticks * 65536.0) as i32,
             fe_limit: fit::<I24F8>(fe, E::FollowingError)?.to_bits(),
             valve,
+            damping,
         })
     }
 }
@@ -295,6 +318,25 @@ mod tests {
         assert_eq!(
             AxisConfig::default().build(20),
             Err(AxisConfigError::Period)
+        );
+        // Active damping: areas needed, Feedforward only.
+        assert_eq!(
+            bad(|c| c.gains.dp_gain_lsb_per_kn = 16.0),
+            Err(AxisConfigError::Damping(DampingError::Area))
+        );
+        let damped = |mode| AxisConfig {
+            mode,
+            gains: PositionGains {
+                dp_gain_lsb_per_kn: 16.0,
+                ..PositionGains::default()
+            },
+            areas: crate::profile::piston_areas(),
+            ..AxisConfig::default()
+        };
+        assert!(damped(ControlMode::Feedforward).build(1000).is_ok());
+        assert_eq!(
+            damped(ControlMode::Paper).build(1000),
+            Err(AxisConfigError::Damping(DampingError::Law))
         );
         // Kd/T out of I16F16 at 50 µs: 10 / 5e-5 = 2e5
         let mut c = AxisConfig::default();

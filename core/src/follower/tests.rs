@@ -5,6 +5,7 @@ use super::*;
 use crate::axis::{position_law, PosRef, PositionGains};
 use crate::table::{AxisLimits, Node, TableLimits};
 use crate::units::MasterRate;
+use crate::units::PressureBar;
 use crate::units::VelUmPerS;
 use proptest::prelude::*;
 use std::boxed::Box;
@@ -58,6 +59,7 @@ fn ff_axis() -> AxisConfig {
             ka_lsb_per_um_s2: 0.0001,
             valve_lag_us: 4200.0,
             following_error_um: 5000.0,
+            ..PositionGains::default()
         },
         mode: ControlMode::Feedforward,
         ..AxisConfig::default()
@@ -68,6 +70,7 @@ fn inputs(m: f64, x: f64) -> FollowerInputs<1> {
     FollowerInputs {
         master: Master::from_num(m),
         pos_um: [PosUm::from_num(x)],
+        pressure_bar: [[PressureBar::ZERO; 2]; 1],
     }
 }
 
@@ -404,7 +407,7 @@ proptest! {
         let t: CamTable<2, 256> = CamTable::try_from_nodes(&n, &limits()).unwrap();
         let mut f = Follower::new(&cfg, t).unwrap();
         for (m, x0, x1) in seq {
-            let o = f.tick(&FollowerInputs { master: Master::from_bits(m), pos_um: [PosUm::from_bits(x0), PosUm::from_bits(x1)] });
+            let o = f.tick(&FollowerInputs { master: Master::from_bits(m), pos_um: [PosUm::from_bits(x0), PosUm::from_bits(x1)], pressure_bar: [[PressureBar::ZERO; 2]; 2] });
             for d in o.dac { prop_assert!(d.get().abs() <= i16::try_from(clamp).unwrap()); }
         }
     }
@@ -460,6 +463,7 @@ fn axes_with_different_leads_match_single_axis_followers() {
         let o = multi.tick(&FollowerInputs {
             master: Master::from_num(m),
             pos_um: x.map(PosUm::from_num),
+            pressure_bar: [[PressureBar::ZERO; 2]; 3],
         });
         for (i, s) in singles.iter_mut().enumerate() {
             let o1 = s.tick(&inputs(m, x[i]));

@@ -991,7 +991,12 @@ fn run_ops(ops: &[Op]) {
                 )
             }
             Op::Activate(k) => (
-                r.raw(&Rig::frame(seq, &Request::Activate { id: next_id - k })),
+                r.raw(&Rig::frame(
+                    seq,
+                    &Request::Activate {
+                        id: next_id.wrapping_sub(*k),
+                    },
+                )),
                 false,
             ),
             Op::Start => (r.raw(&Rig::frame(seq, &Request::Start)), false),

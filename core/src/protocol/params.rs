@@ -5,7 +5,7 @@
 //! keeps the copies only if that succeeds, so a refused parameter changes nothing.
 
 use super::msg::{Nak, NakCode, ParamId};
-use crate::axis::AxisConfig;
+use crate::axis::{AxisConfig, AxisConfigError};
 use crate::follower::FollowerConfig;
 use crate::table::{CamTable, TableLimits};
 use crate::units::{MasterRate, PosUm, VelUmPerS};
@@ -152,6 +152,10 @@ pub(super) fn assign_axis(a: &mut AxisConfig, param: ParamId, value: f32) -> boo
         ParamId::KaLsbPerUmS2 => g.ka_lsb_per_um_s2 = value,
         ParamId::ValveLagUs => g.valve_lag_us = value,
         ParamId::FollowingErrorUm => g.following_error_um = value,
+        ParamId::DpGainLsbPerKn => g.dp_gain_lsb_per_kn = value,
+        ParamId::DpCornerHz => g.dp_corner_hz = value,
+        ParamId::AreaAMm2 => a.areas.area_a_mm2 = value,
+        ParamId::AreaBMm2 => a.areas.area_b_mm2 = value,
         ParamId::ValveNullLsb => v.null_lsb = value,
         ParamId::ValveOverlapPosLsb => v.overlap_pos_lsb = value,
         ParamId::ValveOverlapNegLsb => v.overlap_neg_lsb = value,
@@ -198,6 +202,10 @@ pub fn read_param<const S: usize>(
         ParamId::KaLsbPerUmS2 => g.ka_lsb_per_um_s2,
         ParamId::ValveLagUs => g.valve_lag_us,
         ParamId::FollowingErrorUm => g.following_error_um,
+        ParamId::DpGainLsbPerKn => g.dp_gain_lsb_per_kn,
+        ParamId::DpCornerHz => g.dp_corner_hz,
+        ParamId::AreaAMm2 => a.areas.area_a_mm2,
+        ParamId::AreaBMm2 => a.areas.area_b_mm2,
         ParamId::ValveNullLsb => v.null_lsb,
         ParamId::ValveOverlapPosLsb => v.overlap_pos_lsb,
         ParamId::ValveOverlapNegLsb => v.overlap_neg_lsb,
@@ -211,6 +219,32 @@ pub fn read_param<const S: usize>(
         ParamId::MaxSpeedUmPerS => l.max_speed_um_per_s.to_num(),
         _ => return Err(unknown),
     })
+}
+
+/// The parameter an axis configuration error names.
+fn axis_error_param(e: AxisConfigError) -> ParamId {
+    use crate::axis::DampingError as D;
+    use crate::valve::ValveCalError as V;
+    match e {
+        AxisConfigError::Kp | AxisConfigError::Period => ParamId::KpLsbPerUm,
+        AxisConfigError::Ki => ParamId::KiLsbPerUmS,
+        AxisConfigError::Kd => ParamId::KdLsbSPerUm,
+        AxisConfigError::IZone => ParamId::IZoneUm,
+        AxisConfigError::ILimit => ParamId::ILimitLsb,
+        AxisConfigError::Kv => ParamId::KvPosLsbPerUmS,
+        AxisConfigError::Ka => ParamId::KaLsbPerUmS2,
+        AxisConfigError::ValveLag => ParamId::ValveLagUs,
+        AxisConfigError::FollowingError => ParamId::FollowingErrorUm,
+        AxisConfigError::Valve(V::Null) => ParamId::ValveNullLsb,
+        AxisConfigError::Valve(V::Overlap) => ParamId::ValveOverlapPosLsb,
+        AxisConfigError::Valve(V::OverlapZone) => ParamId::ValveOverlapZoneLsb,
+        AxisConfigError::Valve(V::Gain) => ParamId::ValveGainPos,
+        AxisConfigError::Valve(V::Clamp) => ParamId::ValveClampLsb,
+        AxisConfigError::Damping(D::Gain) => ParamId::DpGainLsbPerKn,
+        AxisConfigError::Damping(D::Corner) => ParamId::DpCornerHz,
+        AxisConfigError::Damping(D::Area) => ParamId::AreaAMm2,
+        AxisConfigError::Damping(D::Law) => ParamId::DpGainLsbPerKn,
+    }
 }
 
 /// Validates a configuration as a whole: the master top speed positive; per axis min <
@@ -240,8 +274,8 @@ pub fn validate_params<const S: usize, const N: usize>(
         if l.max_speed_um_per_s <= VelUmPerS::ZERO {
             return Err(nak(i, ParamId::MaxSpeedUmPerS));
         }
-        if a.build(cfg.period_us).is_err() {
-            return Err(nak(i, ParamId::KpLsbPerUm));
+        if let Err(e) = a.build(cfg.period_us) {
+            return Err(nak(i, axis_error_param(e)));
         }
     }
     if let Some(t) = active {
@@ -296,6 +330,29 @@ mod tests {
             Err(unknown)
         );
         assert_eq!(AxisConfig::default().valve, c.axes[0].valve);
+    }
+
+    #[test]
+    fn a_damping_gain_without_areas_is_refused_naming_the_area() {
+        let (mut c, mut l) = setup();
+        let nak = Nak::with(NakCode::ParamRange, 0, ParamId::DpGainLsbPerKn as u8);
+        assert_eq!(
+            apply_param(&mut c, &mut l, NONE, 0, ParamId::DpGainLsbPerKn, 16.0),
+            Err(nak),
+            "the default configuration has no piston areas"
+        );
+        // apply_param works on copies (the caller keeps them only on Ok).
+        c.axes[0].gains.dp_gain_lsb_per_kn = 0.0;
+        apply_param(&mut c, &mut l, NONE, 0, ParamId::AreaAMm2, 5026.5).unwrap();
+        apply_param(&mut c, &mut l, NONE, 0, ParamId::DpGainLsbPerKn, 16.0).unwrap();
+        assert!(c.axes[0].build(c.period_us).unwrap().damping.is_on());
+        assert_eq!(read_param(&c, &l, 0, ParamId::DpGainLsbPerKn), Ok(16.0));
+        // A set validated as a whole names the field at fault.
+        c.axes[0].areas.area_a_mm2 = 0.0;
+        assert_eq!(
+            validate_params(&c, &l, NONE, None),
+            Err(Nak::with(NakCode::ParamRange, 0, ParamId::AreaAMm2 as u8))
+        );
     }
 
     #[test]

@@ -3,6 +3,8 @@
 //! A path is made of the field names core and the scenario files use:
 //! `axis/<n>/<gain>` for the position loop ([`crate::axis::PositionGains`]),
 //! `axis/<n>/valve/<field>` for the valve calibration ([`crate::valve::ValveCal`]),
+//! `axis/<n>/cylinder/area_a_mm2` and `area_b_mm2` for the piston areas the active damping
+//! needs ([`crate::axis::PistonAreas`]),
 //! `axis/<n>/limits/<field>` for the table limits ([`crate::table::AxisLimits`]),
 //! `axis/<n>/reference_offset_um` for an absolute slave's reference, and board-wide
 //! `limits/master_speed_per_s`, `master/filter_bandwidth_hz`, `link/timeout_ms` and
@@ -92,6 +94,14 @@ pub enum ParamId {
     PeriodUs = 26,
     /// Velocity feed-forward for extending (positive) target speed, LSB per (µm/s).
     KvPosLsbPerUmS = 27,
+    /// Active damping gain, LSB per kN of high-passed hydraulic force (0 = off).
+    DpGainLsbPerKn = 28,
+    /// Active damping high-pass corner, Hz.
+    DpCornerHz = 29,
+    /// Piston area of chamber A (pressure input 2n), mm².
+    AreaAMm2 = 30,
+    /// Piston area of chamber B (pressure input 2n + 1), mm².
+    AreaBMm2 = 31,
 }
 
 /// Whether a parameter belongs to each slave or to the board.
@@ -201,6 +211,17 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
         1e-3,
         1e6,
     ),
+    p(
+        P::DpGainLsbPerKn,
+        A,
+        "dp_gain_lsb_per_kn",
+        "LSB/kN",
+        0.0,
+        1000.0,
+    ),
+    p(P::DpCornerHz, A, "dp_corner_hz", "Hz", 0.1, 1000.0),
+    p(P::AreaAMm2, A, "cylinder/area_a_mm2", "mm²", 0.0, 1e6),
+    p(P::AreaBMm2, A, "cylinder/area_b_mm2", "mm²", 0.0, 1e6),
     p(P::ValveNullLsb, A, "valve/null_lsb", "LSB", -500.0, 500.0),
     p(
         P::ValveOverlapPosLsb,
@@ -284,7 +305,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 27;
+    pub const COUNT: usize = 31;
 
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
@@ -401,7 +422,7 @@ mod tests {
                 assert_eq!(id.info().id, id);
             }
         }
-        assert_eq!(all_paths(2).count(), 23 * 2 + 4);
+        assert_eq!(all_paths(2).count(), 27 * 2 + 4);
         for pp in all_paths(3) {
             let s = pp.to_string();
             let (axis, id) = parse_path(&s, 3).unwrap();
@@ -414,7 +435,7 @@ mod tests {
         let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
         paths.sort();
         paths.dedup();
-        assert_eq!(paths.len(), 50, "two parameters share a path");
+        assert_eq!(paths.len(), 58, "two parameters share a path");
     }
 
     #[test]
@@ -485,6 +506,10 @@ mod tests {
             P::ValveGainPos,
             P::ValveGainNeg,
             P::ValveClampLsb,
+            P::DpGainLsbPerKn,
+            P::DpCornerHz,
+            P::AreaAMm2,
+            P::AreaBMm2,
         ];
         for id in gains {
             let i = id.info();
@@ -494,7 +519,11 @@ mod tests {
                 (i.min - i.min.abs().max(1e-3) * 0.01, false),
                 (i.max + i.max.abs() * 0.01, false),
             ] {
-                let mut a = AxisConfig::default();
+                // The damping's gain needs an area to act on.
+                let mut a = AxisConfig {
+                    areas: crate::profile::piston_areas(),
+                    ..AxisConfig::default()
+                };
                 if id == P::ValveClampLsb {
                     a.valve.clamp_lsb = v as u16;
                     if !ok && v < 1.0 {

@@ -8,7 +8,7 @@
 //! can clear its history and integrators and start bumplessly from the measured state.
 
 use crate::axis::PosRef;
-use crate::units::{DacCode, Master, PosUm};
+use crate::units::{DacCode, Master, PosUm, PressureBar};
 
 /// What the law gets each tick.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -18,6 +18,9 @@ pub struct ControlInputs<const S: usize> {
     pub master: Master,
     /// Measured slave positions latched at the period start, µm.
     pub pos_um: [PosUm; S],
+    /// Per slave, chamber A and B pressures read this period, bar
+    /// ([`super::io::chamber_pressures`]).
+    pub pressure_bar: [[PressureBar; 2]; S],
 }
 
 /// What the law returns each tick.

@@ -29,6 +29,7 @@ impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
             &FollowerInputs {
                 master: inputs.master,
                 pos_um: inputs.pos_um,
+                pressure_bar: inputs.pressure_bar,
             },
         );
         ControlOutputs {
@@ -44,7 +45,7 @@ impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
     }
 
     fn tick_manual(&mut self, inputs: &ControlInputs<S>, refs: &[PosRef; S]) -> ControlOutputs<S> {
-        let out = Follower::tick_manual(self, &inputs.pos_um, refs);
+        let out = Follower::tick_manual(self, &inputs.pos_um, &inputs.pressure_bar, refs);
         ControlOutputs {
             dac: out.dac,
             error_um: out.error_um,
@@ -163,6 +164,56 @@ mod tests {
             r.step(&sample(10_500, x as i32), None);
         }
         assert_eq!(r.state(), State::Holding(HoldReason::EndOfTable));
+    }
+
+    /// The runtime hands slave 0 its chamber pressures (inputs 0 and 1) and the law's
+    /// active damping acts on them: a rise of p_A lowers the command by k·A_A·Δp, the
+    /// high-pass then lets it fade; the same run without damping ignores the pressures.
+    #[test]
+    fn pressures_reach_the_active_damping() {
+        use crate::axis::PistonAreas;
+        let run = |dp_gain: f32, jump_bar: f64| {
+            let mut f = follower();
+            let mut cfg = FollowerConfig::<1>::default();
+            cfg.axes[0] = AxisConfig {
+                gains: PositionGains {
+                    kp_lsb_per_um: 0.5,
+                    following_error_um: 3000.0,
+                    dp_gain_lsb_per_kn: dp_gain,
+                    dp_corner_hz: 5.0,
+                    ..PositionGains::default()
+                },
+                areas: PistonAreas {
+                    area_a_mm2: 5000.0,
+                    area_b_mm2: 2500.0,
+                },
+                ..AxisConfig::default()
+            };
+            f.configure(&cfg).unwrap();
+            let rc = RuntimeConfig::<1>::default().build().unwrap();
+            let mut r: Runtime<Follower<1, 16>, 1, 2> =
+                Runtime::new(rc, Some(f), BootCause::Normal);
+            let s = |p_a: f64| Sample {
+                enc: EncoderSample {
+                    master: Counts(0),
+                    slaves: [Counts(20_000)],
+                },
+                pressure_bar: [PressureBar::from_num(p_a), PressureBar::from_num(40)],
+                estop: false,
+                overrun: false,
+            };
+            r.step(&s(80.0), Some(Command::Start));
+            r.step(&s(80.0), None);
+            let before = r.step(&s(80.0), None).dac[0].get();
+            let after = r.step(&s(80.0 + jump_bar), None).dac[0].get();
+            (before, after)
+        };
+        let (b0, a0) = run(0.0, 10.0);
+        assert_eq!(b0, a0, "no damping: the pressures are not used");
+        // 16 LSB/kN · 5000 mm² · 10 bar = 80 LSB, times α = 0.97 on its first tick.
+        let (b, a) = run(16.0, 10.0);
+        assert_eq!(b, b0, "a steady pressure gives no correction");
+        assert!(((b - a) - 78).abs() <= 1, "{b} → {a}");
     }
 
     #[test]

@@ -34,6 +34,19 @@ pub trait EncoderInput<const S: usize> {
     }
 }
 
+/// Per slave `k`, its chamber A and B pressures: the board's pressure inputs `2k` and
+/// `2k + 1` (zero where the board has none).
+#[inline]
+pub fn chamber_pressures<const S: usize, const P: usize>(
+    p: &[PressureBar; P],
+) -> [[PressureBar; 2]; S] {
+    let mut out = [[PressureBar::ZERO; 2]; S];
+    for (pair, inputs) in out.iter_mut().zip(p.chunks_exact(2)) {
+        pair.copy_from_slice(inputs);
+    }
+    out
+}
+
 /// Chamber pressure inputs.
 pub trait PressureInput<const P: usize> {
     /// The latest pressures, bar (the board's own filtering applied).

@@ -283,6 +283,8 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     pos_offset_um: [PosUm; S],
     /// The board's pressure inputs were live at the last `tick_io`.
     pressure_ok: bool,
+    /// This tick's chamber pressures per slave (what the law gets).
+    chambers: [[PressureBar; 2]; S],
     /// The slaves' references in `Manual`.
     manual: Manual<S>,
     /// A pending approach: the master of its command and its limits (following begins
@@ -336,6 +338,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             refs: References::new(cfg.slave_reference, cfg.home_position_um),
             pos_offset_um: cfg.slave_offset_um,
             pressure_ok: true,
+            chambers: [[PressureBar::ZERO; 2]; S],
             manual: Manual::holding(&[PosUm::ZERO; S], cfg.period_us),
             approach: None,
             jog_lockout_ticks: 0,
@@ -574,6 +577,16 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         })
     }
 
+    /// The law's inputs: `master`, `pos_um` and this tick's chamber pressures.
+    #[inline(always)]
+    pub(super) fn inputs(&self, master: Master, pos_um: &[PosUm; S]) -> ControlInputs<S> {
+        ControlInputs {
+            master,
+            pos_um: *pos_um,
+            pressure_bar: self.chambers,
+        }
+    }
+
     pub(super) fn begin_control(&mut self, inputs: &ControlInputs<S>) {
         if let Some(law) = self.law.as_mut() {
             law.restart(inputs);
@@ -648,10 +661,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             (Command::Start | Command::Hold, State::Idle | State::Manual) => {
                 self.time_master = 0;
                 let m = self.run_master(master);
-                self.begin_control(&ControlInputs {
-                    master: m,
-                    pos_um: *pos_um,
-                });
+                self.begin_control(&self.inputs(m, pos_um));
                 if cmd == Command::Start {
                     self.state = State::Following;
                 } else {
@@ -700,6 +710,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             *p = pos_from_counts(c, k, off);
         }
         let live_master = self.master_from(s.enc.master);
+        self.chambers = super::io::chamber_pressures(&s.pressure_bar);
 
         // 2. instantaneous causes latch at once.
         let first_cause = self.latch_causes(s);
@@ -723,10 +734,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             if self.state == State::Holding(HoldReason::Commanded) {
                 fed_master = self.held_master;
             }
-            let inputs = ControlInputs {
-                master: fed_master,
-                pos_um,
-            };
+            let inputs = self.inputs(fed_master, &pos_um);
             if let Some(law) = self.law.as_mut() {
                 let out = law.tick(&inputs);
                 error_um = out.error_um;

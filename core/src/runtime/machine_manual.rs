@@ -2,7 +2,7 @@
 //! manual tick ([`super::manual`] gives the references, the law follows them).
 
 use super::super::config::MasterSource;
-use super::super::controller::{ControlInputs, ControlOutputs, Controller};
+use super::super::controller::{ControlOutputs, Controller};
 use super::super::manual::{Manual, MotionError, MotionLimits};
 use super::super::reference::RefState;
 use super::{Command, CommandError, Runtime, State};
@@ -105,10 +105,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             _ => return Err(CommandError::Busy),
         }
         if entering {
-            self.begin_control(&ControlInputs {
-                master,
-                pos_um: *pos_um,
-            });
+            self.begin_control(&self.inputs(master, pos_um));
             self.state = State::Manual;
         }
         Ok(())
@@ -134,10 +131,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         pos_um: &[PosUm; S],
     ) -> Option<ControlOutputs<S>> {
         let refs = self.manual.step();
-        let inputs = ControlInputs {
-            master: live_master,
-            pos_um: *pos_um,
-        };
+        let inputs = self.inputs(live_master, pos_um);
         let out = self.law.as_mut()?.tick_manual(&inputs, &refs);
         self.check_law(&out.error_um, &out.axis_fault);
         if self.state == State::Manual && self.manual.at_rest() {
@@ -196,10 +190,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             .all(|(t, h)| t.saturating_sub(h.x_ref_um).saturating_abs() <= tol);
         if arrived {
             self.time_master = 0;
-            self.begin_control(&ControlInputs {
-                master: m,
-                pos_um: *pos_um,
-            });
+            self.begin_control(&self.inputs(m, pos_um));
             self.state = State::Following;
         } else if self.plan_approach(&targets, limits).is_ok() {
             self.approach = Some((m0, *limits));

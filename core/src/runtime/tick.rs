@@ -97,17 +97,13 @@ pub struct TickSample<const S: usize> {
 impl<const S: usize> TickSample<S> {
     /// The sample of a status snapshot (without [`FLAG_COMMAND`]: the tick adds it).
     pub fn of<const P: usize>(st: &Status<S, P>) -> Self {
-        let mut pressure_cbar = [[0u16; 2]; S];
-        for (k, pair) in pressure_cbar.iter_mut().enumerate() {
-            for (j, p) in pair.iter_mut().enumerate() {
-                let input = k.saturating_mul(2).saturating_add(j);
-                if let Some(bar) = st.pressure_bar.get(input) {
-                    // I16F16 bar × 100 → centibar: (raw · 100) >> 16, saturated to i16.
-                    let cbar = i64::from(bar.to_bits()).saturating_mul(100) >> 16;
-                    *p = u16::try_from(cbar.max(0)).unwrap_or(u16::MAX);
-                }
-            }
-        }
+        // I16F16 bar × 100 → centibar: (raw · 100) >> 16, saturated to u16.
+        let pressure_cbar = super::io::chamber_pressures::<S, P>(&st.pressure_bar).map(|pair| {
+            pair.map(|bar| {
+                let cbar = i64::from(bar.to_bits()).saturating_mul(100) >> 16;
+                u16::try_from(cbar.max(0)).unwrap_or(u16::MAX)
+            })
+        });
         let end = st.state == super::State::Holding(super::HoldReason::EndOfTable);
         let state = st.state.code() | if end { FLAG_END_OF_TABLE } else { 0 };
         let flags = state

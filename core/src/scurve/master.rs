@@ -252,6 +252,7 @@ mod tests {
             let o = f.tick(&FollowerInputs {
                 master: m,
                 pos_um: [x],
+                pressure_bar: [[crate::units::PressureBar::ZERO; 2]; 1],
             });
             assert!(!o.master_jump);
             assert_eq!(o.fault[0], None);

@@ -13,7 +13,7 @@ use super::{
     AxisCfg, Controller, PositionGains, PredictorCfg, PressGains, Role, Scenario, ScenarioError,
     Tuning,
 };
-use hydra_core::axis::{AxisConfig, PressConfig};
+use hydra_core::axis::{AxisConfig, PistonAreas, PressConfig};
 use hydra_core::follower::FollowerConfig;
 use hydra_core::master::{MasterFilterConfig, PredictorKind};
 
@@ -35,16 +35,26 @@ pub fn axis_config(axis: &AxisCfg, g: &PositionGains, controller: Controller) ->
         mode: controller.mode(),
         gains: *g,
         valve: axis.calibration,
+        areas: piston_areas(axis),
+    }
+}
+
+/// The axis cylinder's piston areas (chamber A: the piston side, B: the rod side), mm².
+pub fn piston_areas(axis: &AxisCfg) -> PistonAreas {
+    let c = axis.cylinder_si();
+    PistonAreas {
+        area_a_mm2: (c.area_a_m2 * 1e6) as f32,
+        area_b_mm2: (c.area_b_m2 * 1e6) as f32,
     }
 }
 
 /// The core configuration of one force axis.
 pub fn press_config(axis: &AxisCfg, g: &PressGains) -> Option<PressConfig> {
     let p = axis.press.as_ref()?;
-    let c = axis.cylinder_si();
+    let areas = piston_areas(axis);
     Some(PressConfig {
-        area_a_mm2: (c.area_a_m2 * 1e6) as f32,
-        area_b_mm2: (c.area_b_m2 * 1e6) as f32,
+        area_a_mm2: areas.area_a_mm2,
+        area_b_mm2: areas.area_b_mm2,
         approach_end_um: (p.approach_end_mm * 1e3) as f32,
         approach_speed_um_per_s: (p.approach_speed_mm_per_s * 1e3) as f32,
         contact_force_n: p.contact_force_n as f32,

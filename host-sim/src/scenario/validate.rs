@@ -4,7 +4,7 @@
 
 use super::gains::{axis_config, press_config};
 use super::{invalid, AxisCfg, Role, Scenario, ScenarioError, Tuning};
-use hydra_core::axis::{AxisConfigError, PressConfigError};
+use hydra_core::axis::{AxisConfigError, DampingError, PressConfigError};
 use hydra_core::master::MasterFilterConfig;
 use hydra_core::valve::ValveCalError;
 use std::f64::consts::PI;
@@ -362,6 +362,14 @@ fn axis_error_key(e: AxisConfigError) -> &'static str {
         AxisConfigError::FollowingError => "following_error_um",
         AxisConfigError::Period => "period_us",
         AxisConfigError::Valve(v) => valve_error_key(v),
+        AxisConfigError::Damping(DampingError::Gain) => "dp_gain_lsb_per_kn",
+        AxisConfigError::Damping(DampingError::Corner) => "dp_corner_hz",
+        AxisConfigError::Damping(DampingError::Law) => {
+            "dp_gain_lsb_per_kn (active damping: controller feedforward only)"
+        }
+        AxisConfigError::Damping(DampingError::Area) => {
+            "dp_gain_lsb_per_kn (× cylinder.bore_mm / rod_mm areas)"
+        }
     }
 }
 

@@ -23,6 +23,9 @@ use hydra_core::units::{Counts, DacCode, Master, MasterRate, PosUm, PressureBar,
 pub const TABLE_CAPACITY: usize = 4096;
 /// Largest number of follower axes of a scenario.
 pub const MAX_FOLLOWERS: usize = 4;
+/// The runtime's pressure inputs: chambers A and B of each of up to [`MAX_FOLLOWERS`]
+/// follower axes (slave k on inputs 2k, 2k + 1, as on the board).
+const PRESSURES: usize = 2 * MAX_FOLLOWERS;
 
 /// What one runtime tick of the followers gives the simulator.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,13 +44,14 @@ pub struct FollowerTick {
 
 /// The followers of a run inside the runtime, whatever the number of axes.
 pub trait FollowerDyn: Send {
-    /// One control period: the master and slave encoder counts in; valve codes (the
-    /// nulls unless controlling) and the targets X(θ_f(k)) (µm) out. The first tick
-    /// starts the runtime (Start).
+    /// One control period: the master and slave encoder counts and each slave's chamber
+    /// A and B pressure readings in; valve codes (the nulls unless controlling) and the
+    /// targets X(θ_f(k)) (µm) out. The first tick starts the runtime (Start).
     fn tick(
         &mut self,
         master: i64,
         slaves: &[i64],
+        pressures: &[[PressureBar; 2]],
         dac: &mut [DacCode],
         target: &mut [PosUm],
     ) -> FollowerTick;
@@ -58,7 +62,7 @@ pub trait FollowerDyn: Send {
 }
 
 struct Rt<const S: usize> {
-    rt: Runtime<Box<Follower<S, TABLE_CAPACITY>>, S, 0>,
+    rt: Runtime<Box<Follower<S, TABLE_CAPACITY>>, S, PRESSURES>,
     started: bool,
     /// |target − position| per slave at the last tick (the law's, also on the tick a
     /// fault latched), µm.
@@ -74,9 +78,14 @@ impl<const S: usize> FollowerDyn for Rt<S> {
         &mut self,
         master: i64,
         slaves: &[i64],
+        pressures: &[[PressureBar; 2]],
         dac: &mut [DacCode],
         target: &mut [PosUm],
     ) -> FollowerTick {
+        let mut pressure_bar = [PressureBar::ZERO; PRESSURES];
+        for (o, p) in pressure_bar.chunks_exact_mut(2).zip(pressures) {
+            o.copy_from_slice(p);
+        }
         let mut enc = EncoderSample {
             master: counts(master),
             slaves: [Counts(0); S],
@@ -86,7 +95,7 @@ impl<const S: usize> FollowerDyn for Rt<S> {
         }
         let sample = Sample {
             enc,
-            pressure_bar: [PressureBar::ZERO; 0],
+            pressure_bar,
             estop: false,
             overrun: false,
         };

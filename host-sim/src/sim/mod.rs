@@ -35,7 +35,7 @@
 pub mod control;
 
 use crate::camfile::{interpolate, CamCsv};
-use crate::plant::{dac_to_unit, HydraulicAxis, MasterProfile};
+use crate::plant::{dac_to_unit, HydraulicAxis, MasterProfile, PressureAdc};
 use crate::scenario::{Controller, Role, Scenario, ScenarioError};
 use control::{build_follower, Press};
 use hydra_core::axis::PressPhase;
@@ -296,6 +296,7 @@ pub fn run(
     let mut u_now = vec![0.0f64; n_axes]; // applied this period
     let mut u_next = vec![0.0f64; n_axes]; // computed at this period's sample
     let mut enc = vec![0i64; nf];
+    let mut chambers = vec![[PressureBar::ZERO; 2]; nf];
     let mut dac = vec![DacCode::NULL; nf];
     let mut ctrl_target = vec![PosUm::ZERO; nf];
     let mut faults: Vec<FaultEvent> = Vec::new();
@@ -318,8 +319,9 @@ pub fn run(
             for (j, &i) in follower_idx.iter().enumerate() {
                 enc[j] = encoders[i].count(plants[i].x_m());
                 osc[j].add(plants[i].v_m_per_s());
+                chambers[j] = adc_bar(&adcs[i], plants[i].pressures_pa());
             }
-            let o = f.tick(m, &enc, &mut dac, &mut ctrl_target);
+            let o = f.tick(m, &enc, &chambers, &mut dac, &mut ctrl_target);
             master_est_deg = o.master_estimate.to_num::<f64>() * sc.master.resolution_deg;
             for (j, &i) in follower_idx.iter().enumerate() {
                 // Not controlling: the valves are unpowered and their spools centre.
@@ -352,9 +354,7 @@ pub fn run(
         for (p, &i) in presses.iter_mut().zip(&press_idx) {
             let counts = encoders[i].count(plants[i].x_m());
             let x = PosUm::saturating_from_num(encoders[i].value(counts) * 1e6);
-            let (pa, pb) = plants[i].pressures_pa();
-            let pa = PressureBar::saturating_from_num(adcs[i].read_pa(pa) * 1e-5);
-            let pb = PressureBar::saturating_from_num(adcs[i].read_pa(pb) * 1e-5);
+            let [pa, pb] = adc_bar(&adcs[i], plants[i].pressures_pa());
             let o = p.law.tick(x, pa, pb);
             let c = o.cmd_lsb.to_num::<f64>();
             if o.phase == PressPhase::Force && p.phase == PressPhase::Approach {
@@ -568,6 +568,11 @@ impl Reversals {
 }
 
 /// Sign changes of a table column's slope between master `a` and `b` (degrees).
+/// The two chamber pressures (Pa) as the controller reads them through the ADC, bar.
+fn adc_bar(adc: &PressureAdc, (pa, pb): (f64, f64)) -> [PressureBar; 2] {
+    [pa, pb].map(|p| PressureBar::saturating_from_num(adc.read_pa(p) * 1e-5))
+}
+
 fn table_reversals(master: &[f64], col: &[f64], a: f64, b: f64) -> u32 {
     let (lo, hi) = (a.min(b), a.max(b));
     let mut sign = 0i8;
