@@ -271,7 +271,61 @@ impl TruthPath {
     }
 
     /// The exact nearest point of the path to `p` (µm) and its signed distance.
+    ///
+    /// An arc in closed form: the foot is on the ray from the centre through `p`,
+    /// u = R·((σ·(atan2(p − c) − φ0)) mod 2π), or the nearer end when that angle is
+    /// beyond the sweep. Every other path: a dense sampling of the whole path and a
+    /// refinement of each local minimum ([`Self::nearest_sampled`]).
     pub fn nearest(&self, p: [f64; 2]) -> Nearest {
+        match *self {
+            TruthPath::Arc {
+                c,
+                r,
+                phi0,
+                sigma,
+                len,
+            } => {
+                let q = sub(p, c);
+                let turn = std::f64::consts::TAU;
+                let u = (sigma * (q[1].atan2(q[0]) - phi0)).rem_euclid(turn) * r;
+                let u = if u <= len {
+                    u
+                } else {
+                    // Beyond the sweep: the nearer end.
+                    let d = |u: f64| {
+                        let e = sub(self.r(u), p);
+                        dot(e, e)
+                    };
+                    if d(0.0) <= d(len) {
+                        0.0
+                    } else {
+                        len
+                    }
+                };
+                self.nearest_at(p, u)
+            }
+            _ => self.nearest_sampled(p),
+        }
+    }
+
+    /// The foot at parameter `u` and the signed distance of `p` from it.
+    fn nearest_at(&self, p: [f64; 2], u: f64) -> Nearest {
+        let foot = self.r(u);
+        let e = sub(p, foot);
+        let dist = e[0].hypot(e[1]);
+        let t = self.tangent(u);
+        let side = dot(e, [t[1], -t[0]]);
+        Nearest {
+            u,
+            foot,
+            dist,
+            eps: if side < 0.0 { -dist } else { dist },
+        }
+    }
+
+    /// [`Self::nearest`] by search: the squared distance at 4 097 samples of the domain,
+    /// each local minimum refined, the ends considered.
+    pub fn nearest_sampled(&self, p: [f64; 2]) -> Nearest {
         let (u0, u1) = self.domain();
         let h = (u1 - u0) / SAMPLES as f64;
         let ui = |i: usize| if i == SAMPLES { u1 } else { u0 + h * i as f64 };
@@ -305,23 +359,37 @@ impl TruthPath {
             }
         }
         let u = best.map_or(u0, |b| b.1);
-        let foot = self.r(u);
-        let e = sub(p, foot);
-        let dist = e[0].hypot(e[1]);
-        let t = self.tangent(u);
-        let side = dot(e, [t[1], -t[0]]);
-        Nearest {
-            u,
-            foot,
-            dist,
-            eps: if side < 0.0 { -dist } else { dist },
-        }
+        self.nearest_at(p, u)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The arc's closed form is the search's answer: inside, outside, beyond either end
+    /// of a part arc, both directions, a full circle.
+    #[test]
+    fn the_arcs_closed_form_agrees_with_the_search() {
+        for (start, sweep) in [(-90.0, 360.0), (30.0, 120.0), (200.0, -75.0)] {
+            let a = TruthPath::arc(&ArcSpec {
+                center_um: [1_000.0, -2_000.0],
+                radius_um: 50_000.0,
+                start_deg: start,
+                sweep_deg: sweep,
+            });
+            for k in 0..200 {
+                let th = f64::from(k) * 0.0317 * std::f64::consts::TAU;
+                let rad = 50_000.0 + 30_000.0 * (f64::from(k) * 0.71).sin();
+                let p = [1_000.0 + rad * th.cos(), -2_000.0 + rad * th.sin()];
+                let (f, s) = (a.nearest(p), a.nearest_sampled(p));
+                assert!(
+                    (f.dist - s.dist).abs() < 1e-6 && (f.eps - s.eps).abs() < 1e-6,
+                    "arc {start}/{sweep}, point {p:?}: closed {f:?} search {s:?}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn circle_distance_is_radial() {

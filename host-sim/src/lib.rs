@@ -9,6 +9,7 @@ pub mod cmd;
 pub mod contour_truth;
 pub mod csvout;
 pub mod die;
+pub mod fair;
 pub mod identify;
 pub mod machine;
 pub mod plant;

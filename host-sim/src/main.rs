@@ -17,6 +17,8 @@ enum Command {
     /// The robustness box: the shipped gains on the machine off nominal (mass, oil,
     /// valve, supply), max / RMS error and oscillation per case.
     Robust(cmd::robust::Args),
+    /// The fair comparison: every controller tuned by the same procedure at each period.
+    Fair(cmd::fair::Args),
     /// Fit an axis' valve, oil, mass and friction to an open-loop recording; write the
     /// machine file.
     Identify(cmd::identify::Args),
@@ -69,6 +71,7 @@ fn dispatch() -> anyhow::Result<()> {
         None => cmd::run::run_default(),
         Some(Command::Run(a)) => cmd::run::run(&a),
         Some(Command::Robust(a)) => cmd::robust::run(&a),
+        Some(Command::Fair(a)) => cmd::fair::run(&a),
         Some(Command::Identify(a)) => cmd::identify::run(&a),
         Some(Command::OpenLoop(a)) => cmd::open_loop::run(&a),
         Some(Command::Scurve(a)) => cmd::scurve::run(&a),

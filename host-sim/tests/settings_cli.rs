@@ -68,6 +68,8 @@ fn settings_survive_a_restart_exactly_and_every_path_reads_back() {
         ("axis/1/valve/null_lsb", "-12.5"),
         ("axis/1/valve/invert", "true"),
         ("link/timeout_ms", "0"),
+        // Active damping on slave 0 (the board's profile holds the cylinder's areas).
+        ("axis/0/dp_gain_lsb_per_kn", "20"),
     ] {
         let set = json(&ok(&b, &["param", "set", path, v, "--json"]));
         assert_eq!(set["path"], path);
@@ -76,6 +78,8 @@ fn settings_survive_a_restart_exactly_and_every_path_reads_back() {
     assert_eq!(get("axis/0/kv_pos_lsb_per_um_s"), 0.0125);
     assert_eq!(get("axis/0/kv_neg_lsb_per_um_s"), 0.015);
     assert_eq!(get("axis/1/valve/invert"), 1.0);
+    assert_eq!(get("axis/0/dp_gain_lsb_per_kn"), 20.0);
+    assert_eq!(get("axis/0/cylinder/area_a_mm2"), 5026.5);
 
     // Bad input: named, nothing changed.
     let e = refused(&b, &["param", "set", "axis/0/kp", "1"]);
@@ -83,6 +87,11 @@ fn settings_survive_a_restart_exactly_and_every_path_reads_back() {
     let e = refused(&b, &["param", "set", "axis/0/valve/null_lsb", "900"]);
     assert!(
         e.contains("axis/0/valve/null_lsb") && e.contains("500"),
+        "{e}"
+    );
+    let e = refused(&b, &["param", "set", "axis/0/dp_gain_lsb_per_kn", "2000"]);
+    assert!(
+        e.contains("axis/0/dp_gain_lsb_per_kn") && e.contains("1000"),
         "{e}"
     );
     let e = refused(&b, &["param", "set", "period_us", "500"]);

@@ -2,6 +2,7 @@
 
 pub mod capture;
 pub mod contour_estimate;
+pub mod fair;
 pub mod identify;
 pub mod manual;
 pub mod motion;

@@ -297,6 +297,18 @@ pub(crate) fn axes(start_um: [f64; 2]) -> (HydraulicAxis, HydraulicAxis, Supply)
 
 /// Runs one scenario.
 pub fn simulate(s: &XyScenario) -> Result<XyReport> {
+    simulate_with(s, false)
+}
+
+/// [`simulate`], ending the run at the first period a valve command reaches the DAC's
+/// limit (|code| ≥ 2046): the tuning rejects such a run whatever follows
+/// (`tune::cost`), so a candidate that saturates early costs only the time to saturate.
+/// The report then covers the run up to that period.
+pub fn simulate_until_saturated(s: &XyScenario) -> Result<XyReport> {
+    simulate_with(s, true)
+}
+
+fn simulate_with(s: &XyScenario, stop_at_saturation: bool) -> Result<XyReport> {
     if !(s.feed_mm_per_s.is_finite() && s.feed_mm_per_s > 0.0 && s.feed_mm_per_s <= 200.0) {
         bail!("--feed must be in (0, 200] mm/s, got {}", s.feed_mm_per_s);
     }
@@ -327,13 +339,18 @@ pub fn simulate(s: &XyScenario) -> Result<XyReport> {
     }
     let (core_path, truth) = build_path(s)?;
     match &core_path {
-        CorePath::Line(p) => run(s, p, &truth),
-        CorePath::Arc(p) => run(s, p, &truth),
-        CorePath::Parabola(p) => run(s, p, &truth),
+        CorePath::Line(p) => run(s, p, &truth, stop_at_saturation),
+        CorePath::Arc(p) => run(s, p, &truth, stop_at_saturation),
+        CorePath::Parabola(p) => run(s, p, &truth, stop_at_saturation),
     }
 }
 
-fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result<XyReport> {
+fn run<P: ParametricPath>(
+    s: &XyScenario,
+    path: &P,
+    truth: &TruthPath,
+    stop_at_saturation: bool,
+) -> Result<XyReport> {
     let start = truth.r(truth.domain().0);
     let (mut ax, mut ay, _) = axes(start);
     // The drift acts on the plant only: the law keeps the gains and feed-forward it was
@@ -423,6 +440,9 @@ fn run<P: ParametricPath>(s: &XyScenario, path: &P, truth: &TruthPath) -> Result
             normal_deg: nrm[1].atan2(nrm[0]).to_degrees(),
             command_lsb: codes,
         });
+        if stop_at_saturation && codes.iter().any(|c| c.abs() >= 2046.0) {
+            break;
+        }
         // Plant: the code written now acts from the next period.
         let applied = pending;
         pending = [codes[0] / 2047.0, codes[1] / 2047.0];
