@@ -358,11 +358,15 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             if rt.fault.is_none() && err.saturating_abs() > c.fe_limit {
                 rt.fault = Some(AxisFault::FollowingError);
                 rt.st.reset();
+                rt.damp = DampingState::RESET;
             }
             let (u, code) = if rt.fault.is_some() {
                 (CmdLsb::ZERO, c.valve.null_code())
             } else {
                 let u = position_law(c, &mut rt.st, r, x);
+                // Manual: the damping after the law's clamp (the integrator's anti-windup
+                // does not see it, unlike the following path's feed-forward entry; a
+                // manual reference moves slowly, so its integrator rarely winds).
                 let u = damped_cmd(&c.damping, &mut rt.damp, p, u, c.valve.clamp_lsb());
                 (u, c.valve.output(u))
             };
@@ -416,6 +420,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         for rt in &mut self.rt {
             if rt.fault.take().is_some() {
                 rt.st.reset();
+                rt.damp = DampingState::RESET;
             }
         }
     }
@@ -789,6 +794,7 @@ fn axis_step_inline<const S: usize, const M: u8>(
     if rt.fault.is_none() && err.saturating_abs() > c.fe_limit {
         rt.fault = Some(AxisFault::FollowingError);
         rt.st.reset();
+        rt.damp = DampingState::RESET;
     }
     let (u, code) = if rt.fault.is_some() {
         (0, c.valve.null_code())

@@ -49,9 +49,9 @@ pub const KI_FACTORS: [f64; 6] = [0.0, 1.0, 4.0, 16.0, 64.0, 256.0];
 /// One run's outcome.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Score {
-    /// Kp of every follower axis, LSB/µm.
+    /// Kp of the first follower axis (by name), LSB/µm (every axis is scaled alike).
     pub kp_lsb_per_um: f64,
-    /// Ki of every follower axis, LSB/(µm·s).
+    /// Ki of the first follower axis (by name), LSB/(µm·s).
     pub ki_lsb_per_um_s: f64,
     /// Largest |error| of any follower axis, µm.
     pub max_um: f64,
@@ -206,7 +206,8 @@ pub fn compare(
                     .partial_cmp(&(b.3.max_um, b.3.rms_um))
                     .unwrap_or(std::cmp::Ordering::Equal)
             })
-            .or_else(|| mine.first());
+            // Every run latched a fault: the rule's set, its faults shown.
+            .or_else(|| mine.iter().find(|x| x.1 == 1.0 && x.2 == 1.0));
         if let (Some(rule_score), Some(best)) = (rule_score, best) {
             out.push(Fair {
                 controller: c.name(),

@@ -640,3 +640,36 @@ fn built_in_place_equals_new_and_refusals_change_nothing() {
         assert_eq!(a, b, "tick {k}");
     }
 }
+
+/// The active damping's high-pass starts afresh when a latched fault is cleared: a load
+/// change while the axis was faulted gives no jolt on the first tick after the clear
+/// (the damped follower then commands exactly what an undamped one does).
+#[test]
+fn clearing_a_fault_restarts_the_damping() {
+    let nodes = sine_nodes();
+    let run = |dp_gain: f32| {
+        let mut axis = ff_axis();
+        axis.gains.dp_gain_lsb_per_kn = dp_gain;
+        axis.areas = crate::profile::piston_areas();
+        let cfg = FollowerConfig {
+            axes: [axis],
+            ..FollowerConfig::default()
+        };
+        let mut f = Follower::new(&cfg, table1(&nodes)).unwrap();
+        let at = |m: f64, x: f64, p_a: i32| FollowerInputs {
+            master: Master::from_num(m),
+            pos_um: [PosUm::from_num(x)],
+            pressure_bar: [[PressureBar::from_num(p_a), PressureBar::from_num(40)]],
+        };
+        for _ in 0..10 {
+            f.tick(&at(0.0, 20_000.0, 80));
+        }
+        // 10 mm off: the following error latches; meanwhile the load changes.
+        let o = f.tick(&at(0.0, 30_000.0, 80));
+        assert!(o.fault[0].is_some());
+        f.tick(&at(0.0, 20_000.0, 140));
+        f.clear_faults();
+        f.tick(&at(0.0, 20_000.0, 140)).cmd_lsb[0]
+    };
+    assert_eq!(run(60.0), run(0.0));
+}

@@ -173,6 +173,8 @@ pub(crate) mod mock {
         pub nulls: [DacCode; S],
         /// How many times `restart` was called.
         pub restarts: u32,
+        /// The chamber pressures of the last tick.
+        pub pressures: [[crate::units::PressureBar; 2]; S],
     }
 
     impl<const S: usize> MockLaw<S> {
@@ -184,6 +186,7 @@ pub(crate) mod mock {
                 axis_fault: [None; S],
                 nulls: [DacCode::new_clamped(7); S],
                 restarts: 0,
+                pressures: [[crate::units::PressureBar::ZERO; 2]; S],
             }
         }
 
@@ -199,6 +202,7 @@ pub(crate) mod mock {
 
         fn tick(&mut self, inputs: &ControlInputs<S>) -> ControlOutputs<S> {
             let target = self.target(inputs.master);
+            self.pressures = inputs.pressure_bar;
             let mut out = ControlOutputs::at(self.nulls);
             for i in 0..S {
                 let e = target.saturating_sub(inputs.pos_um[i]);

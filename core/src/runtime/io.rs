@@ -41,8 +41,12 @@ pub fn chamber_pressures<const S: usize, const P: usize>(
     p: &[PressureBar; P],
 ) -> [[PressureBar; 2]; S] {
     let mut out = [[PressureBar::ZERO; 2]; S];
-    for (pair, inputs) in out.iter_mut().zip(p.chunks_exact(2)) {
-        pair.copy_from_slice(inputs);
+    for (k, pair) in out.iter_mut().enumerate() {
+        for (j, v) in pair.iter_mut().enumerate() {
+            if let Some(&bar) = p.get(k.saturating_mul(2).saturating_add(j)) {
+                *v = bar;
+            }
+        }
     }
     out
 }

@@ -283,7 +283,8 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     pos_offset_um: [PosUm; S],
     /// The board's pressure inputs were live at the last `tick_io`.
     pressure_ok: bool,
-    /// This tick's chamber pressures per slave (what the law gets).
+    /// The chamber pressures per slave the law gets: this tick's while the pressure
+    /// inputs are live, else the last live ones.
     chambers: [[PressureBar; 2]; S],
     /// The slaves' references in `Manual`.
     manual: Manual<S>,
@@ -710,7 +711,12 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             *p = pos_from_counts(c, k, off);
         }
         let live_master = self.master_from(s.enc.master);
-        self.chambers = super::io::chamber_pressures(&s.pressure_bar);
+        // Stale pressures (the board says its converter stopped) are not handed on: the
+        // law keeps the last live ones, so the active damping's high-pass decays to 0
+        // instead of acting on a frozen or restarting input.
+        if self.pressure_ok {
+            self.chambers = super::io::chamber_pressures(&s.pressure_bar);
+        }
 
         // 2. instantaneous causes latch at once.
         let first_cause = self.latch_causes(s);

@@ -596,6 +596,75 @@ fn closed_loop_on_a_virtual_board_crosses_16_bit_wrap() {
     assert_eq!(r.status().fault.unwrap().fault, Fault::EStop);
 }
 
+/// A board whose four pressure inputs change every tick and can go stale.
+struct PressureBoard {
+    bar: i32,
+    live: bool,
+}
+
+impl EncoderInput<2> for PressureBoard {
+    fn latch(&mut self) -> EncoderSample<2> {
+        EncoderSample {
+            master: Counts(0),
+            slaves: [Counts(0); 2],
+        }
+    }
+}
+
+impl PressureInput<4> for PressureBoard {
+    fn read(&mut self) -> [PressureBar; 4] {
+        [0, 1, 2, 3].map(|k| PressureBar::from_num(self.bar + k))
+    }
+    fn healthy(&mut self) -> bool {
+        self.live
+    }
+}
+
+impl SafetyInput for PressureBoard {
+    fn estop_active(&mut self) -> bool {
+        false
+    }
+}
+
+impl ValveOutput<2> for PressureBoard {
+    fn write(&mut self, _codes: &[DacCode; 2]) {}
+    fn set_enable(&mut self, _on: bool) {}
+}
+
+/// The law gets slave k's chambers from inputs 2k, 2k + 1 while they are live, and the
+/// last live ones while the board says they are stale (the active damping then decays
+/// instead of acting on a frozen or restarting converter).
+#[test]
+fn the_law_gets_each_slaves_chambers_and_keeps_the_last_live_ones() {
+    let cfg = RuntimeConfig::<2>::default().build().unwrap();
+    let mut law = MockLaw::<2>::new();
+    let mut r: Runtime<&mut MockLaw<2>, 2, 4> =
+        Runtime::new(cfg, Some(&mut law), BootCause::Normal);
+    let mut b = PressureBoard {
+        bar: 100,
+        live: true,
+    };
+    r.tick_io(&mut b, Some(Command::Start), false);
+    r.tick_io(&mut b, None, false);
+    let bar = |x: i32| PressureBar::from_num(x);
+    let want = [[bar(100), bar(101)], [bar(102), bar(103)]];
+    assert_eq!(r.law().map(|l| l.pressures), Some(want));
+    b.bar = 150;
+    b.live = false;
+    r.tick_io(&mut b, None, false);
+    assert_eq!(
+        r.law().map(|l| l.pressures),
+        Some(want),
+        "stale: the last live ones"
+    );
+    b.live = true;
+    r.tick_io(&mut b, None, false);
+    assert_eq!(
+        r.law().map(|l| l.pressures),
+        Some([[bar(150), bar(151)], [bar(152), bar(153)]])
+    );
+}
+
 /// A runtime over `&mut` laws (the board's static law buffers) runs them like owned
 /// ones, and `install` swaps the references: the old law comes back untouched.
 #[test]

@@ -81,7 +81,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 
 fn print_table(name: &str, result: &[Fair]) {
     println!(
-        "{name} — every law tuned by one procedure (host-sim/src/fair.rs): the rule's set, then the best of {} runs with Kp ≤ the rule's",
+        "{name} — every law tuned by one procedure (host-sim/src/fair.rs): the rule's set, then the best of {} runs with Kp ≤ √2 × the rule's",
         result.first().map_or(0, |f| f.runs)
     );
     println!(
@@ -111,5 +111,12 @@ fn print_table(name: &str, result: &[Fair]) {
             f.best.max_um,
             f.best.rms_um
         );
+        if !f.best.faults.is_empty() {
+            println!(
+                "{:<12} every set faulted; the rule's shown: {}",
+                "",
+                f.best.faults.join(", ")
+            );
+        }
     }
 }

@@ -567,12 +567,12 @@ impl Reversals {
     }
 }
 
-/// Sign changes of a table column's slope between master `a` and `b` (degrees).
 /// The two chamber pressures (Pa) as the controller reads them through the ADC, bar.
 fn adc_bar(adc: &PressureAdc, (pa, pb): (f64, f64)) -> [PressureBar; 2] {
     [pa, pb].map(|p| PressureBar::saturating_from_num(adc.read_pa(p) * 1e-5))
 }
 
+/// Sign changes of a table column's slope between master `a` and `b` (degrees).
 fn table_reversals(master: &[f64], col: &[f64], a: f64, b: f64) -> u32 {
     let (lo, hi) = (a.min(b), a.max(b));
     let mut sign = 0i8;
