@@ -25,7 +25,7 @@
 use crate::autotune::{self, Margins};
 use crate::camfile::CamCsv;
 use crate::scenario::{Controller, Role, Scenario, ScenarioError, Tuning};
-use crate::sim::{run as simulate, AxisResult, RunSpec};
+use crate::sim::{run as simulate, RunSpec};
 use rayon::prelude::*;
 
 /// Kp as a multiple of the rule's (half-octaves from √2 down to 1/16): at most
@@ -110,21 +110,11 @@ fn score(s: &Scenario, table: &CamCsv, t: &Tuning) -> Result<Score, ScenarioErro
         trace_every_s: None,
     };
     let r = simulate(&run_s, table, &spec, &mut |_| {})?;
-    let (mut max_um, mut rms_um) = (0.0f64, 0.0f64);
-    for a in &r.axes {
-        if let AxisResult::Follower {
-            max_error_um,
-            rms_error_um,
-        } = a.result
-        {
-            max_um = max_um.max(max_error_um);
-            rms_um = rms_um.max(rms_error_um);
-        }
-    }
-    let first = t.axes.values().next();
+    let (max_um, rms_um, _) = r.followers_worst();
+    let (kp_lsb_per_um, ki_lsb_per_um_s) = first_gains(t);
     Ok(Score {
-        kp_lsb_per_um: first.map_or(0.0, |g| f64::from(g.kp_lsb_per_um)),
-        ki_lsb_per_um_s: first.map_or(0.0, |g| f64::from(g.ki_lsb_per_um_s)),
+        kp_lsb_per_um,
+        ki_lsb_per_um_s,
         max_um,
         rms_um,
         faults: r
@@ -135,12 +125,19 @@ fn score(s: &Scenario, table: &CamCsv, t: &Tuning) -> Result<Score, ScenarioErro
     })
 }
 
+/// Kp and Ki of the set's first follower axis (by name; every axis is scaled alike).
+fn first_gains(t: &Tuning) -> (f64, f64) {
+    t.axes.values().next().map_or((0.0, 0.0), |g| {
+        (f64::from(g.kp_lsb_per_um), f64::from(g.ki_lsb_per_um_s))
+    })
+}
+
 /// A set the core refused: never chosen.
 fn refused(t: &Tuning, e: &ScenarioError) -> Score {
-    let first = t.axes.values().next();
+    let (kp_lsb_per_um, ki_lsb_per_um_s) = first_gains(t);
     Score {
-        kp_lsb_per_um: first.map_or(0.0, |g| f64::from(g.kp_lsb_per_um)),
-        ki_lsb_per_um_s: first.map_or(0.0, |g| f64::from(g.ki_lsb_per_um_s)),
+        kp_lsb_per_um,
+        ki_lsb_per_um_s,
         max_um: f64::INFINITY,
         rms_um: f64::INFINITY,
         faults: vec![format!("refused: {e}")],

@@ -22,7 +22,7 @@
 
 use crate::camfile::CamCsv;
 use crate::scenario::{Controller, Role, Scenario, ScenarioError};
-use crate::sim::{run as simulate, AxisResult, RunSpec};
+use crate::sim::{run as simulate, RunSpec};
 use rayon::prelude::*;
 
 /// The box's ends: (low, high) multipliers of mass, bulk modulus and rated flow.
@@ -173,18 +173,7 @@ pub fn evaluate(
                 trace_every_s: None,
             };
             let r = simulate(&v.apply(s), table, &spec, &mut |_| {})?;
-            let (mut max_um, mut rms_um, mut peak) = (0.0f64, 0.0f64, 0.0f64);
-            for a in &r.axes {
-                if let AxisResult::Follower {
-                    max_error_um,
-                    rms_error_um,
-                } = a.result
-                {
-                    max_um = max_um.max(max_error_um);
-                    rms_um = rms_um.max(rms_error_um);
-                    peak = peak.max(a.peak_command);
-                }
-            }
+            let (max_um, rms_um, peak) = r.followers_worst();
             let excess: u32 = r.oscillation.iter().map(|o| o.excess()).sum();
             let faults: Vec<String> = r
                 .faults

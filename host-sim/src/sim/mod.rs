@@ -155,6 +155,24 @@ pub struct RunReport {
 }
 
 impl RunReport {
+    /// The worst of the follower axes: the largest max |error| (µm), the largest RMS
+    /// error (µm) and the largest valve command (1 = full opening); zeros without one.
+    pub fn followers_worst(&self) -> (f64, f64, f64) {
+        let (mut max_um, mut rms_um, mut peak) = (0.0f64, 0.0f64, 0.0f64);
+        for a in &self.axes {
+            if let AxisResult::Follower {
+                max_error_um,
+                rms_error_um,
+            } = a.result
+            {
+                max_um = max_um.max(max_error_um);
+                rms_um = rms_um.max(rms_error_um);
+                peak = peak.max(a.peak_command);
+            }
+        }
+        (max_um, rms_um, peak)
+    }
+
     /// The report of an axis by name.
     pub fn axis(&self, name: &str) -> Option<&AxisReport> {
         self.axes.iter().find(|a| a.name == name)
