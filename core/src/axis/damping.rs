@@ -15,7 +15,9 @@
 //!
 //! In fixed point the gain is folded into the areas once ([`DampingCoeffs`]): per chamber
 //! g = k_dp·A, LSB per bar (`I16F16`, resolution 1.5e-5 LSB/bar, ≤ 32 767), so the
-//! filter runs on k_dp·F in LSB (`I16F16`) and its output is the command correction.
+//! filter runs on the change k_dp·(F(k) − F(k−1)) = g_A·Δp_A − g_B·Δp_B in LSB
+//! (`I16F16`; a large steady load cannot saturate it) and its output is the command
+//! correction.
 //! Pressures are [`PressureBar`] (`I16F16` bar). Two 32 × 32 → 64-bit products for the
 //! force, one for the filter; every sum saturates.
 //!
@@ -125,23 +127,28 @@ impl DampingCoeffs {
 }
 
 /// The high-pass filter's state.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DampingState {
-    /// k_dp·F(k−1), LSB, `I16F16` raw.
-    f1: i32,
+    /// p_A(k−1), p_B(k−1), bar, `I16F16` raw (the filter works on the force's change,
+    /// so a large steady load cannot saturate it). `p1[0] == i32::MIN` (−32 768 bar, no
+    /// transducer's reading): no sample yet, the first tick after a reset outputs 0.
+    p1: [i32; 2],
     /// y(k−1), LSB, `I16F16` raw.
     y: i32,
-    /// Whether `f1` holds a real sample (the first tick after a reset outputs 0).
-    primed: bool,
+}
+
+impl Default for DampingState {
+    fn default() -> Self {
+        Self::RESET
+    }
 }
 
 impl DampingState {
     /// The reset state (`Default` as a `const`).
     pub const RESET: Self = Self {
-        f1: 0,
+        p1: [i32::MIN, 0],
         y: 0,
-        primed: false,
     };
 }
 
@@ -149,20 +156,22 @@ impl DampingState {
 /// the law's command, from chamber pressures `p` = [p_A, p_B] (bar). 0 when off.
 #[inline(always)]
 pub fn damping_bits(c: &DampingCoeffs, st: &mut DampingState, p: &[PressureBar; 2]) -> i32 {
-    // Q16 bar · Q16 LSB/bar = Q32 → Q16 LSB. |p| < 2^15, |g| < 2^15: each product below
-    // 2^62, their difference below 2^63.
-    let f = sat_i32(
-        i64::from(p[0].to_bits())
-            .wrapping_mul(i64::from(c.g_a))
-            .wrapping_sub(i64::from(p[1].to_bits()).wrapping_mul(i64::from(c.g_b)))
-            >> 16,
-    );
-    let f1 = if st.primed { st.f1 } else { f };
-    let x = st.y.saturating_add(f.saturating_sub(f1));
+    let p = [p[0].to_bits(), p[1].to_bits()];
+    let p1 = if st.p1[0] == i32::MIN { p } else { st.p1 };
+    // k_dp·(F(k) − F(k−1)) = g_A·Δp_A − g_B·Δp_B: Q16 bar · Q16 LSB/bar = Q32 → Q16 LSB.
+    // Δp saturated to i32 (±32 768 bar), |g| < 2^31: each product below 2^62, their
+    // difference below 2^63 (32 × 32 → 64-bit multiplies, no overflow).
+    let dp_a = i64::from(p[0].saturating_sub(p1[0]));
+    let dp_b = i64::from(p[1].saturating_sub(p1[1]));
+    let df = dp_a
+        .wrapping_mul(i64::from(c.g_a))
+        .wrapping_sub(dp_b.wrapping_mul(i64::from(c.g_b)))
+        >> 16;
+    let x = st.y.saturating_add(sat_i32(df));
     // Q16 · Q31 → Q47 >> 31: |α| < 1, so |y| ≤ |x| fits an i32.
     st.y = (i64::from(x).wrapping_mul(i64::from(c.alpha_q31)) >> 31) as i32;
-    st.f1 = f;
-    st.primed = true;
+    // A reading of exactly −32 768 bar stays "no sample" (never a real one).
+    st.p1 = p;
     st.y
 }
 
@@ -277,6 +286,27 @@ mod tests {
         let mut st = DampingState::RESET;
         damping_bits(&c, &mut st, &p0);
         assert!(damping_bits(&c, &mut st, &[bar(80.0), bar(60.0)]) < 0);
+    }
+
+    /// The filter works on the force's change: at the largest gain on a large piston a
+    /// steady 200 bar (k·F ≈ 100 000 LSB, beyond `I16F16`) still lets a 1 bar change
+    /// through (an absolute-force input saturated there and lost the damping).
+    #[test]
+    fn a_large_steady_load_does_not_saturate_the_damping() {
+        let big = PistonAreas {
+            area_a_mm2: 5026.5,
+            area_b_mm2: 0.0,
+        };
+        let c = DampingCoeffs::build(1000.0, 5.0, &big, 1000).unwrap();
+        let mut st = DampingState::default();
+        let p0 = [bar(200.0), bar(0.0)];
+        for _ in 0..100 {
+            assert_eq!(damping_bits(&c, &mut st, &p0), 0);
+        }
+        let y = f64::from(damping_bits(&c, &mut st, &[bar(201.0), bar(0.0)])) / 65536.0;
+        // 1 bar · 1000 LSB/kN · 5026.5 mm² · 1e-4 = 502.65 LSB, times α on its first tick.
+        let alpha = 1.0 / (1.0 + 2.0 * core::f64::consts::PI * 5.0 * 1e-3);
+        assert!((y - 502.65 * alpha).abs() < 0.5, "{y}");
     }
 
     proptest! {
