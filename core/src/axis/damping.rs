@@ -130,9 +130,12 @@ impl DampingCoeffs {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DampingState {
-    /// p_A(k−1), p_B(k−1), bar, `I16F16` raw (the filter works on the force's change,
-    /// so a large steady load cannot saturate it). `p1[0] == i32::MIN` (−32 768 bar, no
-    /// transducer's reading): no sample yet, the first tick after a reset outputs 0.
+    /// p_A(k−1), p_B(k−1), bar, `I16F16` raw, each stored XOR `i32::MIN` (the filter works
+    /// on the force's change, so a large steady load cannot saturate it). A stored 0 —
+    /// a reading of −32 768 bar, which no transducer gives — means no sample yet: the
+    /// first tick after a reset outputs 0. (So the reset state is all-zero bytes and a
+    /// static law buffer stays in `.bss`: a non-zero reset put 25 KiB of law buffers'
+    /// initial image into flash.)
     p1: [i32; 2],
     /// y(k−1), LSB, `I16F16` raw.
     y: i32,
@@ -146,10 +149,7 @@ impl Default for DampingState {
 
 impl DampingState {
     /// The reset state (`Default` as a `const`).
-    pub const RESET: Self = Self {
-        p1: [i32::MIN, 0],
-        y: 0,
-    };
+    pub const RESET: Self = Self { p1: [0; 2], y: 0 };
 }
 
 /// One tick: the command correction k_dp·y(k) in LSB (`I16F16` raw) to subtract from
@@ -157,7 +157,11 @@ impl DampingState {
 #[inline(always)]
 pub fn damping_bits(c: &DampingCoeffs, st: &mut DampingState, p: &[PressureBar; 2]) -> i32 {
     let p = [p[0].to_bits(), p[1].to_bits()];
-    let p1 = if st.p1[0] == i32::MIN { p } else { st.p1 };
+    let p1 = if st.p1[0] == 0 {
+        p
+    } else {
+        [st.p1[0] ^ i32::MIN, st.p1[1] ^ i32::MIN]
+    };
     // k_dp·(F(k) − F(k−1)) = g_A·Δp_A − g_B·Δp_B: Q16 bar · Q16 LSB/bar = Q32 → Q16 LSB.
     // Δp saturated to i32 (±32 768 bar), |g| < 2^31: each product below 2^62, their
     // difference below 2^63 (32 × 32 → 64-bit multiplies, no overflow).
@@ -171,7 +175,7 @@ pub fn damping_bits(c: &DampingCoeffs, st: &mut DampingState, p: &[PressureBar; 
     // Q16 · Q31 → Q47 >> 31: |α| < 1, so |y| ≤ |x| fits an i32.
     st.y = (i64::from(x).wrapping_mul(i64::from(c.alpha_q31)) >> 31) as i32;
     // A reading of exactly −32 768 bar stays "no sample" (never a real one).
-    st.p1 = p;
+    st.p1 = [p[0] ^ i32::MIN, p[1] ^ i32::MIN];
     st.y
 }
 
