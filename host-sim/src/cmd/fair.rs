@@ -25,18 +25,12 @@ pub struct Args {
     pub toml: bool,
 }
 
-fn default_scenario() -> PathBuf {
-    let local = PathBuf::from("host-sim/scenarios/tangent.toml");
-    if local.is_file() {
-        local
-    } else {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenarios/tangent.toml")
-    }
-}
-
 /// Runs `host-sim fair`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let path = args.scenario.clone().unwrap_or_else(default_scenario);
+    let path = args
+        .scenario
+        .clone()
+        .unwrap_or_else(|| super::shipped_scenario("tangent.toml"));
     let s = Scenario::load(&path)?;
     let table = s.load_table(None)?;
     let controllers = if args.controller.is_empty() {

@@ -18,3 +18,20 @@ pub mod table;
 pub mod trace;
 pub mod upload;
 pub mod xy;
+
+/// A scenario shipped in `host-sim/scenarios/`: from the working directory (the project
+/// root or `host-sim/`) if it is there, else from the source tree.
+pub(crate) fn shipped_scenario(file: &str) -> std::path::PathBuf {
+    use std::path::PathBuf;
+    [
+        PathBuf::from("host-sim/scenarios").join(file),
+        PathBuf::from("scenarios").join(file),
+    ]
+    .into_iter()
+    .find(|p| p.is_file())
+    .unwrap_or_else(|| {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("scenarios")
+            .join(file)
+    })
+}

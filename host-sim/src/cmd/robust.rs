@@ -25,17 +25,6 @@ pub struct Args {
     pub require_max_um: Option<f64>,
 }
 
-/// The default scenario: the tangent axis alone, from the working directory or the
-/// source tree.
-fn default_scenario() -> PathBuf {
-    let local = PathBuf::from("host-sim/scenarios/tangent_alone.toml");
-    if local.is_file() {
-        local
-    } else {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenarios/tangent_alone.toml")
-    }
-}
-
 /// Runs `host-sim robust`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(m) = args.require_max_um {
@@ -44,7 +33,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "--require-max-um must be a positive number of µm, not {m}"
         );
     }
-    let path = args.scenario.clone().unwrap_or_else(default_scenario);
+    let path = args
+        .scenario
+        .clone()
+        .unwrap_or_else(|| super::shipped_scenario("tangent_alone.toml"));
     let s = Scenario::load(&path)?;
     let table = s.load_table(None)?;
     let controller = args.controller.unwrap_or(s.sim.controller);

@@ -7,7 +7,7 @@ use crate::scenario::{Controller, Scenario};
 use crate::sim::{run as simulate, AxisResult, RunReport, RunSpec};
 use anyhow::Context as _;
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
@@ -323,15 +323,9 @@ pub fn fault_line(f: &crate::sim::FaultEvent) -> String {
 /// working directory or from the source tree, else the built-in reference machine (the
 /// same values, generated table).
 fn reference_scenario() -> anyhow::Result<Scenario> {
-    let candidates = [
-        PathBuf::from("host-sim/scenarios/tangent.toml"),
-        PathBuf::from("scenarios/tangent.toml"),
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/tangent.toml"),
-    ];
-    for p in candidates {
-        if p.is_file() {
-            return Ok(Scenario::load(&p)?);
-        }
+    let p = super::shipped_scenario("tangent.toml");
+    if p.is_file() {
+        return Ok(Scenario::load(&p)?);
     }
     Ok(Scenario {
         name: "tangent".into(),
