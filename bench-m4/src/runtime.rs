@@ -84,6 +84,7 @@ impl RuntimeStep {
             enc: EncoderSample {
                 master: Counts(MASTER_START),
                 slaves,
+                master_edges: None,
             },
             pressure_bar: [PressureBar::from_num(100); PRESSURES],
             estop: false,

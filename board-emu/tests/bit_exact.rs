@@ -52,6 +52,7 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
             enc: EncoderSample {
                 master: counts_from_u32(m),
                 slaves: [counts_from_u32(a), ext.update(b as u16)],
+                master_edges: None,
             },
             pressure_bar: [PressureBar::ZERO; 4],
             estop: false,

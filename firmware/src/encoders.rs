@@ -183,6 +183,7 @@ where
         EncoderSample {
             master: counts_from_u32(m),
             slaves: [counts_from_u32(a), self.slave1.extend(b)],
+            master_edges: None,
         }
     }
 }

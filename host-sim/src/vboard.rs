@@ -25,6 +25,7 @@
 //! timeline, not an extra one (`serve` paces on [`VBoard::ticks`]).
 
 use crate::machine::{valve_command, MachinePlant};
+use crate::plant::EdgeTimer;
 use crate::scenario::Scenario;
 use hydra_core::dac::DacRange;
 use hydra_core::follower::Follower;
@@ -75,6 +76,12 @@ pub struct VirtualIo {
     /// The master's speed relative to the scenario's profile (`motion master --speed`).
     pub speed_scale: f64,
     master_res_deg: f64,
+    /// The master encoder's edge timer (the firmware's 1 MHz one unless the scenario
+    /// says otherwise), the board's time (s since power-up) and the board and master
+    /// times of the last latch.
+    edge_timer: Option<EdgeTimer>,
+    t_board: f64,
+    last_latch: Option<(f64, f64)>,
     range: DacRange,
     written: [DacCode; AXES],
     enable: bool,
@@ -84,6 +91,16 @@ pub struct VirtualIo {
 impl EncoderInput<AXES> for VirtualIo {
     fn latch(&mut self) -> EncoderSample<AXES> {
         let m = (self.plant.master.angle_deg(self.t_master) / self.master_res_deg).round();
+        // The master between the last latch and this one, on the board's clock (the
+        // master's own time runs at `speed_scale`).
+        let (t0, m0) = self.last_latch.unwrap_or((self.t_board, self.t_master));
+        let (t1, m1) = (self.t_board, self.t_master);
+        let rate = if t1 > t0 { (m1 - m0) / (t1 - t0) } else { 0.0 };
+        let (profile, res) = (&self.plant.master, self.master_res_deg);
+        let master_edges = self.edge_timer.map(|tm| {
+            tm.reading(|t| profile.angle_deg(m0 + (t - t0) * rate) / res, t0, t1)
+        });
+        self.last_latch = Some((t1, m1));
         let mut slaves = [Counts(0); AXES];
         for (k, c) in slaves.iter_mut().enumerate() {
             *c = Counts(self.plant.slave_count(k) as i32);
@@ -91,6 +108,7 @@ impl EncoderInput<AXES> for VirtualIo {
         EncoderSample {
             master: Counts(m as i32),
             slaves,
+            master_edges,
         }
     }
 }
@@ -134,6 +152,7 @@ impl VirtualIo {
         for (u, c) in self.applied.iter_mut().zip(&self.written) {
             *u = valve_command(c.get(), self.enable);
         }
+        self.t_board += period_s;
         if self.started {
             self.t_master += period_s * self.speed_scale;
         }
@@ -255,6 +274,9 @@ impl Machine {
                 started: false,
                 speed_scale: 1.0,
                 master_res_deg: scn.master.resolution_deg,
+                edge_timer: scn.master_edge_timer(),
+                t_board: 0.0,
+                last_latch: None,
                 range: profile::dac_range()
                     .ok_or_else(|| anyhow::anyhow!("the board profile's DAC range"))?,
                 written: [DacCode::NULL; AXES],

@@ -1,6 +1,8 @@
 //! Master estimation: the paper's raw 2nd-order predictor (SPEC §A eq. 1–4) and a
-//! tracking filter for quantised masters.
+//! tracking filter for quantised masters, fed below one count from timestamped encoder
+//! edges ([`EdgeEstimator`]).
 
+mod edges;
 mod filter;
 mod predictor;
 
@@ -8,4 +10,5 @@ pub use filter::{
     MasterAhead, MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig,
     MasterFilterError,
 };
+pub use edges::{EdgeCapture, EdgeClock16, EdgeEstimator, EdgeReading};
 pub use predictor::{Predictor, PredictorKind};

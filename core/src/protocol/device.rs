@@ -495,6 +495,7 @@ mod tests {
                 enc: EncoderSample {
                     master: Counts(0),
                     slaves: [Counts(100_000)],
+                    master_edges: None,
                 },
                 pressure_bar: [],
                 estop: false,

@@ -123,6 +123,7 @@ mod tests {
             enc: EncoderSample {
                 master: Counts(master),
                 slaves: [Counts(slave)],
+                master_edges: None,
             },
             pressure_bar: [PressureBar::ZERO; 0],
             estop: false,
@@ -197,6 +198,7 @@ mod tests {
                 enc: EncoderSample {
                     master: Counts(0),
                     slaves: [Counts(20_000)],
+                    master_edges: None,
                 },
                 pressure_bar: [PressureBar::from_num(p_a), PressureBar::from_num(40)],
                 estop: false,

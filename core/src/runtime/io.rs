@@ -8,6 +8,7 @@
 //! 4. the state machine and the control law;
 //! 5. [`ValveOutput::write`] with every valve's code, then [`ValveOutput::set_enable`].
 
+use crate::master::EdgeReading;
 use crate::units::{Counts, DacCode, PressureBar};
 
 /// Encoder counts latched together at the start of a period.
@@ -18,6 +19,10 @@ pub struct EncoderSample<const S: usize> {
     pub master: Counts,
     /// Slave encoder counts (channels 1 … S).
     pub slaves: [Counts; S],
+    /// The master encoder's edge timer read with the counts (`None`: the board has no
+    /// edge timer; the master is then the count): the runtime estimates the master at the
+    /// sample instant below one count from it ([`crate::master::EdgeEstimator`]).
+    pub master_edges: Option<EdgeReading>,
 }
 
 /// Quadrature encoder inputs, already extended to 32 bits (see

@@ -53,6 +53,7 @@ use super::reference::{RefState, References};
 use super::stall::StallMonitor;
 use super::timing::TickTiming;
 use crate::fixed_point::sat_i32;
+use crate::master::EdgeEstimator;
 use crate::units::{Counts, DacCode, Master, PosUm, PressureBar, VelUmPerS};
 
 /// Why the runtime is holding.
@@ -273,6 +274,9 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     fault_set: FaultSet,
     history: FaultHistory,
     prev_enc: Option<EncoderSample<S>>,
+    /// The master below one count from its encoder's timestamped edges
+    /// ([`crate::master::EdgeEstimator`]; the count where the board has no edge timer).
+    edges: EdgeEstimator,
     time_master: i64,
     held_master: Master,
     stall: StallMonitor,
@@ -315,6 +319,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             fault_set: FaultSet::EMPTY,
             history: FaultHistory::new(),
             prev_enc: None,
+            edges: EdgeEstimator::START,
             time_master: 0,
             held_master: Master::ZERO,
             stall: StallMonitor::default(),
@@ -511,16 +516,18 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         }
     }
 
-    fn master_from(&self, enc: Counts) -> Master {
-        let c = i64::from(enc.0);
+    /// The master the law is fed: the encoder's (`enc`: the count, or below one count from
+    /// its edges; negated with `master_invert`) or time's.
+    fn master_from(&self, enc: Master) -> Master {
+        let c = enc.to_bits();
         let c = if self.cfg.master_invert {
-            c.saturating_neg()
+            c.wrapping_neg()
         } else {
             c
         };
         match self.cfg.master_source {
-            // |c| ≤ 2^31: c·2^16 fits i64.
-            MasterSource::Encoder => Master::from_bits(c.wrapping_shl(16)),
+            // |c| ≤ 2^47 (a count of ±2^31 ± ½): its negation cannot wrap.
+            MasterSource::Encoder => Master::from_bits(c),
             MasterSource::Time => Master::from_bits(self.time_master.saturating_mul(1 << 16)),
         }
     }
@@ -710,7 +717,10 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         for (p, ((&c, &k), &off)) in pos_um.iter_mut().zip(axes) {
             *p = pos_from_counts(c, k, off);
         }
-        let live_master = self.master_from(s.enc.master);
+        let enc_master = self
+            .edges
+            .update(s.enc.master, s.enc.master_edges.as_ref());
+        let live_master = self.master_from(enc_master);
         // Stale pressures (the board says its converter stopped) are not handed on: the
         // law keeps the last live ones, so the active damping's high-pass decays to 0
         // instead of acting on a frozen or restarting input.
@@ -735,7 +745,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             }
         } else if matches!(self.state, State::Following | State::Holding(_)) {
             if self.cfg.master_source == MasterSource::Time {
-                fed_master = self.master_from(s.enc.master);
+                fed_master = self.master_from(enc_master);
             }
             if self.state == State::Holding(HoldReason::Commanded) {
                 fed_master = self.held_master;

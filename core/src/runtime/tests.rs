@@ -18,6 +18,7 @@ pub(super) fn sample(master: i32, slaves: [i32; 2]) -> Sample<2, 1> {
         enc: EncoderSample {
             master: Counts(master),
             slaves: [Counts(slaves[0]), Counts(slaves[1])],
+            master_edges: None,
         },
         pressure_bar: [PressureBar::from_num(100)],
         estop: false,
@@ -516,6 +517,7 @@ impl EncoderInput<2> for VirtualBoard {
         EncoderSample {
             master: Counts(self.master),
             slaves: [s0, s1],
+            master_edges: None,
         }
     }
 }
@@ -607,6 +609,7 @@ impl EncoderInput<2> for PressureBoard {
         EncoderSample {
             master: Counts(0),
             slaves: [Counts(0); 2],
+            master_edges: None,
         }
     }
 }

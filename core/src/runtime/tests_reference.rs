@@ -39,6 +39,7 @@ impl EncoderInput<2> for Board1 {
         EncoderSample {
             master: Counts(self.master),
             slaves: [Counts(self.slaves[0]), Counts(self.slaves[1])],
+            master_edges: None,
         }
     }
     fn reference_edges(&mut self) -> [Option<Counts>; 2] {

@@ -277,6 +277,7 @@ mod tests {
             EncoderSample {
                 master: Counts(0),
                 slaves: [Counts(0)],
+                master_edges: None,
             }
         }
     }

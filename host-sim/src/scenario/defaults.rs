@@ -51,6 +51,7 @@ impl Default for MasterCfg {
             start_s: 0.0,
             hold_s: 1.0,
             resolution_deg: 0.001,
+            edge_timer_hz: 1e6,
         }
     }
 }

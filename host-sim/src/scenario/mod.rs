@@ -161,6 +161,11 @@ pub struct MasterCfg {
     pub hold_s: f64,
     /// Master encoder resolution, degrees per count (PLANT.md: 0.001).
     pub resolution_deg: f64,
+    /// The board's edge timer, Hz: it timestamps the master encoder's rising A edges and
+    /// the runtime estimates the master below one count from them
+    /// (`hydra_core::master::EdgeEstimator`). Default 1 MHz, the firmware's; 0 = no edge
+    /// timer (the master is the count, as before the sixteenth session).
+    pub edge_timer_hz: f64,
 }
 
 /// `[table]`: where the cam table comes from.

@@ -38,6 +38,13 @@ impl Scenario {
         }
     }
 
+    /// The board's master edge timer, if the scenario has one (`master.edge_timer_hz`).
+    pub fn master_edge_timer(&self) -> Option<crate::plant::EdgeTimer> {
+        (self.master.edge_timer_hz > 0.0).then_some(crate::plant::EdgeTimer {
+            hz: self.master.edge_timer_hz,
+        })
+    }
+
     /// The supply in SI units.
     pub fn supply(&self) -> Supply {
         let s = &self.supply;

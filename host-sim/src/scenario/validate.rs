@@ -90,6 +90,9 @@ impl Scenario {
         check("master.start_s", m.start_s, 0.0, true, 1e5)?;
         check("master.hold_s", m.hold_s, 0.0, true, 1e5)?;
         check("master.resolution_deg", m.resolution_deg, 0.0, false, 10.0)?;
+        if m.edge_timer_hz != 0.0 {
+            check("master.edge_timer_hz", m.edge_timer_hz, 1e3, true, 1e9)?;
+        }
         self.master_profile()?;
         if self.axes.is_empty() {
             return Err(invalid("axis", "[]", "at least one [[axis]] is needed"));

@@ -12,6 +12,7 @@ use crate::scenario::gains::{follower_config, press_config};
 use crate::scenario::{AxisCfg, Controller, Role, Scenario, ScenarioError, Tuning};
 use hydra_core::axis::{PressCoeffs, PressOutput, PressState};
 use hydra_core::follower::{Follower, FollowerError};
+use hydra_core::master::EdgeReading;
 use hydra_core::runtime::{
     BootCause, Command, CommandError, EncoderSample, FaultRecord, Runtime, RuntimeConfig, Sample,
     State, MAX_STEP_LIMIT_COUNTS,
@@ -44,12 +45,15 @@ pub struct FollowerTick {
 
 /// The followers of a run inside the runtime, whatever the number of axes.
 pub trait FollowerDyn: Send {
-    /// One control period: the master and slave encoder counts and each slave's chamber
-    /// A and B pressure readings in; valve codes (the nulls unless controlling) and the
-    /// targets X(θ_f(k)) (µm) out. The first tick starts the runtime (Start).
+    /// One control period: the master and slave encoder counts (and the master's edge
+    /// timer, if the board has one) and each slave's chamber A and B pressure readings
+    /// in; valve codes (the nulls unless controlling) and the targets X(θ_f(k)) (µm) out.
+    /// The first tick starts the runtime (Start).
+    #[allow(clippy::too_many_arguments)]
     fn tick(
         &mut self,
         master: i64,
+        master_edges: Option<EdgeReading>,
         slaves: &[i64],
         pressures: &[[PressureBar; 2]],
         dac: &mut [DacCode],
@@ -77,6 +81,7 @@ impl<const S: usize> FollowerDyn for Rt<S> {
     fn tick(
         &mut self,
         master: i64,
+        master_edges: Option<EdgeReading>,
         slaves: &[i64],
         pressures: &[[PressureBar; 2]],
         dac: &mut [DacCode],
@@ -89,6 +94,7 @@ impl<const S: usize> FollowerDyn for Rt<S> {
         let mut enc = EncoderSample {
             master: counts(master),
             slaves: [Counts(0); S],
+            master_edges,
         };
         for (o, &c) in enc.slaves.iter_mut().zip(slaves) {
             *o = counts(c);

@@ -3,7 +3,9 @@
 //! Timing of one control period k (`t_k = k·T`):
 //!
 //! 1. **Sample** at `t_k`: the master angle through its encoder (`round(θ/0.001°)`
-//!    counts), every axis position through its linear encoder, the force axes' two
+//!    counts) and, with the board's edge timer (`master.edge_timer_hz`, default 1 MHz),
+//!    the newest rising A edge since `t_{k−1}` with its time (`crate::plant::edges`:
+//!    the runtime then feeds the law the master below one count), every axis position through its linear encoder, the force axes' two
 //!    chamber pressures through the 12-bit ADC.
 //! 2. **Compute**: the follower, inside the core's runtime (Start at the first period;
 //!    its fault rules live: a latched fault unpowers the valves, `u` = 0 from the next
@@ -241,6 +243,7 @@ pub fn run(
     sc.validate_timing()?;
     let master: MasterProfile = sc.master_profile()?;
     let menc = sc.master_encoder();
+    let edge_timer = sc.master_edge_timer();
     let h = sc.step_s();
     let steps_per_period = u64::from(sc.steps_per_period());
     let period_s = sc.period_s();
@@ -334,12 +337,16 @@ pub fn run(
         // 1–2. sample and compute
         if let Some(f) = follower.as_mut() {
             let m = menc.count(master.angle_deg(t_k));
+            let edges = edge_timer.map(|tm| {
+                let counts = |t: f64| master.angle_deg(t) / menc.resolution;
+                tm.reading(counts, t_k - period_s, t_k)
+            });
             for (j, &i) in follower_idx.iter().enumerate() {
                 enc[j] = encoders[i].count(plants[i].x_m());
                 osc[j].add(plants[i].v_m_per_s());
                 chambers[j] = adc_bar(&adcs[i], plants[i].pressures_pa());
             }
-            let o = f.tick(m, &enc, &chambers, &mut dac, &mut ctrl_target);
+            let o = f.tick(m, edges, &enc, &chambers, &mut dac, &mut ctrl_target);
             master_est_deg = o.master_estimate.to_num::<f64>() * sc.master.resolution_deg;
             for (j, &i) in follower_idx.iter().enumerate() {
                 // Not controlling: the valves are unpowered and their spools centre.

@@ -386,6 +386,7 @@ fn run<P: ParametricPath>(
             enc: EncoderSample {
                 master: Counts(0),
                 slaves: [enc(actual[0]), enc(actual[1])],
+                master_edges: None,
             },
             pressure_bar: [],
             estop: false,

@@ -1,0 +1,240 @@
+use super::*;
+use proptest::prelude::*;
+
+/// A quadrature encoder whose count is the rounded position, ×4 counting, with its edge
+/// timer at `hz`: the rising A edges are the boundaries 4j + ½ passed upwards (count
+/// 4j + 1 latched) and 4j + 2½ passed downwards (count 4j + 2 latched).
+struct Encoder<F: Fn(f64) -> f64> {
+    theta: F,
+    hz: f64,
+}
+
+impl<F: Fn(f64) -> f64> Encoder<F> {
+    fn count(&self, t: f64) -> i32 {
+        (self.theta)(t).round() as i32
+    }
+
+    /// The newest rising-A edge in (t0, t1], by scanning at 100 ns.
+    fn edge(&self, t0: f64, t1: f64) -> Option<EdgeCapture> {
+        let dt = 1e-7;
+        let n = ((t1 - t0) / dt).round() as i64;
+        let mut found = None;
+        let mut c_prev = self.count(t0);
+        for i in 1..=n {
+            let t = t0 + i as f64 * dt;
+            let c = self.count(t);
+            if c != c_prev {
+                let up = c > c_prev;
+                let rising_a = if up { c.rem_euclid(4) == 1 } else { c.rem_euclid(4) == 2 };
+                if rising_a {
+                    found = Some(EdgeCapture {
+                        at_ticks: (t * self.hz).floor() as u32,
+                        count: Counts(c),
+                    });
+                }
+                c_prev = c;
+            }
+        }
+        found
+    }
+
+    /// Runs `ticks` samples at period `period_s`, returns the worst |estimate − θ| and
+    /// the worst |count − θ| over the samples after the first `skip`.
+    fn run(&self, period_s: f64, ticks: usize, skip: usize) -> (f64, f64) {
+        let mut est = EdgeEstimator::START;
+        let (mut worst_est, mut worst_count) = (0.0f64, 0.0f64);
+        for k in 1..=ticks {
+            let t = k as f64 * period_s;
+            let r = EdgeReading {
+                now_ticks: (t * self.hz).floor() as u32,
+                edge: self.edge(t - period_s, t),
+            };
+            let c = Counts(self.count(t));
+            let m = est.update(c, Some(&r)).to_num::<f64>();
+            let truth = (self.theta)(t);
+            assert!((m - f64::from(c.0)).abs() <= 0.5, "outside the cell at tick {k}");
+            if k > skip {
+                worst_est = worst_est.max((m - truth).abs());
+                worst_count = worst_count.max((f64::from(c.0) - truth).abs());
+            }
+        }
+        (worst_est, worst_count)
+    }
+}
+
+#[test]
+fn constant_speed_is_exact_to_the_timer() {
+    // 3 °/s at 0.001°/count, 1 kHz ticks, 1 MHz edge timer: 3 µs of timer resolution
+    // × 3 counts/ms = 0.003 counts of timing error at most.
+    let e = Encoder {
+        theta: |t| 100.2 + 3071.3 * t,
+        hz: 1e6,
+    };
+    let (est, count) = e.run(1e-3, 300, 5);
+    assert!(est < 0.01, "estimate {est} counts");
+    assert!(count > 0.45, "the count alone is off by up to ½ ({count})");
+}
+
+#[test]
+fn rippled_and_backwards_masters_are_followed() {
+    // The reference table: 3 °/s with ±3 % ripple at 2 Hz.
+    let rip = Encoder {
+        theta: |t| 3000.0 * t + 0.03 * 3000.0 / (2.0 * core::f64::consts::PI * 2.0)
+            * (2.0 * core::f64::consts::PI * 2.0 * t).sin(),
+        hz: 1e6,
+    };
+    let (est, _) = rip.run(1e-3, 600, 5);
+    assert!(est < 0.02, "rippled estimate {est} counts");
+    let back = Encoder {
+        theta: |t| 5000.0 - 1700.0 * t,
+        hz: 1e6,
+    };
+    let (est, _) = back.run(1e-3, 300, 8);
+    assert!(est < 0.01, "backwards estimate {est} counts");
+    // A fast master at a long period (several edges between samples: only the newest
+    // captured).
+    let fast = Encoder {
+        theta: |t| 9800.0 * t,
+        hz: 1e6,
+    };
+    let (est, _) = fast.run(5e-3, 60, 3);
+    assert!(est < 0.02, "fast estimate {est} counts");
+}
+
+fn cap(at: u32, c: i32) -> Option<EdgeCapture> {
+    Some(EdgeCapture {
+        at_ticks: at,
+        count: Counts(c),
+    })
+}
+
+fn reading(now: u32, edge: Option<EdgeCapture>) -> EdgeReading {
+    EdgeReading {
+        now_ticks: now,
+        edge,
+    }
+}
+
+#[test]
+fn falls_back_to_the_count() {
+    let count = |m: Master| m.to_num::<f64>();
+    let mut e = EdgeEstimator::START;
+    // One edge: no speed yet.
+    assert_eq!(count(e.update(Counts(5), Some(&reading(1000, cap(900, 5))))), 5.0);
+    // Two edges 4 counts in 1000 ticks, the second 200 ticks ago, the live count 9: the
+    // boundary 8.5 + 4·0.2 = 9.3: the estimate is inside its cell.
+    let mut e = EdgeEstimator::START;
+    e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
+    let m = count(e.update(Counts(9), Some(&reading(2100, cap(1900, 9)))));
+    assert!((m - 9.3).abs() < 1e-4, "{m}");
+    // Overdue: no edge for more than twice the last interval → the count.
+    assert_eq!(count(e.update(Counts(10), Some(&reading(3901, None)))), 10.0);
+    // Not yet overdue: the estimate clamped to the live cell (9.5 + 4·1.1 → 9.5).
+    let mut e2 = e;
+    assert_eq!(count(e2.update(Counts(9), Some(&reading(3000, None)))), 9.5);
+    // No reading at all: the count, and the edges are forgotten.
+    assert_eq!(count(e.update(Counts(9), None)), 9.0);
+    assert_eq!(e, EdgeEstimator::START);
+    // A reversal between the edges (Δc not a multiple of 4): the count.
+    let mut e = EdgeEstimator::START;
+    e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
+    assert_eq!(count(e.update(Counts(6), Some(&reading(2000, cap(1900, 6))))), 6.0);
+    // An edge time in the future (the timer read before the capture): the count.
+    let mut e = EdgeEstimator::START;
+    e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
+    assert_eq!(count(e.update(Counts(9), Some(&reading(1800, cap(1900, 9))))), 9.0);
+    // Too slow (an interval beyond the limit): the count.
+    let mut e = EdgeEstimator::START;
+    e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
+    let far = 900 + MAX_INTERVAL_TICKS + 1;
+    assert_eq!(count(e.update(Counts(9), Some(&reading(far + 10, cap(far, 9))))), 9.0);
+    // The same capture reported twice is one edge.
+    let mut e = EdgeEstimator::START;
+    e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
+    e.update(Counts(5), Some(&reading(1100, cap(900, 5))));
+    assert_eq!(e.speed_counts_per_s(1_000_000), None);
+}
+
+#[test]
+fn speed_from_the_last_two_edges() {
+    let mut e = EdgeEstimator::START;
+    e.update(Counts(1), Some(&reading(0, cap(0, 1))));
+    e.update(Counts(5), Some(&reading(1500, cap(1333, 5))));
+    // 4 counts in 1333 µs: 3000.75 counts/s.
+    let v = e.speed_counts_per_s(1_000_000).map(|v| v.to_num::<f64>());
+    assert!(v.is_some_and(|v| (v - 4e6 / 1333.0).abs() < 1e-3), "{v:?}");
+    // Backwards.
+    let mut e = EdgeEstimator::START;
+    e.update(Counts(-2), Some(&reading(0, cap(0, -2))));
+    e.update(Counts(-10), Some(&reading(3000, cap(2000, -10))));
+    let v = e.speed_counts_per_s(1_000_000).map(|v| v.to_num::<f64>());
+    assert_eq!(v, Some(-4000.0));
+}
+
+#[test]
+fn a_wrapping_count_and_timer_are_followed() {
+    let mut e = EdgeEstimator::START;
+    let t0 = u32::MAX - 500;
+    e.update(Counts(i32::MAX - 2), Some(&reading(t0, cap(t0, i32::MAX - 2))));
+    // 4 counts later through the count's and the timer's wrap, 250 ticks after an edge
+    // 1000 ticks from the first: the boundary + 1 count.
+    let c = (i32::MAX - 2).wrapping_add(4);
+    let at = t0.wrapping_add(1000);
+    let m = e.update(Counts(c), Some(&reading(at.wrapping_add(250), cap(at, c))));
+    let rel = m.to_bits().wrapping_sub(i64::from(c) << 16);
+    assert_eq!(rel, -(1 << 15) + (1 << 16));
+    // Clamped to the cell: +½ count at most.
+    assert_eq!(rel.min(1 << 15), 1 << 15);
+}
+
+#[test]
+fn edge_clock_extends_through_wraps() {
+    let mut c = EdgeClock16::new(65_000);
+    assert_eq!(c.update(65_500), 500);
+    assert_eq!(c.update(464), 1000); // through the wrap
+    assert_eq!(c.past(65_464), 464); // captured before the wrap
+    assert_eq!(c.past(400), 936);
+    let mut c = EdgeClock16::new(0);
+    for k in 1..200u32 {
+        assert_eq!(c.update((k * 40_000) as u16), k * 40_000);
+    }
+}
+
+proptest! {
+    /// Whatever the board reports, the estimate stays inside the live count's cell and
+    /// nothing panics.
+    #[test]
+    fn any_reading_stays_in_the_cell(
+        steps in proptest::collection::vec(
+            (any::<i32>(), any::<u32>(), any::<bool>(), any::<u32>(), any::<i32>(), any::<bool>()),
+            1..60)
+    ) {
+        let mut e = EdgeEstimator::START;
+        for (n, now, has_edge, at, c, has_reading) in steps {
+            let r = reading(now, has_edge.then_some(EdgeCapture { at_ticks: at, count: Counts(c) }));
+            let m = e.update(Counts(n), has_reading.then_some(&r));
+            let rel = m.to_bits().wrapping_sub(i64::from(n) << 16);
+            prop_assert!(rel.abs() <= 1 << 15);
+            let _ = e.speed_counts_per_s(u32::MAX);
+        }
+    }
+
+    /// Near-real readings (edges 4 counts apart, times close): also in the cell.
+    #[test]
+    fn plausible_readings_stay_in_the_cell(
+        start in any::<i32>(), t0 in any::<u32>(),
+        steps in proptest::collection::vec((0u32..3000, -8i32..=8, 0i32..4, any::<bool>()), 1..80)
+    ) {
+        let mut e = EdgeEstimator::START;
+        let (mut c, mut t) = (start, t0);
+        for (dt, dc, extra, edge) in steps {
+            t = t.wrapping_add(dt);
+            c = c.wrapping_add(dc * 4);
+            let r = reading(t.wrapping_add(dt / 2), edge.then_some(EdgeCapture { at_ticks: t, count: Counts(c) }));
+            let n = c.wrapping_add(extra);
+            let m = e.update(Counts(n), Some(&r));
+            let rel = m.to_bits().wrapping_sub(i64::from(n) << 16);
+            prop_assert!(rel.abs() <= 1 << 15);
+        }
+    }
+}
