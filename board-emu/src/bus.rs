@@ -40,6 +40,9 @@ pub struct Inputs {
     pub pressures: [u16; 4],
     /// PE8: the E-stop chain closed (run permitted).
     pub estop_closed: bool,
+    /// The master encoder's newest rising edge of channel A so far: its core cycle and
+    /// the count after it (TIM5 captures the count, TIM8 the time: [`crate::timers`]).
+    pub master_edge: Option<(u64, i64)>,
 }
 
 impl Default for Inputs {
@@ -49,6 +52,7 @@ impl Default for Inputs {
             slaves: [0; 2],
             pressures: [0; 4],
             estop_closed: true,
+            master_edge: None,
         }
     }
 }
@@ -100,6 +104,8 @@ pub struct Bus {
     pub tim5: Tim,
     /// TIM7 (the tick).
     pub tim7: Tim,
+    /// TIM8 (the master encoder's edge timer: captures TIM5's trigger output).
+    pub tim8: Tim,
     /// TIM12 (embassy's time driver).
     pub tim12: Tim,
     /// DAC1.
@@ -131,7 +137,12 @@ pub struct Bus {
     /// Per-tick I/O, recorded while `Some` (the emulator pushes one entry per TIM7
     /// entry).
     pub tick_io: Option<Vec<TickIo>>,
+    /// The master edge last handed to TIM5/TIM8.
+    inputs_edge_applied: Option<(u64, i64)>,
 }
+
+/// TIM8's capture/compare interrupt line (never enabled by the firmware).
+const TIM8_CC: usize = 46;
 
 /// DMA2 request channel of ADC1 (stream 0) and USART6 (streams 1 and 6).
 const ADC_CH: u32 = 0;
@@ -148,6 +159,7 @@ impl Bus {
             tim3: Tim::new(29, false),
             tim5: Tim::new(50, true),
             tim7: Tim::new(irq::TIM7, false),
+            tim8: Tim::new_apb2(TIM8_CC),
             tim12: Tim::new(irq::TIM8_BRK_TIM12, false),
             dac: Dac::default(),
             adc: Adc::new(),
@@ -167,6 +179,7 @@ impl Bus {
             inputs: Inputs::default(),
             levels: [false; IRQS],
             tick_io: None,
+            inputs_edge_applied: None,
         }
     }
 
@@ -192,6 +205,17 @@ impl Bus {
         self.tim5.position = inp.master;
         self.tim2.position = inp.slaves[0];
         self.tim3.position = inp.slaves[1];
+        if inp.master_edge != self.inputs_edge_applied {
+            self.inputs_edge_applied = inp.master_edge;
+            if let Some((at, count)) = inp.master_edge {
+                // TIM5 ch 1 captures the count; its trigger output (compare pulse) is TIM8's
+                // ITR3 (RM0090 Table 86), whose ch 1 on TRC captures TIM8's time.
+                self.tim8.sync(at.min(now));
+                if self.tim5.capture_count(count) {
+                    self.tim8.capture_trigger(3, at.min(now));
+                }
+            }
+        }
         for (ch, code) in [11usize, 12, 8, 9].into_iter().zip(inp.pressures) {
             self.adc.input[ch] = code;
         }
@@ -201,6 +225,7 @@ impl Bus {
             &mut self.tim3,
             &mut self.tim5,
             &mut self.tim7,
+            &mut self.tim8,
             &mut self.tim12,
         ] {
             t.sync(now);
@@ -329,6 +354,7 @@ impl Bus {
             0x4000_0C00 => self.tim5.read(off, now),
             0x4000_1400 => self.tim7.read(off, now),
             0x4000_1800 => self.tim12.read(off, now),
+            0x4001_0400 => self.tim8.read(off, now),
             0x4000_3000 => self.iwdg.read(off, now),
             0x4000_7000 => self.clocks.pwr_read(off),
             0x4000_7400 => self.dac.read(off),
@@ -413,6 +439,7 @@ impl Bus {
             0x4000_0C00 => self.tim5.write(off, v, now),
             0x4000_1400 => self.tim7.write(off, v, now),
             0x4000_1800 => self.tim12.write(off, v, now),
+            0x4001_0400 => self.tim8.write(off, v, now),
             0x4000_3000 => self.iwdg.write(off, v, now, SYSCLK_HZ),
             0x4000_7000 => self.clocks.pwr_write(off, v),
             0x4000_7400 => self.dac.write(off, v),

@@ -1,6 +1,8 @@
 //! The machine around the emulated board: host-sim's hydraulic plant (the scenario's
 //! axes, its RK4 step), its master profile and sensors, wired as the board is
-//! (`firmware/src/board.rs`): TIM5 ← master encoder, TIM2/TIM3 ← slave encoders,
+//! (`firmware/src/board.rs`): TIM5 ← master encoder (its rising A edges timestamped by
+//! TIM8 at 1 MHz whatever the scenario's `master.edge_timer_hz`: the board's hardware),
+//! TIM2/TIM3 ← slave encoders,
 //! DAC1 ch1/ch2 → the slaves' valves (u = (code − 2048)/2047, zero while PE7 is low: an
 //! unpowered valve centres), IN11/IN12 ← slave 0's chamber pressures A/B, IN8/IN9 ←
 //! slave 1's, PE8 ← the E-stop chain.
@@ -13,6 +15,7 @@
 use crate::bus::{Environment, Inputs, Outputs, SYSCLK_HZ};
 use host_sim::camfile::{interpolate, CamCsv};
 use host_sim::machine::{valve_command, MachineAxis, MachinePlant};
+use host_sim::plant::edges::newest_rising_a;
 use host_sim::scenario::Scenario;
 use host_sim::sim::ErrorStat;
 use std::cell::RefCell;
@@ -49,6 +52,10 @@ pub struct PlantEnv {
     steps: u64,
     metric_every: u64,
     hints: Vec<usize>,
+    /// Core cycle up to which the master's edges have been looked for, and the newest
+    /// rising edge of channel A found (its cycle, the count after it).
+    edge_scan: u64,
+    newest_edge: Option<(u64, i64)>,
     /// Shared state.
     pub shared: Rc<RefCell<Shared>>,
 }
@@ -70,6 +77,8 @@ impl PlantEnv {
             steps: 0,
             metric_every: ((1e-3 / step_s).round() as u64).max(1),
             hints: vec![0; n],
+            edge_scan: 0,
+            newest_edge: None,
             shared: Rc::new(RefCell::new(Shared {
                 estop_closed: true,
                 master_start: None,
@@ -95,6 +104,25 @@ impl PlantEnv {
     /// Slave `k`'s true position, µm.
     pub fn position_um(&self, k: usize) -> Option<f64> {
         self.plant.slaves.get(k).map(|s| s.plant.x_m() * 1e6)
+    }
+
+    /// The newest rising edge of the master encoder's channel A up to core cycle `now`
+    /// (host-sim's sensor model, `host_sim::plant::edges`).
+    fn scan_edges(&mut self, now: u64) {
+        let Some(start) = self.shared.borrow().master_start else {
+            self.edge_scan = now;
+            return;
+        };
+        let from = self.edge_scan.max(start);
+        self.edge_scan = now;
+        if now <= from {
+            return;
+        }
+        let (profile, res) = (&self.plant.master, self.plant.master_enc.resolution);
+        let pos = |cyc: f64| profile.angle_deg((cyc - start as f64) / SYSCLK_HZ as f64) / res;
+        if let Some((t, c)) = newest_rising_a(pos, from as f64, now as f64) {
+            self.newest_edge = Some(((t.ceil() as u64).min(now), c));
+        }
     }
 
     fn master_s(&self, at: u64) -> f64 {
@@ -144,10 +172,12 @@ impl Environment for PlantEnv {
             }
         }
         let tm = self.master_s(now);
+        self.scan_edges(now);
         let mut sh = self.shared.borrow_mut();
         sh.outputs = *out;
         let mut inp = Inputs {
             master: self.plant.master_count(tm),
+            master_edge: self.newest_edge,
             estop_closed: sh.estop_closed,
             ..Inputs::default()
         };

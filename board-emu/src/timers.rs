@@ -3,7 +3,16 @@
 //! encoder mode (TIM2/3/5), whose counter is the plant's position in counts.
 //!
 //! The kernel clock is 84 MHz (APB1 at 42 MHz with its ×2 timer multiplier): one timer
-//! clock per [`CORE_PER_TIMCLK`] core cycles. State is computed lazily from the core cycle
+//! clock per [`CORE_PER_TIMCLK`] core cycles; TIM8 on APB2 counts at 168 MHz
+//! ([`Tim::new_apb2`]).
+//!
+//! **Input capture** (RM0090 §18.3.5): a channel whose CCxS selects an input and whose
+//! CCxE is set copies a value into CCRx at an edge, sets CCxIF (CCxOF if it was still
+//! set), and reading CCRx clears CCxIF. Two sources are modelled, the ones the firmware
+//! wires: TIM5's channel 1 in encoder mode at a rising edge of channel A
+//! ([`Tim::capture_count`]: the count), and TIM8's channel 1 on TRC from TIM5's trigger
+//! output in compare-pulse mode ([`Tim::capture_trigger`]: TIM8's own counter at the
+//! edge's cycle) — the master encoder's edge timer (`firmware/src/encoders.rs`). State is computed lazily from the core cycle
 //! at which counting (re)started, so a timer costs nothing between accesses; its next
 //! interrupt is reported to the scheduler ([`Tim::next_event`]).
 
@@ -11,14 +20,18 @@
 pub const CORE_PER_TIMCLK: u64 = 2;
 
 const CR1: usize = 0;
+const CR2: usize = 0x04 / 4;
 const SMCR: usize = 0x08 / 4;
 const DIER: usize = 0x0C / 4;
 const SR: usize = 0x10 / 4;
 const EGR: usize = 0x14 / 4;
+const CCMR1: usize = 0x18 / 4;
+const CCER: usize = 0x20 / 4;
 const CNT: usize = 0x24 / 4;
 const PSC: usize = 0x28 / 4;
 const ARR: usize = 0x2C / 4;
 const CCR1: usize = 0x34 / 4;
+const CCR4: usize = 0x40 / 4;
 
 /// One timer.
 #[derive(Debug, Clone)]
@@ -38,6 +51,8 @@ pub struct Tim {
     enc_offset: i64,
     /// The external position in counts (encoder mode).
     pub position: i64,
+    /// Core cycles per kernel clock (2 on APB1, 1 on APB2).
+    core_per_clk: u64,
 }
 
 impl Tim {
@@ -55,6 +70,57 @@ impl Tim {
             last_sync: 0,
             enc_offset: 0,
             position: 0,
+            core_per_clk: CORE_PER_TIMCLK,
+        }
+    }
+
+    /// A 16-bit timer on APB2 (TIM1, TIM8: kernel clock 168 MHz).
+    pub fn new_apb2(irq: usize) -> Self {
+        Self {
+            core_per_clk: 1,
+            ..Self::new(irq, false)
+        }
+    }
+
+    /// Channel `ch`'s CCxS (0: output; 1…3: an input).
+    fn ccs(&self, ch: usize) -> u32 {
+        (self.regs[CCMR1 + ch / 2] >> (8 * (ch % 2))) & 3
+    }
+
+    /// Whether channel `ch` captures: an input selected and CCxE set.
+    fn capturing(&self, ch: usize) -> bool {
+        self.ccs(ch) != 0 && self.regs[CCER] & (1 << (4 * ch)) != 0
+    }
+
+    /// A capture on channel `ch` of `value` (nothing unless it is capturing).
+    fn capture(&mut self, ch: usize, value: u32) -> bool {
+        if !self.capturing(ch) {
+            return false;
+        }
+        if self.regs[SR] & (2 << ch) != 0 {
+            self.regs[SR] |= 1 << (9 + ch); // CCxOF
+        }
+        self.regs[CCR1 + ch] = value;
+        self.regs[SR] |= 2 << ch;
+        true
+    }
+
+    /// Encoder mode, a rising edge of channel A after which the position is `count`:
+    /// channel 1 (on TI1, CC1S = 01) captures the counter. Returns whether the trigger
+    /// output pulses (CR2.MMS = 011, compare pulse: on every capture of channel 1).
+    pub fn capture_count(&mut self, count: i64) -> bool {
+        let mask = if self.wide { u32::MAX as u64 } else { 0xFFFF };
+        let p = self.period() as i64;
+        let v = ((count + self.enc_offset).rem_euclid(p) as u64 & mask) as u32;
+        self.ccs(0) == 1 && self.capture(0, v) && (self.regs[CR2] >> 4) & 7 == 3
+    }
+
+    /// A trigger pulse from internal trigger `itr` at core cycle `at` (≤ now): channel 1
+    /// on TRC (CC1S = 11) captures the counter at that cycle if SMCR.TS selects `itr`.
+    pub fn capture_trigger(&mut self, itr: u32, at: u64) {
+        if (self.regs[SMCR] >> 4) & 7 == itr && self.ccs(0) == 3 {
+            let v = self.counter(at.max(self.base_cycle));
+            self.capture(0, v);
         }
     }
 
@@ -71,7 +137,7 @@ impl Tim {
     }
 
     fn core_per_tick(&self) -> u64 {
-        CORE_PER_TIMCLK * (u64::from(self.psc_active) + 1)
+        self.core_per_clk * (u64::from(self.psc_active) + 1)
     }
 
     /// Timer ticks since `base_cycle` at core cycle `now`.
@@ -111,7 +177,8 @@ impl Tim {
         }
         for ch in 0..4 {
             let ccr = u64::from(self.regs[CCR1 + ch]);
-            if ccr < period && (ccr + period - c0 - 1) % period < n {
+            // A compare (output) channel only: an input channel's flag is its capture's.
+            if self.ccs(ch) == 0 && ccr < period && (ccr + period - c0 - 1) % period < n {
                 self.regs[SR] |= 2 << ch; // CCxIF
             }
         }
@@ -161,6 +228,11 @@ impl Tim {
         }
         Some(match i {
             CNT => self.counter(now),
+            // Reading a capture register clears its flag.
+            CCR1..=CCR4 if self.ccs(i - CCR1) != 0 => {
+                self.regs[SR] &= !(2 << (i - CCR1));
+                self.regs[i]
+            }
             _ => *self.regs.get(i)?,
         })
     }

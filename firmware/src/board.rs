@@ -18,6 +18,7 @@
 //! | valve-power enable | PE7 | GPIO push-pull out | high = valves powered; external pull-down |
 //! | E-stop chain | PE8 | GPIO in, pull-down | high = chain closed (run permitted) |
 //! | status LED | PD12 | GPIO out | green LED of the STM32F4-Discovery |
+//! | master edge timer | — | TIM8 at 1 MHz, ch 1 captures TIM5's TRGO (ITR3) | every rising A edge of the master timestamped (`crate::edge_timer`) |
 //! | tick timer | — | TIM7 update IRQ, priority 0 | hard period (1 kHz default) |
 //! | time driver | — | TIM12 (embassy-time) | |
 //! | watchdog | — | IWDG, 50 ms nominal (34–94 ms) | started first at reset, fed by the tick only (`crate::watchdog`) |
@@ -219,7 +220,9 @@ impl Board {
         let master = Encoder32::new(Qei::new(p.TIM5, p.PA0, p.PA1, qei_cfg), pac::TIM5);
         let slave0 = Encoder32::new(Qei::new(p.TIM2, p.PA15, p.PB3, qei_cfg), pac::TIM2);
         let slave1 = Encoder16::new(Qei::new(p.TIM3, p.PB4, p.PB5, qei_cfg), pac::TIM3);
-        let encoders = Encoders::new(master, slave0, slave1);
+        // After TIM5's encoder mode: its channel 1 capture and trigger output.
+        let edges = crate::edge_timer::EdgeTimer::new(p.TIM8);
+        let encoders = Encoders::new(master, slave0, slave1, edges);
         crate::encoders::reference_pins();
 
         let adc = Adc::new(p.ADC1);

@@ -7,6 +7,9 @@
 //! counters are read back to back at the start of the tick (three bus reads, ~20 cycles
 //! ≈ 0.12 µs apart) before any other work.
 //!
+//! **The master's edges** are timestamped by TIM8 (`crate::edge_timer`), read right after
+//! the three counters.
+//!
 //! **Reference inputs.** Each slave's index (Z) or reference switch drives its encoder
 //! timer's channel 3 in input-capture mode (slave 0: PA2 = TIM2_CH3, AF1; slave 1: PC8 =
 //! TIM3_CH3, AF2; rising edge, 8-sample filter at 84 MHz = 95 ns): the timer copies the
@@ -15,6 +18,7 @@
 //! (`EncoderInput::reference_edges`); TIM3's 16-bit capture is extended from the same
 //! tick's reading (`Extender16::extend_past`).
 
+use crate::edge_timer::EdgeTimer;
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::{TimGp16, TimGp32};
 use embassy_stm32::timer::qei::Qei;
@@ -145,6 +149,7 @@ where
     master: Encoder32<M>,
     slave0: Encoder32<A>,
     slave1: Encoder16<B>,
+    edges: EdgeTimer,
 }
 
 impl<M, A, B> Encoders<M, A, B>
@@ -153,12 +158,18 @@ where
     A: GeneralInstance4Channel,
     B: GeneralInstance4Channel,
 {
-    /// Groups the encoders.
-    pub fn new(master: Encoder32<M>, slave0: Encoder32<A>, slave1: Encoder16<B>) -> Self {
+    /// Groups the encoders and the master's edge timer.
+    pub fn new(
+        master: Encoder32<M>,
+        slave0: Encoder32<A>,
+        slave1: Encoder16<B>,
+        edges: EdgeTimer,
+    ) -> Self {
         Self {
             master,
             slave0,
             slave1,
+            edges,
         }
     }
 
@@ -174,16 +185,17 @@ where
         ]
     }
 
-    /// Reads every counter back to back, then extends.
+    /// Reads every counter back to back, then the master's edge timer, then extends.
     #[inline(always)]
     pub fn latch(&mut self) -> EncoderSample<2> {
         let m = self.master.raw();
         let a = self.slave0.raw();
         let b = self.slave1.raw();
+        let edges = self.edges.read();
         EncoderSample {
             master: counts_from_u32(m),
             slaves: [counts_from_u32(a), self.slave1.extend(b)],
-            master_edges: None,
+            master_edges: Some(edges),
         }
     }
 }

@@ -22,6 +22,7 @@ mod capture;
 mod console;
 #[cfg(not(feature = "console"))]
 mod device;
+mod edge_timer;
 mod encoders;
 #[cfg(not(feature = "console"))]
 mod flash;
