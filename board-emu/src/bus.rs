@@ -58,14 +58,20 @@ impl Default for Inputs {
 }
 
 /// What one tick (one TIM7 handler) read from the encoders and wrote to the valves: the
-/// first CNT read of TIM5, TIM2, TIM3 and the last DAC1 ch1/ch2 holding-register and
-/// PE7 writes.
+/// first CNT read of TIM5, TIM2, TIM3, the master edge timer's reads (TIM8 CNT, TIM8
+/// CCR1 twice, TIM5 CCR1) and the last DAC1 ch1/ch2 holding-register and PE7 writes.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TickIo {
     /// Core cycle of the handler's entry.
     pub at: u64,
     /// TIM5, TIM2, TIM3 counts as read.
     pub enc: [Option<u32>; 3],
+    /// TIM8's counter as first read (the edge timer's time now).
+    pub edge_now: Option<u32>,
+    /// TIM8's CCR1 as read first and last (the edge's time, and its re-read).
+    pub edge_time: [Option<u32>; 2],
+    /// TIM5's CCR1 as read (the count at the edge).
+    pub edge_count: Option<u32>,
     /// DAC codes written (12-bit unipolar).
     pub dac: [Option<u16>; 2],
     /// The valve-power enable as written.
@@ -331,8 +337,21 @@ impl Bus {
                 0x4000_0424 => Some(2),
                 _ => None,
             };
-            if let (Some(ch), Some(rec)) = (ch, self.tick_io.as_mut().and_then(|t| t.last_mut())) {
-                rec.enc[ch].get_or_insert(v);
+            if let Some(rec) = self.tick_io.as_mut().and_then(|t| t.last_mut()) {
+                if let Some(ch) = ch {
+                    rec.enc[ch].get_or_insert(v);
+                }
+                match word {
+                    0x4001_0424 => {
+                        rec.edge_now.get_or_insert(v);
+                    }
+                    0x4001_0434 => {
+                        rec.edge_time[0].get_or_insert(v);
+                        rec.edge_time[1] = Some(v);
+                    }
+                    0x4000_0C34 => rec.edge_count = Some(v),
+                    _ => {}
+                }
             }
         }
         let v = v >> shift;

@@ -340,4 +340,43 @@ mod tests {
         assert_eq!(t.read(0x24, 1000 * 168 + 168 * 7), Some(7));
         assert_eq!(t.read(0x60, 0), None, "beyond the register block");
     }
+
+    #[test]
+    fn the_master_edge_capture_pair() {
+        // TIM5 in encoder mode 3 (SMCR.SMS = 011), CC1S = 01, CC1E, MMS = compare pulse.
+        let mut t5 = Tim::new(50, true);
+        t5.write(0x08, 3, 0).unwrap();
+        t5.write(0x18, 0x0101, 0).unwrap();
+        t5.write(0x04, 3 << 4, 0).unwrap();
+        t5.position = 100;
+        // Without CC1E nothing is captured and no trigger leaves.
+        assert!(!t5.capture_count(101));
+        t5.write(0x20, 1, 0).unwrap();
+        // TIM8 on APB2: PSC 167 (1 MHz), TS = ITR3, CC1S = 11 (TRC), CC1E, CEN.
+        let mut t8 = Tim::new_apb2(46);
+        t8.write(0x28, 167, 0).unwrap();
+        t8.write(0x08, 3 << 4, 0).unwrap();
+        t8.write(0x18, 3, 0).unwrap();
+        t8.write(0x20, 1, 0).unwrap();
+        t8.write(0x14, 1, 0).unwrap();
+        t8.write(0x00, 1, 0).unwrap();
+        // An edge at 2.5 ms (420 000 core cycles = 2 500 µs), count 101 after it.
+        assert!(t5.capture_count(101));
+        t8.capture_trigger(3, 420_000);
+        assert_eq!(t5.read(0x10, 500_000).map(|v| v & 2), Some(2), "CC1IF");
+        assert_eq!(t8.read(0x34, 500_000), Some(2_500));
+        assert_eq!(t5.read(0x34, 500_000), Some(101));
+        assert_eq!(t5.read(0x10, 500_000).map(|v| v & 2), Some(0), "read clears CC1IF");
+        // Another trigger source (ITR0) is not TIM8's: nothing captured.
+        t8.capture_trigger(0, 450_000);
+        assert_eq!(t8.read(0x34, 500_000), Some(2_500));
+        // Two captures unread: overcapture.
+        assert!(t5.capture_count(105));
+        assert!(t5.capture_count(109));
+        assert_eq!(t5.read(0x10, 500_000).map(|v| v & (1 << 9)), Some(1 << 9), "CC1OF");
+        // A capture channel never sets its flag by comparing: TIM8's counter passes
+        // CCR1 without a flag.
+        t8.sync(1_000_000);
+        assert_eq!(t8.read(0x10, 1_000_000).map(|v| v & 2), Some(0));
+    }
 }

@@ -1,12 +1,15 @@
 //! Bit-exact: the DAC codes the emulated firmware writes, tick for tick, equal the host
 //! runtime's (`hydra_core::Runtime` with the board's profile) fed the same encoder counts
-//! the firmware read — the same fixed-point code on the host and on the target.
+//! the firmware read (and the master edge timer's captures, extended and paired as
+//! `firmware/src/edge_timer.rs` does) — the same fixed-point code on the host and on the
+//! target.
 
 mod common;
 
 use common::*;
 use hydra_core::dac::DacRange;
 use hydra_core::follower::Follower;
+use hydra_core::master::{EdgeCapture, EdgeClock16, EdgeReading};
 use hydra_core::profile;
 use hydra_core::runtime::encoder::{counts_from_u32, Extender16};
 use hydra_core::runtime::{BootCause, Command, EncoderSample, Runtime, Sample};
@@ -43,16 +46,31 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
     rt.install(law).expect("install");
     let first3 = io[0].enc[2].expect("TIM3 read") as u16;
     let mut ext = Extender16::new(first3, 0);
+    let first8 = io[0].edge_now.expect("TIM8 read") as u16;
+    let mut clock = EdgeClock16::new(first8);
     let mut compared = 0;
+    let mut edges = 0;
     for (k, t) in io.iter().enumerate() {
         let [Some(m), Some(a), Some(b)] = t.enc else {
             panic!("tick {k} did not read every encoder: {t:?}");
         };
+        let now = clock.update(t.edge_now.expect("the tick read TIM8") as u16);
+        let edge = match (t.edge_time, t.edge_count) {
+            ([Some(t0), Some(t1)], Some(c)) if t0 == t1 => Some(EdgeCapture {
+                at_ticks: clock.past(t0 as u16),
+                count: counts_from_u32(c),
+            }),
+            _ => None,
+        };
+        edges += usize::from(edge.is_some());
         let sample = Sample {
             enc: EncoderSample {
                 master: counts_from_u32(m),
                 slaves: [counts_from_u32(a), ext.update(b as u16)],
-                master_edges: None,
+                master_edges: Some(EdgeReading {
+                    now_ticks: now,
+                    edge,
+                }),
             },
             pressure_bar: [PressureBar::ZERO; 4],
             estop: false,
@@ -86,8 +104,10 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
         compared += 1;
     }
     eprintln!(
-        "{compared} ticks bit-exact ({} following)",
+        "{compared} ticks bit-exact ({} following, {edges} with a master edge captured)",
         compared - k_start
     );
     assert!(compared - k_start > 7000);
+    // 3 °/s, one rising A edge per 4 counts: an edge in most 1 ms ticks once moving.
+    assert!(edges > 4000, "{edges} ticks with an edge");
 }
