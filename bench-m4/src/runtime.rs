@@ -6,8 +6,9 @@
 //!
 //! Set-up: the follower figures' reference table in both columns and their gains; the
 //! runtime started (Following) at 5° on the rising flank; the master advances 3.07
-//! counts per tick, each slave's count is 3 µm behind its last target; four chamber
-//! pressures at 100 bar.
+//! counts per tick, with the firmware's edge-timer reading (1 MHz; the newest rising A
+//! edge, one per 4 counts, at its exact time — the sub-count estimate runs every call),
+//! each slave's count is 3 µm behind its last target; four chamber pressures at 100 bar.
 
 use crate::follower::{axis, table, NODES};
 use crate::harness::Figure;
@@ -17,6 +18,7 @@ use hydra_core::follower::{Follower, FollowerConfig};
 use hydra_core::runtime::{
     BootCause, Command, EncoderSample, Runtime, RuntimeConfig, Sample, State, TickOutputs,
 };
+use hydra_core::master::{EdgeCapture, EdgeReading};
 use hydra_core::units::{Counts, Master, PressureBar};
 use static_cell::StaticCell;
 
@@ -95,11 +97,22 @@ impl RuntimeStep {
         Some(Self { rt, s, out })
     }
 
-    /// Inputs of call `k`: the master at 3.07 counts/tick, slaves 3 counts behind.
+    /// Inputs of call `k`: the master at 3.07 counts/tick with its newest rising A edge
+    /// (counts 4j + 1, boundary 4j + ½, at 1 µs), slaves 3 counts behind.
     #[inline(always)]
     fn next_inputs(&mut self, k: u32) {
         let advance = k.wrapping_mul(MASTER_STEP_X100) / 100;
         self.s.enc.master = Counts(MASTER_START.wrapping_add(advance as i32));
+        // The edge 4j + ½ ≤ the master, in counts from the start, and its time in µs.
+        let edge = advance.saturating_sub(1) & !3;
+        let at_us = (edge.wrapping_mul(100).wrapping_add(50)).wrapping_mul(1000) / MASTER_STEP_X100;
+        self.s.enc.master_edges = Some(EdgeReading {
+            now_ticks: k.wrapping_mul(1000),
+            edge: Some(EdgeCapture {
+                at_ticks: at_us,
+                count: Counts(MASTER_START.wrapping_add(edge as i32).wrapping_add(1)),
+            }),
+        });
         for (c, t) in self
             .s
             .enc

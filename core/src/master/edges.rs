@@ -15,33 +15,39 @@
 //! ```text
 //! Δc = c₁ − c₀ (a nonzero multiple of 4: both are edges of one kind, passed the same way)
 //! b₁ = c₁ − ½·sign(Δc)                      the cell boundary the edge marks, counts
-//! θ(t) = b₁ + Δc · (t − t₁)/(t₁ − t₀)       counts, clamped to the live count's cell
-//! θ̇   = Δc / (t₁ − t₀)                       counts per edge-timer tick
+//! θ(t) = b₁ + Δc · min(1, (t − t₁)/(t₁ − t₀))   counts, clamped to where it can be
+//! θ̇   = Δc / (t₁ − t₀)                           counts per edge-timer tick
 //! ```
 //!
 //! The count `n` covers the cell `[n − ½, n + ½)` (an encoder whose count is the rounded
 //! position, as the simulator's sensors are), so the rising A edge entered while counting
 //! up is the boundary `c − ½` below the latched count `c` (the count *after* the edge),
-//! and the one entered counting down the boundary `c + ½`. The estimate is clamped to the
-//! live count's cell: it is never worse than the count itself.
+//! and the one entered counting down the boundary `c + ½`. The estimate is clamped to
+//! where the master can be: the live count's cell, short of the next rising A edge (one
+//! line past `b₁`) — never worse than the count itself.
+//!
+//! **A slowing master.** When the next edge is late (`t − t₁ > t₁ − t₀`), the estimate is
+//! blended linearly from that clamped extrapolation towards the middle of where the
+//! master can be, reached when the edge is twice as late; then the count.
 //!
 //! **Fallback to the count** (the cell's centre, exactly what the board fed before): no
 //! edge reading, fewer than two edges, a reversal between them (`Δc` not a nonzero
-//! multiple of 4), an interval beyond [`MAX_INTERVAL_TICKS`] (a master slower than four
-//! counts per interval), an edge overdue (`t − t₁ > 2·(t₁ − t₀)`: the master has slowed
-//! to half speed or stopped) or an edge time in the future.
+//! multiple of 4), an interval beyond [`MAX_INTERVAL_TICKS`], an edge overdue
+//! (`t − t₁ > 2·(t₁ − t₀)`: the master has slowed to half speed or stopped) or an edge
+//! time in the future.
 //!
 //! Formats: times are edge-timer ticks in wrapping `u32` (only differences are used,
-//! valid up to 2^31 ticks); the fraction `(t − t₁)/(t₁ − t₀)` is Q16 in a `u32` (< 2^17:
-//! one 32-bit division, `(t − t₁) << 16` < 2^32 because `t − t₁ ≤ 2·(2^15 − 1)`); the
-//! position is [`Master`] (`I48F16` counts), formed relative to the live count so that a
-//! wrapping count is followed; `|Δc|` ≤ [`MAX_STEP_COUNTS`], so `Δc · fraction` < 2^30.
+//! valid up to 2^31 ticks); the fraction `(t − t₁)/(t₁ − t₀)` is Q16 in a `u32` (≤ 2:
+//! both times shifted right until the interval has 15 bits, then one 32-bit division,
+//! `(t − t₁) << 16` < 2^32); the position is [`Master`] (`I48F16` counts), formed
+//! relative to the live count so that a wrapping count is followed; `|Δc|` ≤
+//! [`MAX_STEP_COUNTS`], so `Δc · fraction` < 2^31.
 
 use crate::units::{Counts, Master};
 
-/// Longest accepted interval between the two edges, edge-timer ticks (2^15 − 1: 32.8 ms
-/// at the board's 1 MHz edge timer, i.e. estimates above 122 counts/s = 0.12 °/s).
-pub const MAX_INTERVAL_TICKS: u32 = (1 << 15) - 1;
+/// Longest accepted interval between the two edges, edge-timer ticks (2^30: 17.9 min at
+/// the board's 1 MHz edge timer).
+pub const MAX_INTERVAL_TICKS: u32 = 1 << 30;
 
 /// Largest accepted |Δc| between two captured edges, counts.
 pub const MAX_STEP_COUNTS: i32 = (1 << 13) - 1;
@@ -50,6 +56,10 @@ pub const MAX_STEP_COUNTS: i32 = (1 << 13) - 1;
 const HALF: i64 = 1 << 15;
 /// Minus half a count, `I48F16` raw.
 const NEG_HALF: i64 = -HALF;
+/// One encoder line (4 counts: the spacing of the rising A edges), `I48F16` raw.
+const LINE: i64 = 4 << 16;
+/// Minus one line, `I48F16` raw.
+const NEG_LINE: i64 = -LINE;
 
 /// One capture: the master count latched at a rising edge of channel A and the edge
 /// timer's time of that edge.
@@ -117,17 +127,35 @@ impl EdgeEstimator {
             return 0;
         };
         let age = now.wrapping_sub(l.at_ticks);
-        // interval ≤ 2^15 − 1: 2·interval and age << 16 cannot overflow.
         if age > interval.saturating_mul(2) {
             return 0;
         }
+        // Both shifted right until the interval has at most 15 bits (a slow master loses
+        // only resolution it does not need): then age ≤ 2^16 − 1 and age << 16 < 2^32.
+        let k = 32u32.saturating_sub(interval.leading_zeros()).saturating_sub(15);
+        let (age, interval) = (age.wrapping_shr(k), interval.wrapping_shr(k).max(1));
         let frac_q16 = age.wrapping_shl(16).checked_div(interval).unwrap_or(0);
         // Relative to the live count: |c₁ − n| is a few counts; |Δc·frac| < 2^30.
         let rel_count = i64::from(l.count.0.wrapping_sub(count.0));
-        let half = if dc > 0 { HALF } else { NEG_HALF };
-        let boundary = rel_count.wrapping_shl(16).wrapping_sub(half);
-        let rel = boundary.saturating_add(i64::from(dc).saturating_mul(i64::from(frac_q16)));
-        rel.clamp(NEG_HALF, HALF)
+        let up = dc > 0;
+        let boundary = rel_count
+            .wrapping_shl(16)
+            .wrapping_sub(if up { HALF } else { NEG_HALF });
+        // Where the master can be: its cell, and short of the next rising A edge (one line,
+        // 4 counts, past the last). Empty after a reversal the edges did not see: the cell.
+        let next = boundary.saturating_add(if up { LINE } else { NEG_LINE });
+        let (lo, hi) = if up { (boundary, next) } else { (next, boundary) };
+        let (lo, hi) = match (lo.max(NEG_HALF), hi.min(HALF)) {
+            (lo, hi) if lo <= hi => (lo, hi),
+            _ => (NEG_HALF, HALF),
+        };
+        let moved = i64::from(dc).saturating_mul(i64::from(frac_q16.min(1 << 16)));
+        let at = boundary.saturating_add(moved).clamp(lo, hi);
+        // Overdue (t − t₁ > t₁ − t₀: the master has slowed): blended towards the middle
+        // of where it can be, reached when the edge is twice as late (then the count).
+        let late_q16 = i64::from(frac_q16.saturating_sub(1 << 16).min(1 << 16));
+        let mid = lo.saturating_add(hi) >> 1;
+        at.saturating_add(mid.saturating_sub(at).saturating_mul(late_q16) >> 16)
     }
 
     /// `(Δc, t₁ − t₀)` of two usable edges: Δc a nonzero multiple of 4 within

@@ -101,6 +101,40 @@ fn rippled_and_backwards_masters_are_followed() {
     assert!(est < 0.02, "fast estimate {est} counts");
 }
 
+#[test]
+fn a_master_slowing_to_a_stop() {
+    // From 3 000 counts/s to rest in 1 s (constant deceleration), then at rest.
+    let stop = Encoder {
+        theta: |t: f64| {
+            let t = t.min(1.0);
+            20.3 + 3000.0 * (t - 0.5 * t * t)
+        },
+        hz: 1e6,
+    };
+    let mut est = EdgeEstimator::START;
+    let (mut sum_est, mut sum_count, mut worst) = (0.0, 0.0, 0.0f64);
+    for k in 1..=1300 {
+        let t = k as f64 * 1e-3;
+        let r = EdgeReading {
+            now_ticks: (t * stop.hz).floor() as u32,
+            edge: stop.edge(t - 1e-3, t),
+        };
+        let c = Counts(stop.count(t));
+        let m = est.update(c, Some(&r)).to_num::<f64>();
+        let truth = (stop.theta)(t);
+        if k > 10 && t < 1.0 {
+            sum_est += (m - truth).abs();
+            sum_count += (f64::from(c.0) - truth).abs();
+            worst = worst.max((m - truth).abs());
+        }
+    }
+    // Never worse than the count (the cell), and on average far better while moving.
+    assert!(worst <= 1.0, "{worst}");
+    assert!(sum_est < 0.25 * sum_count, "{sum_est} vs {sum_count}");
+    // At rest: the count.
+    assert_eq!(est.update(Counts(1520), Some(&EdgeReading { now_ticks: 1_400_000, edge: None })).to_num::<f64>(), 1520.0);
+}
+
 fn cap(at: u32, c: i32) -> Option<EdgeCapture> {
     Some(EdgeCapture {
         at_ticks: at,
@@ -129,9 +163,11 @@ fn falls_back_to_the_count() {
     assert!((m - 9.3).abs() < 1e-4, "{m}");
     // Overdue: no edge for more than twice the last interval → the count.
     assert_eq!(count(e.update(Counts(10), Some(&reading(3901, None)))), 10.0);
-    // Not yet overdue: the estimate clamped to the live cell (9.5 + 4·1.1 → 9.5).
+    // Late by a tenth of the interval: the extrapolation stops at the cell's edge (9.5)
+    // and is blended a tenth of the way to the middle of where the master can be (9.0).
     let mut e2 = e;
-    assert_eq!(count(e2.update(Counts(9), Some(&reading(3000, None)))), 9.5);
+    let m = count(e2.update(Counts(9), Some(&reading(3000, None))));
+    assert!((m - 9.45).abs() < 1e-4, "{m}");
     // No reading at all: the count, and the edges are forgotten.
     assert_eq!(count(e.update(Counts(9), None)), 9.0);
     assert_eq!(e, EdgeEstimator::START);
