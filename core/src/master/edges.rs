@@ -53,13 +53,15 @@ pub const MAX_INTERVAL_TICKS: u32 = 1 << 30;
 pub const MAX_STEP_COUNTS: i32 = (1 << 13) - 1;
 
 /// Half a count, `I48F16` raw.
-const HALF: i64 = 1 << 15;
+const HALF: i32 = 1 << 15;
+/// Largest |c₁ − n| (the last edge's count from the live count) used, counts.
+const REL_MAX: i32 = 1 << 13;
 /// Minus half a count, `I48F16` raw.
-const NEG_HALF: i64 = -HALF;
+const NEG_HALF: i32 = -HALF;
 /// One encoder line (4 counts: the spacing of the rising A edges), `I48F16` raw.
-const LINE: i64 = 4 << 16;
+const LINE: i32 = 4 << 16;
 /// Minus one line, `I48F16` raw.
-const NEG_LINE: i64 = -LINE;
+const NEG_LINE: i32 = -LINE;
 
 /// One capture: the master count latched at a rising edge of channel A and the edge
 /// timer's time of that edge.
@@ -83,19 +85,20 @@ pub struct EdgeReading {
     pub edge: Option<EdgeCapture>,
 }
 
-/// The sub-count estimator's state: the last two captured edges.
+/// The sub-count estimator's state: the last captured edge and, if the two last edges are
+/// usable, their `(Δc, t₁ − t₀)` (worked out once per edge, not per tick).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct EdgeEstimator {
     last: Option<EdgeCapture>,
-    prev: Option<EdgeCapture>,
+    line: Option<(i32, u32)>,
 }
 
 impl EdgeEstimator {
     /// No edge seen.
     pub const START: Self = Self {
         last: None,
-        prev: None,
+        line: None,
     };
 
     /// Takes the live count and this sample's edge reading (`None`: the board has no
@@ -110,7 +113,7 @@ impl EdgeEstimator {
         };
         if let Some(e) = r.edge {
             if self.last.map(|l| l.at_ticks) != Some(e.at_ticks) {
-                self.prev = self.last;
+                self.line = self.last.and_then(|p| Self::step(&e, &p));
                 self.last = Some(e);
             }
         }
@@ -119,15 +122,15 @@ impl EdgeEstimator {
 
     /// The sub-count offset from the live count's centre, `I48F16` raw in ±½ count (0 on
     /// a fallback).
+    #[inline]
     fn offset_q16(&self, count: Counts, now: u32) -> i64 {
-        let (Some(l), Some(p)) = (self.last, self.prev) else {
-            return 0;
-        };
-        let Some((dc, interval)) = Self::step(&l, &p) else {
+        let (Some(l), Some((dc, interval))) = (self.last, self.line) else {
             return 0;
         };
         let age = now.wrapping_sub(l.at_ticks);
-        if age > interval.saturating_mul(2) {
+        // The last edge's count within ±2^13 of the live count (else a torn reading).
+        let rel_count = l.count.0.wrapping_sub(count.0);
+        if age > interval.saturating_mul(2) || !(-REL_MAX..=REL_MAX).contains(&rel_count) {
             return 0;
         }
         // Both shifted right until the interval has at most 15 bits (a slow master loses
@@ -135,27 +138,34 @@ impl EdgeEstimator {
         let k = 32u32.saturating_sub(interval.leading_zeros()).saturating_sub(15);
         let (age, interval) = (age.wrapping_shr(k), interval.wrapping_shr(k).max(1));
         let frac_q16 = age.wrapping_shl(16).checked_div(interval).unwrap_or(0);
-        // Relative to the live count: |c₁ − n| is a few counts; |Δc·frac| < 2^30.
-        let rel_count = i64::from(l.count.0.wrapping_sub(count.0));
+        // In Q16 counts relative to the live count: every value below 2^30 in magnitude
+        // (|rel_count| ≤ 2^13, |Δc| < 2^13, the fraction capped at 1).
         let up = dc > 0;
         let boundary = rel_count
             .wrapping_shl(16)
             .wrapping_sub(if up { HALF } else { NEG_HALF });
         // Where the master can be: its cell, and short of the next rising A edge (one line,
         // 4 counts, past the last). Empty after a reversal the edges did not see: the cell.
-        let next = boundary.saturating_add(if up { LINE } else { NEG_LINE });
+        let next = boundary.wrapping_add(if up { LINE } else { NEG_LINE });
         let (lo, hi) = if up { (boundary, next) } else { (next, boundary) };
         let (lo, hi) = match (lo.max(NEG_HALF), hi.min(HALF)) {
             (lo, hi) if lo <= hi => (lo, hi),
             _ => (NEG_HALF, HALF),
         };
-        let moved = i64::from(dc).saturating_mul(i64::from(frac_q16.min(1 << 16)));
-        let at = boundary.saturating_add(moved).clamp(lo, hi);
+        let frac1 = frac_q16.min(1 << 16) as i32;
+        let at = boundary.wrapping_add(dc.wrapping_mul(frac1)).clamp(lo, hi);
         // Overdue (t − t₁ > t₁ − t₀: the master has slowed): blended towards the middle
         // of where it can be, reached when the edge is twice as late (then the count).
-        let late_q16 = i64::from(frac_q16.saturating_sub(1 << 16).min(1 << 16));
-        let mid = lo.saturating_add(hi) >> 1;
-        at.saturating_add(mid.saturating_sub(at).saturating_mul(late_q16) >> 16)
+        let late_q16 = frac_q16.saturating_sub(1 << 16).min(1 << 16);
+        let pos = if late_q16 == 0 {
+            at
+        } else {
+            let mid = lo.wrapping_add(hi) >> 1;
+            // |mid − at| ≤ 2^16, late ≤ 2^16: the product in i64.
+            let pull = i64::from(mid.wrapping_sub(at)).wrapping_mul(i64::from(late_q16)) >> 16;
+            at.wrapping_add(pull as i32)
+        };
+        i64::from(pos)
     }
 
     /// `(Δc, t₁ − t₀)` of two usable edges: Δc a nonzero multiple of 4 within
@@ -174,8 +184,7 @@ impl EdgeEstimator {
     /// of `timer_hz`: `Δc · f / (t₁ − t₀)`; `None` on a fallback of the position (no two
     /// usable edges). Off the tick's path (one 64-bit division).
     pub fn speed_counts_per_s(&self, timer_hz: u32) -> Option<crate::units::MasterRate> {
-        let (l, p) = (self.last?, self.prev?);
-        let (dc, interval) = Self::step(&l, &p)?;
+        let (dc, interval) = self.line?;
         // |Δc| < 2^13, f < 2^32, 2^16: the numerator is below 2^61.
         let num = i64::from(dc)
             .saturating_mul(i64::from(timer_hz))

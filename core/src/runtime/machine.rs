@@ -273,7 +273,8 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     fault: Option<FaultRecord>,
     fault_set: FaultSet,
     history: FaultHistory,
-    prev_enc: Option<EncoderSample<S>>,
+    /// The previous sample's master and slave counts (the plausibility check).
+    prev_enc: Option<(Counts, [Counts; S])>,
     /// The master below one count from its encoder's timestamped edges
     /// ([`crate::master::EdgeEstimator`]; the count where the board has no edge timer).
     edges: EdgeEstimator,
@@ -548,16 +549,15 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         if self.cfg.pressure_required && !self.pressure_ok {
             cause(self, Fault::PressureInput, 0, 0);
         }
-        if let Some(prev) = self.prev_enc {
+        if let Some((prev_master, prev_slaves)) = self.prev_enc {
             let master_used = self.cfg.master_source == MasterSource::Encoder;
-            let m_step = step(prev.master, s.enc.master);
+            let m_step = step(prev_master, s.enc.master);
             if master_used && !plausible(m_step, self.cfg.master_step_limit) {
                 let limit = self.cfg.master_step_limit;
                 cause(self, Fault::EncoderJump { channel: 0 }, m_step, limit);
             }
             let limits = self.cfg.slave_step_limit;
-            let slaves = prev
-                .slaves
+            let slaves = prev_slaves
                 .iter()
                 .zip(s.enc.slaves.iter())
                 .zip(limits.iter());
@@ -569,7 +569,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 }
             }
         }
-        self.prev_enc = Some(s.enc);
+        self.prev_enc = Some((s.enc.master, s.enc.slaves));
         first
     }
 
