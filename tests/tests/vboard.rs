@@ -64,9 +64,15 @@ fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
     reference_at_the_flat_table(&mut h, &mut b);
     h.ack(&mut b, &Request::Start);
     assert_eq!(b.ticks(), t0 + 4);
-    for _ in 0..200 {
+    // The master's edges are timestamped as on the board (1 MHz): once it moves, the
+    // runtime's master is below one count on most ticks (the count alone has no fraction).
+    let mut fractional = 0;
+    for _ in 0..600 {
         b.tick(&mut |_| ());
+        let m = b.runtime().expect("booted").status().master;
+        fractional += usize::from(m.frac() != 0);
     }
+    assert!(fractional > 300, "{fractional} of 600 ticks below one count");
     let rt = b.runtime().expect("booted");
     assert!(
         matches!(rt.state(), State::Following | State::Holding(_)),

@@ -549,6 +549,11 @@ mod tests {
         assert!(e("[[axis]]\nname = \"a\"\n[[axis]]\nname = \"a\"\n").contains("two axes"));
         assert!(e("[[axis]]\nname = \"a\"\nx0_mm = 600\n").contains("`axis.a.x0_mm` = 600"));
         assert!(e("[sim]\nperiod_us = \"x\"\n").contains("period_us"));
+        for bad in ["-1", "10", "2e9", "nan"] {
+            let msg = e(&format!("[master]\nedge_timer_hz = {bad}\n"));
+            assert!(msg.contains("`master.edge_timer_hz`"), "{bad}: {msg}");
+        }
+        assert!(parse("[master]\nedge_timer_hz = 0\n").is_ok(), "0: no edge timer");
     }
 
     #[test]
