@@ -53,15 +53,16 @@ pub const MAX_INTERVAL_TICKS: u32 = 1 << 30;
 pub const MAX_STEP_COUNTS: i32 = (1 << 13) - 1;
 
 /// Half a count, `I48F16` raw.
-const HALF: i32 = 1 << 15;
-/// Largest |c₁ − n| (the last edge's count from the live count) used, counts.
+const HALF: i64 = 1 << 15;
+/// Largest |c₁ − n| (the last crossing's count from the live count) used, counts.
 const REL_MAX: i32 = 1 << 13;
+/// The smallest distance the late blend divides by, `I48F16` raw (1/64 count).
+const MIN_DIST: i64 = 1 << 10;
+/// A count step of one is a crossing of its own when the last crossing is at least this
+/// many ticks old (a slow master: its mid-tick time is then within 1/16 of the interval).
+const SLOW_TICKS: u32 = 8;
 /// Minus half a count, `I48F16` raw.
-const NEG_HALF: i32 = -HALF;
-/// One encoder line (4 counts: the spacing of the rising A edges), `I48F16` raw.
-const LINE: i32 = 4 << 16;
-/// Minus one line, `I48F16` raw.
-const NEG_LINE: i32 = -LINE;
+const NEG_HALF: i64 = -HALF;
 
 /// One capture: the master count latched at a rising edge of channel A and the edge
 /// timer's time of that edge.
@@ -85,18 +86,36 @@ pub struct EdgeReading {
     pub edge: Option<EdgeCapture>,
 }
 
-/// The sub-count estimator's state: the last captured edge and, if the two last edges are
-/// usable, their `(Δc, t₁ − t₀)` (worked out once per edge, not per tick).
+/// One boundary crossing of the master: the count it entered (the boundary is half a
+/// count behind it, [`boundary`]), when (edge-timer ticks) and which way (`true`:
+/// counting up).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct Crossing {
+    c: i32,
+    at: u32,
+    up: bool,
+}
+
+/// The sub-count estimator's state: the last crossing and, if the last two are usable,
+/// their `(Δb, t₁ − t₀)` (worked out once per crossing, not per tick).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct EdgeEstimator {
-    last: Option<EdgeCapture>,
+    /// The time of the newest capture seen (a capture reported again is not new).
+    capture_at: Option<u32>,
+    /// The previous sample's count and time.
+    prev: Option<(i32, u32)>,
+    last: Option<Crossing>,
+    /// Δb (`I48F16` raw, |Δb| < 2^29) and Δt (ticks) of the last two crossings.
     line: Option<(i32, u32)>,
 }
 
 impl EdgeEstimator {
     /// No edge seen.
     pub const START: Self = Self {
+        capture_at: None,
+        prev: None,
         last: None,
         line: None,
     };
@@ -106,97 +125,147 @@ impl EdgeEstimator {
     /// (see the module docs; the count's cell centre on every fallback).
     #[inline]
     pub fn update(&mut self, count: Counts, reading: Option<&EdgeReading>) -> Master {
-        let n = i64::from(count.0).wrapping_shl(16);
+        let n = count.0;
+        let n_q16 = i64::from(n).wrapping_shl(16);
         let Some(r) = reading else {
             *self = Self::START;
-            return Master::from_bits(n);
+            return Master::from_bits(n_q16);
         };
-        if let Some(e) = r.edge {
-            if self.last.map(|l| l.at_ticks) != Some(e.at_ticks) {
-                self.line = self.last.and_then(|p| Self::step(&e, &p));
-                self.last = Some(e);
-            }
+        let now = r.now_ticks;
+        let new = r.edge.filter(|e| self.capture_at != Some(e.at_ticks));
+        if let Some(e) = new {
+            self.capture_at = Some(e.at_ticks);
         }
-        Master::from_bits(n.wrapping_add(self.offset_q16(count, r.now_ticks)))
+        let dn = self.prev.map(|(c, t)| (n.wrapping_sub(c), t));
+        let crossing = match (new, dn) {
+            // A timed rising A edge, passed the way the count went this tick.
+            (Some(e), Some((d, _))) if d != 0 => Some(Crossing {
+                c: e.count.0,
+                at: e.at_ticks,
+                up: d > 0,
+            }),
+            // An edge whose way is unknown (the count came back within the tick, or the
+            // first sample): start again.
+            (Some(_), _) => {
+                self.last = None;
+                self.line = None;
+                None
+            }
+            // A slow master (its last crossing at least 8 ticks ago): the count's own
+            // step of one is a crossing too, placed in the middle of the tick.
+            (None, Some((d @ (1 | -1), t_prev))) => {
+                let tick = now.wrapping_sub(t_prev);
+                let slow = self.last.is_none_or(|c| {
+                    now.wrapping_sub(c.at) >= tick.saturating_mul(SLOW_TICKS)
+                });
+                slow.then(|| Crossing {
+                    c: n,
+                    at: t_prev.wrapping_add(tick >> 1),
+                    up: d > 0,
+                })
+            }
+            _ => None,
+        };
+        if let Some(c) = crossing {
+            self.line = self.last.and_then(|p| Self::step(&c, &p));
+            self.last = Some(c);
+        }
+        self.prev = Some((n, now));
+        Master::from_bits(n_q16.wrapping_add(self.offset_q16(n, now)))
     }
 
-    /// The sub-count offset from the live count's centre, `I48F16` raw in ±½ count (0 on
-    /// a fallback).
+    /// The sub-count offset from the live count `n`'s centre, `I48F16` raw in ±½ count.
     #[inline]
-    fn offset_q16(&self, count: Counts, now: u32) -> i64 {
-        let (Some(l), Some((dc, interval))) = (self.last, self.line) else {
+    fn offset_q16(&self, n: i32, now: u32) -> i64 {
+        let Some(c) = self.last else {
             return 0;
         };
-        let age = now.wrapping_sub(l.at_ticks);
-        // The last edge's count within ±2^13 of the live count (else a torn reading).
-        let rel_count = l.count.0.wrapping_sub(count.0);
-        if age > interval.saturating_mul(2) || !(-REL_MAX..=REL_MAX).contains(&rel_count) {
+        // The crossing relative to the live count (wrapping with the counter).
+        let rel = c.c.wrapping_sub(n);
+        if !(-REL_MAX..=REL_MAX).contains(&rel) {
             return 0;
+        }
+        let b = boundary(rel, c.up);
+        // Where the master can be: its cell, on the far side of the last crossing (the
+        // cell alone after a reversal the edges did not see).
+        let (lo, hi) = if c.up {
+            (b.max(NEG_HALF), HALF)
+        } else {
+            (NEG_HALF, b.min(HALF))
+        };
+        let (lo, hi) = if lo <= hi { (lo, hi) } else { (NEG_HALF, HALF) };
+        let mid = lo.wrapping_add(hi) >> 1;
+        let Some((db, dt)) = self.line else {
+            return mid;
+        };
+        let age = now.wrapping_sub(c.at);
+        if age > dt.saturating_mul(2) {
+            return mid;
         }
         // Both shifted right until the interval has at most 15 bits (a slow master loses
         // only resolution it does not need): then age ≤ 2^16 − 1 and age << 16 < 2^32.
-        let k = 32u32.saturating_sub(interval.leading_zeros()).saturating_sub(15);
-        let (age, interval) = (age.wrapping_shr(k), interval.wrapping_shr(k).max(1));
-        let frac_q16 = age.wrapping_shl(16).checked_div(interval).unwrap_or(0);
-        // In Q16 counts relative to the live count: every value below 2^30 in magnitude
-        // (|rel_count| ≤ 2^13, |Δc| < 2^13, the fraction capped at 1).
-        let up = dc > 0;
-        let boundary = rel_count
-            .wrapping_shl(16)
-            .wrapping_sub(if up { HALF } else { NEG_HALF });
-        // Where the master can be: its cell, and short of the next rising A edge (one line,
-        // 4 counts, past the last). Empty after a reversal the edges did not see: the cell.
-        let next = boundary.wrapping_add(if up { LINE } else { NEG_LINE });
-        let (lo, hi) = if up { (boundary, next) } else { (next, boundary) };
-        let (lo, hi) = match (lo.max(NEG_HALF), hi.min(HALF)) {
-            (lo, hi) if lo <= hi => (lo, hi),
-            _ => (NEG_HALF, HALF),
-        };
-        let frac1 = frac_q16.min(1 << 16) as i32;
-        let at = boundary.wrapping_add(dc.wrapping_mul(frac1)).clamp(lo, hi);
-        // Overdue (t − t₁ > t₁ − t₀: the master has slowed): blended towards the middle
-        // of where it can be, reached when the edge is twice as late (then the count).
-        let late_q16 = frac_q16.saturating_sub(1 << 16).min(1 << 16);
-        let pos = if late_q16 == 0 {
-            at
+        let k = 32u32.saturating_sub(dt.leading_zeros()).saturating_sub(15);
+        let (age, dt) = (age.wrapping_shr(k), dt.wrapping_shr(k).max(1));
+        let frac_q16 = age.wrapping_shl(16).checked_div(dt).unwrap_or(0);
+        // |Δb| < 2^29, frac ≤ 2^17: the product below 2^46.
+        let x = b.wrapping_add(i64::from(db).wrapping_mul(i64::from(frac_q16)) >> 16);
+        // Beyond where it can be (the next crossing has not come: the master slowed):
+        // blended from that edge towards the middle, reached when the extrapolation has
+        // gone twice the distance.
+        let (edge, over, dist) = if c.up {
+            (hi, x.saturating_sub(hi), hi.saturating_sub(b))
         } else {
-            let mid = lo.wrapping_add(hi) >> 1;
-            // |mid − at| ≤ 2^16, late ≤ 2^16: the product in i64.
-            let pull = i64::from(mid.wrapping_sub(at)).wrapping_mul(i64::from(late_q16)) >> 16;
-            at.wrapping_add(pull as i32)
+            (lo, lo.saturating_sub(x), b.saturating_sub(lo))
         };
-        i64::from(pos)
+        if over <= 0 {
+            return x.clamp(lo, hi);
+        }
+        let w_q16 = over
+            .wrapping_shl(16)
+            .checked_div(dist.max(MIN_DIST))
+            .unwrap_or(0)
+            .min(1 << 16);
+        edge.wrapping_add(mid.wrapping_sub(edge).wrapping_mul(w_q16) >> 16)
     }
 
-    /// `(Δc, t₁ − t₀)` of two usable edges: Δc a nonzero multiple of 4 within
+    /// `(Δb, t₁ − t₀)` of two crossings the same way: Δb of that sign within
     /// ±[`MAX_STEP_COUNTS`], the interval in 1 … [`MAX_INTERVAL_TICKS`].
-    fn step(l: &EdgeCapture, p: &EdgeCapture) -> Option<(i32, u32)> {
-        let dc = l.count.0.wrapping_sub(p.count.0);
-        let interval = l.at_ticks.wrapping_sub(p.at_ticks);
-        let ok = dc != 0
-            && dc & 3 == 0
+    fn step(c: &Crossing, p: &Crossing) -> Option<(i32, u32)> {
+        // Both boundaries half a count behind their counts, the same way: Δb = Δc.
+        let dc = c.c.wrapping_sub(p.c);
+        let dt = c.at.wrapping_sub(p.at);
+        let ok = c.up == p.up
+            && (dc > 0) == c.up
+            && dc != 0
             && (-MAX_STEP_COUNTS..=MAX_STEP_COUNTS).contains(&dc)
-            && (1..=MAX_INTERVAL_TICKS).contains(&interval);
-        ok.then_some((dc, interval))
+            && (1..=MAX_INTERVAL_TICKS).contains(&dt);
+        ok.then_some((dc.wrapping_shl(16), dt))
     }
 
-    /// The master's speed from the last two edges, counts/s `I48F16`, for an edge timer
-    /// of `timer_hz`: `Δc · f / (t₁ − t₀)`; `None` on a fallback of the position (no two
-    /// usable edges). Off the tick's path (one 64-bit division).
+    /// The master's speed from the last two crossings, counts/s `I48F16`, for an edge
+    /// timer of `timer_hz`: `Δb · f / (t₁ − t₀)`; `None` without two usable crossings.
+    /// Off the tick's path (one 64-bit division).
     pub fn speed_counts_per_s(&self, timer_hz: u32) -> Option<crate::units::MasterRate> {
-        let (dc, interval) = self.line?;
-        // |Δc| < 2^13, f < 2^32, 2^16: the numerator is below 2^61.
-        let num = i64::from(dc)
-            .saturating_mul(i64::from(timer_hz))
-            .saturating_mul(1 << 16);
-        num.checked_div(i64::from(interval))
+        let (db, dt) = self.line?;
+        // |Δb| < 2^29 (Q16), f < 2^32: the numerator is below 2^61.
+        let num = i64::from(db).saturating_mul(i64::from(timer_hz));
+        num.checked_div(i64::from(dt))
             .map(crate::units::MasterRate::from_bits)
     }
 
-    /// Forgets every edge (the next two captures start the estimate again).
+    /// Forgets every edge (the next two crossings start the estimate again).
     pub fn reset(&mut self) {
         *self = Self::START;
     }
+}
+
+/// The boundary a crossing into count `c` marks, `I48F16` raw: `c − ½` counting up,
+/// `c + ½` counting down.
+#[inline]
+fn boundary(c: i32, up: bool) -> i64 {
+    i64::from(c)
+        .wrapping_shl(16)
+        .wrapping_sub(if up { HALF } else { NEG_HALF })
 }
 
 /// Extends a 16-bit edge timer to the wrapping `u32` time the estimator takes: the

@@ -149,78 +149,114 @@ fn reading(now: u32, edge: Option<EdgeCapture>) -> EdgeReading {
     }
 }
 
+/// An estimator that has seen one sample (count `n`, at `t`, no edge): the way of the
+/// next edge is then known from the count.
+fn after(n: i32, t: u32) -> EdgeEstimator {
+    let mut e = EdgeEstimator::START;
+    assert_eq!(e.update(Counts(n), Some(&reading(t, None))), Master::from_num(n));
+    e
+}
+
 #[test]
 fn falls_back_to_the_count() {
     let count = |m: Master| m.to_num::<f64>();
-    let mut e = EdgeEstimator::START;
-    // One edge: no speed yet.
+    // One crossing (into 5 counting up, boundary 4.5): no speed yet: the middle of where
+    // the master can be (its cell, beyond 4.5): 5.
+    let mut e = after(1, 0);
     assert_eq!(count(e.update(Counts(5), Some(&reading(1000, cap(900, 5))))), 5.0);
-    // Two edges 4 counts in 1000 ticks, the second 200 ticks ago, the live count 9: the
-    // boundary 8.5 + 4·0.2 = 9.3: the estimate is inside its cell.
-    let mut e = EdgeEstimator::START;
-    e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
+    // A second edge 4 counts in 1000 ticks, 200 ticks ago, the live count 9: the
+    // boundary 8.5 + 4·0.2 = 9.3.
     let m = count(e.update(Counts(9), Some(&reading(2100, cap(1900, 9)))));
     assert!((m - 9.3).abs() < 1e-4, "{m}");
-    // Overdue: no edge for more than twice the last interval → the count.
-    assert_eq!(count(e.update(Counts(10), Some(&reading(3901, None)))), 10.0);
-    // Late by a tenth of the interval: the extrapolation stops at the cell's edge (9.5)
-    // and is blended a tenth of the way to the middle of where the master can be (9.0).
-    let mut e2 = e;
-    let m = count(e2.update(Counts(9), Some(&reading(3000, None))));
-    assert!((m - 9.45).abs() < 1e-4, "{m}");
+    // 240 ticks after the edge: 9.46, inside the cell.
+    let m = count(e.clone().update(Counts(9), Some(&reading(2140, None))));
+    assert!((m - 9.46).abs() < 1e-4, "{m}");
+    // 260 ticks: the extrapolation (9.54) is beyond the cell by 0.04 of the 1-count
+    // distance from the crossing: blended 4 % of the way from 9.5 to the middle (9.0).
+    let m = count(e.clone().update(Counts(9), Some(&reading(2160, None))));
+    assert!((m - 9.48).abs() < 1e-4, "{m}");
+    // Much later (the extrapolation twice the distance beyond): the middle, 9.
+    assert_eq!(count(e.clone().update(Counts(9), Some(&reading(3000, None)))), 9.0);
+    // Overdue (no edge for more than twice the last interval), one count on: 10.
+    assert_eq!(count(e.clone().update(Counts(10), Some(&reading(3901, None)))), 10.0);
     // No reading at all: the count, and the edges are forgotten.
     assert_eq!(count(e.update(Counts(9), None)), 9.0);
     assert_eq!(e, EdgeEstimator::START);
-    // A reversal between the edges (Δc not a multiple of 4): the count.
-    let mut e = EdgeEstimator::START;
+    // An edge whose way is unknown (the count back where it was): start again.
+    let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
+    e.update(Counts(9), Some(&reading(2000, cap(1900, 9))));
+    assert_eq!(count(e.update(Counts(9), Some(&reading(2500, cap(2400, 9))))), 9.0);
+    assert_eq!(e.speed_counts_per_s(1_000_000), None);
+    // A reversal between two edges (up into 5, then down into 6 — boundary 6.5): no
+    // speed; the middle of where it can be (the cell of 6, below 6.5): 6.
+    let mut e = after(1, 0);
+    e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
+    e.update(Counts(7), Some(&reading(1500, None)));
     assert_eq!(count(e.update(Counts(6), Some(&reading(2000, cap(1900, 6))))), 6.0);
+    assert_eq!(e.speed_counts_per_s(1_000_000), None);
     // An edge time in the future (the timer read before the capture): the count.
-    let mut e = EdgeEstimator::START;
+    let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
     assert_eq!(count(e.update(Counts(9), Some(&reading(1800, cap(1900, 9))))), 9.0);
     // Too slow (an interval beyond the limit): the count.
-    let mut e = EdgeEstimator::START;
+    let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
     let far = 900 + MAX_INTERVAL_TICKS + 1;
     assert_eq!(count(e.update(Counts(9), Some(&reading(far + 10, cap(far, 9))))), 9.0);
     // The same capture reported twice is one edge.
-    let mut e = EdgeEstimator::START;
+    let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
     e.update(Counts(5), Some(&reading(1100, cap(900, 5))));
     assert_eq!(e.speed_counts_per_s(1_000_000), None);
 }
 
 #[test]
+fn a_slow_master_crosses_at_every_count() {
+    // 50 counts/s at 1 kHz (a count every 20 ticks; rising A every 80): each count step
+    // is a crossing placed mid-tick (±½ tick of 20: its speed within 5 %), so the
+    // estimate is within 0.1 count, where the count alone is off by up to ½.
+    let slow = Encoder {
+        theta: |t: f64| 10.1 + 50.0 * t,
+        hz: 1e6,
+    };
+    let (est, count) = slow.run(1e-3, 2000, 200);
+    assert!(est < 0.1, "estimate {est} counts");
+    assert!(count > 0.45, "count {count}");
+}
+
+#[test]
 fn speed_from_the_last_two_edges() {
-    let mut e = EdgeEstimator::START;
-    e.update(Counts(1), Some(&reading(0, cap(0, 1))));
-    e.update(Counts(5), Some(&reading(1500, cap(1333, 5))));
+    let mut e = after(0, 0);
+    e.update(Counts(1), Some(&reading(100, cap(50, 1))));
+    e.update(Counts(5), Some(&reading(1500, cap(1383, 5))));
     // 4 counts in 1333 µs: 3000.75 counts/s.
     let v = e.speed_counts_per_s(1_000_000).map(|v| v.to_num::<f64>());
     assert!(v.is_some_and(|v| (v - 4e6 / 1333.0).abs() < 1e-3), "{v:?}");
     // Backwards.
-    let mut e = EdgeEstimator::START;
-    e.update(Counts(-2), Some(&reading(0, cap(0, -2))));
-    e.update(Counts(-10), Some(&reading(3000, cap(2000, -10))));
+    let mut e = after(0, 0);
+    e.update(Counts(-2), Some(&reading(100, cap(50, -2))));
+    e.update(Counts(-6), Some(&reading(2100, cap(2050, -6))));
     let v = e.speed_counts_per_s(1_000_000).map(|v| v.to_num::<f64>());
-    assert_eq!(v, Some(-4000.0));
+    assert_eq!(v, Some(-2000.0));
 }
 
 #[test]
 fn a_wrapping_count_and_timer_are_followed() {
-    let mut e = EdgeEstimator::START;
     let t0 = u32::MAX - 500;
+    let mut e = after(i32::MAX - 3, t0 - 10);
     e.update(Counts(i32::MAX - 2), Some(&reading(t0, cap(t0, i32::MAX - 2))));
     // 4 counts later through the count's and the timer's wrap, 250 ticks after an edge
-    // 1000 ticks from the first: the boundary + 1 count.
+    // 1000 ticks from the first: the boundary + 1 count, clamped to the cell (+½).
     let c = (i32::MAX - 2).wrapping_add(4);
     let at = t0.wrapping_add(1000);
     let m = e.update(Counts(c), Some(&reading(at.wrapping_add(250), cap(at, c))));
     let rel = m.to_bits().wrapping_sub(i64::from(c) << 16);
-    assert_eq!(rel, -(1 << 15) + (1 << 16));
-    // Clamped to the cell: +½ count at most.
-    assert_eq!(rel.min(1 << 15), 1 << 15);
+    assert_eq!(rel, 1 << 15);
+    // 100 ticks after the edge: c − ½ + 0.4 (to the fraction's rounding, 2^-16 × 4).
+    let m = e.update(Counts(c), Some(&reading(at.wrapping_add(100), None)));
+    let rel = m.to_bits().wrapping_sub(i64::from(c) << 16);
+    assert!((rel - (-(1 << 15) + (4 << 16) / 10)).abs() <= 4, "{rel}");
 }
 
 #[test]
