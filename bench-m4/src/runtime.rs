@@ -15,10 +15,10 @@ use crate::harness::Figure;
 use core::hint::black_box;
 use hydra_core::axis::ControlMode;
 use hydra_core::follower::{Follower, FollowerConfig};
+use hydra_core::master::{EdgeCapture, EdgeReading};
 use hydra_core::runtime::{
     BootCause, Command, EncoderSample, Runtime, RuntimeConfig, Sample, State, TickOutputs,
 };
-use hydra_core::master::{EdgeCapture, EdgeReading};
 use hydra_core::units::{Counts, Master, PressureBar};
 use static_cell::StaticCell;
 

@@ -366,14 +366,22 @@ mod tests {
         assert_eq!(t5.read(0x10, 500_000).map(|v| v & 2), Some(2), "CC1IF");
         assert_eq!(t8.read(0x34, 500_000), Some(2_500));
         assert_eq!(t5.read(0x34, 500_000), Some(101));
-        assert_eq!(t5.read(0x10, 500_000).map(|v| v & 2), Some(0), "read clears CC1IF");
+        assert_eq!(
+            t5.read(0x10, 500_000).map(|v| v & 2),
+            Some(0),
+            "read clears CC1IF"
+        );
         // Another trigger source (ITR0) is not TIM8's: nothing captured.
         t8.capture_trigger(0, 450_000);
         assert_eq!(t8.read(0x34, 500_000), Some(2_500));
         // Two captures unread: overcapture.
         assert!(t5.capture_count(105));
         assert!(t5.capture_count(109));
-        assert_eq!(t5.read(0x10, 500_000).map(|v| v & (1 << 9)), Some(1 << 9), "CC1OF");
+        assert_eq!(
+            t5.read(0x10, 500_000).map(|v| v & (1 << 9)),
+            Some(1 << 9),
+            "CC1OF"
+        );
         // A capture channel never sets its flag by comparing: TIM8's counter passes
         // CCR1 without a flag.
         t8.sync(1_000_000);

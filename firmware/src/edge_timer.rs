@@ -57,8 +57,7 @@ impl EdgeTimer {
             w.set_sms(Sms::DISABLED);
             w.set_ts(Ts::ITR3);
         });
-        t8.ccmr_input(0)
-            .modify(|w| w.set_ccs(0, CcmrInputCcs::TRC));
+        t8.ccmr_input(0).modify(|w| w.set_ccs(0, CcmrInputCcs::TRC));
         t8.ccer().modify(|w| w.set_cce(0, true));
         // Load the prescaler, then count.
         t8.egr().write(|w| w.set_ug(true));

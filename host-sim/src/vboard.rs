@@ -97,9 +97,9 @@ impl EncoderInput<AXES> for VirtualIo {
         let (t1, m1) = (self.t_board, self.t_master);
         let rate = if t1 > t0 { (m1 - m0) / (t1 - t0) } else { 0.0 };
         let (profile, res) = (&self.plant.master, self.master_res_deg);
-        let master_edges = self.edge_timer.map(|tm| {
-            tm.reading(|t| profile.angle_deg(m0 + (t - t0) * rate) / res, t0, t1)
-        });
+        let master_edges = self
+            .edge_timer
+            .map(|tm| tm.reading(|t| profile.angle_deg(m0 + (t - t0) * rate) / res, t0, t1));
         self.last_latch = Some((t1, m1));
         let mut slaves = [Counts(0); AXES];
         for (k, c) in slaves.iter_mut().enumerate() {

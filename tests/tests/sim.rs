@@ -74,7 +74,10 @@ fn feedforward_at_1ms_meets_the_target() {
 #[test]
 fn the_sub_count_master_lowers_the_tangent_error() {
     let (s, t) = tangent_only();
-    assert_eq!(s.master.edge_timer_hz, 1e6, "the board's edge timer by default");
+    assert_eq!(
+        s.master.edge_timer_hz, 1e6,
+        "the board's edge timer by default"
+    );
     let (max_on, rms_on) = tangent(&go(&s, &t, Controller::Feedforward, 1000));
     let mut off = s.clone();
     off.master.edge_timer_hz = 0.0;

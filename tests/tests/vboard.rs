@@ -72,7 +72,10 @@ fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
         let m = b.runtime().expect("booted").status().master;
         fractional += usize::from(m.frac() != 0);
     }
-    assert!(fractional > 300, "{fractional} of 600 ticks below one count");
+    assert!(
+        fractional > 300,
+        "{fractional} of 600 ticks below one count"
+    );
     let rt = b.runtime().expect("booted");
     assert!(
         matches!(rt.state(), State::Following | State::Holding(_)),

@@ -155,9 +155,9 @@ impl EdgeEstimator {
             // step of one is a crossing too, placed in the middle of the tick.
             (None, Some((d @ (1 | -1), t_prev))) => {
                 let tick = now.wrapping_sub(t_prev);
-                let slow = self.last.is_none_or(|c| {
-                    now.wrapping_sub(c.at) >= tick.saturating_mul(SLOW_TICKS)
-                });
+                let slow = self
+                    .last
+                    .is_none_or(|c| now.wrapping_sub(c.at) >= tick.saturating_mul(SLOW_TICKS));
                 slow.then(|| Crossing {
                     c: n,
                     at: t_prev.wrapping_add(tick >> 1),

@@ -6,9 +6,9 @@ mod edges;
 mod filter;
 mod predictor;
 
+pub use edges::{EdgeCapture, EdgeClock16, EdgeEstimator, EdgeReading};
 pub use filter::{
     MasterAhead, MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig,
     MasterFilterError,
 };
-pub use edges::{EdgeCapture, EdgeClock16, EdgeEstimator, EdgeReading};
 pub use predictor::{Predictor, PredictorKind};

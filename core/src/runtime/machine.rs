@@ -717,9 +717,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         for (p, ((&c, &k), &off)) in pos_um.iter_mut().zip(axes) {
             *p = pos_from_counts(c, k, off);
         }
-        let enc_master = self
-            .edges
-            .update(s.enc.master, s.enc.master_edges.as_ref());
+        let enc_master = self.edges.update(s.enc.master, s.enc.master_edges.as_ref());
         let live_master = self.master_from(enc_master);
         // Stale pressures (the board says its converter stopped) are not handed on: the
         // law keeps the last live ones, so the active damping's high-pass decays to 0

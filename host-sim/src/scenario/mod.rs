@@ -553,7 +553,10 @@ mod tests {
             let msg = e(&format!("[master]\nedge_timer_hz = {bad}\n"));
             assert!(msg.contains("`master.edge_timer_hz`"), "{bad}: {msg}");
         }
-        assert!(parse("[master]\nedge_timer_hz = 0\n").is_ok(), "0: no edge timer");
+        assert!(
+            parse("[master]\nedge_timer_hz = 0\n").is_ok(),
+            "0: no edge timer"
+        );
     }
 
     #[test]

@@ -25,7 +25,11 @@ impl<F: Fn(f64) -> f64> Encoder<F> {
             let c = self.count(t);
             if c != c_prev {
                 let up = c > c_prev;
-                let rising_a = if up { c.rem_euclid(4) == 1 } else { c.rem_euclid(4) == 2 };
+                let rising_a = if up {
+                    c.rem_euclid(4) == 1
+                } else {
+                    c.rem_euclid(4) == 2
+                };
                 if rising_a {
                     found = Some(EdgeCapture {
                         at_ticks: (t * self.hz).floor() as u32,
@@ -52,7 +56,10 @@ impl<F: Fn(f64) -> f64> Encoder<F> {
             let c = Counts(self.count(t));
             let m = est.update(c, Some(&r)).to_num::<f64>();
             let truth = (self.theta)(t);
-            assert!((m - f64::from(c.0)).abs() <= 0.5, "outside the cell at tick {k}");
+            assert!(
+                (m - f64::from(c.0)).abs() <= 0.5,
+                "outside the cell at tick {k}"
+            );
             if k > skip {
                 worst_est = worst_est.max((m - truth).abs());
                 worst_count = worst_count.max((f64::from(c.0) - truth).abs());
@@ -79,8 +86,11 @@ fn constant_speed_is_exact_to_the_timer() {
 fn rippled_and_backwards_masters_are_followed() {
     // The reference table: 3 °/s with ±3 % ripple at 2 Hz.
     let rip = Encoder {
-        theta: |t| 3000.0 * t + 0.03 * 3000.0 / (2.0 * core::f64::consts::PI * 2.0)
-            * (2.0 * core::f64::consts::PI * 2.0 * t).sin(),
+        theta: |t| {
+            3000.0 * t
+                + 0.03 * 3000.0 / (2.0 * core::f64::consts::PI * 2.0)
+                    * (2.0 * core::f64::consts::PI * 2.0 * t).sin()
+        },
         hz: 1e6,
     };
     let (est, _) = rip.run(1e-3, 600, 5);
@@ -132,7 +142,17 @@ fn a_master_slowing_to_a_stop() {
     assert!(worst <= 1.0, "{worst}");
     assert!(sum_est < 0.25 * sum_count, "{sum_est} vs {sum_count}");
     // At rest: the count.
-    assert_eq!(est.update(Counts(1520), Some(&EdgeReading { now_ticks: 1_400_000, edge: None })).to_num::<f64>(), 1520.0);
+    assert_eq!(
+        est.update(
+            Counts(1520),
+            Some(&EdgeReading {
+                now_ticks: 1_400_000,
+                edge: None
+            })
+        )
+        .to_num::<f64>(),
+        1520.0
+    );
 }
 
 fn cap(at: u32, c: i32) -> Option<EdgeCapture> {
@@ -153,7 +173,10 @@ fn reading(now: u32, edge: Option<EdgeCapture>) -> EdgeReading {
 /// next edge is then known from the count.
 fn after(n: i32, t: u32) -> EdgeEstimator {
     let mut e = EdgeEstimator::START;
-    assert_eq!(e.update(Counts(n), Some(&reading(t, None))), Master::from_num(n));
+    assert_eq!(
+        e.update(Counts(n), Some(&reading(t, None))),
+        Master::from_num(n)
+    );
     e
 }
 
@@ -163,7 +186,10 @@ fn falls_back_to_the_count() {
     // One crossing (into 5 counting up, boundary 4.5): no speed yet: the middle of where
     // the master can be (its cell, beyond 4.5): 5.
     let mut e = after(1, 0);
-    assert_eq!(count(e.update(Counts(5), Some(&reading(1000, cap(900, 5))))), 5.0);
+    assert_eq!(
+        count(e.update(Counts(5), Some(&reading(1000, cap(900, 5))))),
+        5.0
+    );
     // A second edge 4 counts in 1000 ticks, 200 ticks ago, the live count 9: the
     // boundary 8.5 + 4·0.2 = 9.3.
     let m = count(e.update(Counts(9), Some(&reading(2100, cap(1900, 9)))));
@@ -176,9 +202,15 @@ fn falls_back_to_the_count() {
     let m = count(e.clone().update(Counts(9), Some(&reading(2160, None))));
     assert!((m - 9.48).abs() < 1e-4, "{m}");
     // Much later (the extrapolation twice the distance beyond): the middle, 9.
-    assert_eq!(count(e.clone().update(Counts(9), Some(&reading(3000, None)))), 9.0);
+    assert_eq!(
+        count(e.clone().update(Counts(9), Some(&reading(3000, None)))),
+        9.0
+    );
     // Overdue (no edge for more than twice the last interval), one count on: 10.
-    assert_eq!(count(e.clone().update(Counts(10), Some(&reading(3901, None)))), 10.0);
+    assert_eq!(
+        count(e.clone().update(Counts(10), Some(&reading(3901, None)))),
+        10.0
+    );
     // No reading at all: the count, and the edges are forgotten.
     assert_eq!(count(e.update(Counts(9), None)), 9.0);
     assert_eq!(e, EdgeEstimator::START);
@@ -186,24 +218,36 @@ fn falls_back_to_the_count() {
     let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
     e.update(Counts(9), Some(&reading(2000, cap(1900, 9))));
-    assert_eq!(count(e.update(Counts(9), Some(&reading(2500, cap(2400, 9))))), 9.0);
+    assert_eq!(
+        count(e.update(Counts(9), Some(&reading(2500, cap(2400, 9))))),
+        9.0
+    );
     assert_eq!(e.speed_counts_per_s(1_000_000), None);
     // A reversal between two edges (up into 5, then down into 6 — boundary 6.5): no
     // speed; the middle of where it can be (the cell of 6, below 6.5): 6.
     let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
     e.update(Counts(7), Some(&reading(1500, None)));
-    assert_eq!(count(e.update(Counts(6), Some(&reading(2000, cap(1900, 6))))), 6.0);
+    assert_eq!(
+        count(e.update(Counts(6), Some(&reading(2000, cap(1900, 6))))),
+        6.0
+    );
     assert_eq!(e.speed_counts_per_s(1_000_000), None);
     // An edge time in the future (the timer read before the capture): the count.
     let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
-    assert_eq!(count(e.update(Counts(9), Some(&reading(1800, cap(1900, 9))))), 9.0);
+    assert_eq!(
+        count(e.update(Counts(9), Some(&reading(1800, cap(1900, 9))))),
+        9.0
+    );
     // Too slow (an interval beyond the limit): the count.
     let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
     let far = 900 + MAX_INTERVAL_TICKS + 1;
-    assert_eq!(count(e.update(Counts(9), Some(&reading(far + 10, cap(far, 9))))), 9.0);
+    assert_eq!(
+        count(e.update(Counts(9), Some(&reading(far + 10, cap(far, 9))))),
+        9.0
+    );
     // The same capture reported twice is one edge.
     let mut e = after(1, 0);
     e.update(Counts(5), Some(&reading(1000, cap(900, 5))));
@@ -245,7 +289,10 @@ fn speed_from_the_last_two_edges() {
 fn a_wrapping_count_and_timer_are_followed() {
     let t0 = u32::MAX - 500;
     let mut e = after(i32::MAX - 3, t0 - 10);
-    e.update(Counts(i32::MAX - 2), Some(&reading(t0, cap(t0, i32::MAX - 2))));
+    e.update(
+        Counts(i32::MAX - 2),
+        Some(&reading(t0, cap(t0, i32::MAX - 2))),
+    );
     // 4 counts later through the count's and the timer's wrap, 250 ticks after an edge
     // 1000 ticks from the first: the boundary + 1 count, clamped to the cell (+½).
     let c = (i32::MAX - 2).wrapping_add(4);
