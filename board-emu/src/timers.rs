@@ -20,7 +20,8 @@
 pub const CORE_PER_TIMCLK: u64 = 2;
 
 const CR1: usize = 0;
-const CR2: usize = 0x04 / 4;
+/// CR2 (byte offset 0x04).
+const CR2: usize = 1;
 const SMCR: usize = 0x08 / 4;
 const DIER: usize = 0x0C / 4;
 const SR: usize = 0x10 / 4;
