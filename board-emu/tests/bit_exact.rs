@@ -50,6 +50,7 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
     let mut clock = EdgeClock16::new(first8);
     let mut compared = 0;
     let mut edges = 0;
+    let mut pairs: Vec<(u32, i32)> = Vec::new();
     for (k, t) in io.iter().enumerate() {
         let [Some(m), Some(a), Some(b)] = t.enc else {
             panic!("tick {k} did not read every encoder: {t:?}");
@@ -63,6 +64,9 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
             _ => None,
         };
         edges += usize::from(edge.is_some());
+        if let Some(e) = edge {
+            pairs.push((e.at_ticks, e.count.0));
+        }
         let sample = Sample {
             enc: EncoderSample {
                 master: counts_from_u32(m),
@@ -110,4 +114,24 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
     assert!(compared - k_start > 7000);
     // 3 °/s, one rising A edge per 4 counts: an edge in most 1 ms ticks once moving.
     assert!(edges > 4000, "{edges} ticks with an edge");
+    // The pairs are the master's: one edge per line (counts 4 apart, or a multiple), and
+    // their times on a 1 MHz clock give the table's 3 °/s (3 000 counts/s ± 3 % ripple)
+    // — a frozen, mis-clocked or mis-triggered edge timer fails here, not only the
+    // bit-for-bit comparison (which would reproduce the firmware's wrong readings).
+    let mut speeds: Vec<f64> = pairs
+        .windows(2)
+        .skip(pairs.len() / 4)
+        .filter_map(|w| {
+            let (dt, dc) = (w[1].0.wrapping_sub(w[0].0), w[1].1.wrapping_sub(w[0].1));
+            assert_eq!(dc.rem_euclid(4), 0, "edges {w:?} not a whole line apart");
+            (dt > 0).then(|| f64::from(dc) * 1e6 / f64::from(dt))
+        })
+        .collect();
+    speeds.sort_by(f64::total_cmp);
+    let median = speeds[speeds.len() / 2];
+    assert!(
+        (2_850.0..3_150.0).contains(&median),
+        "median master speed from the edge pairs {median} counts/s"
+    );
+    eprintln!("the edge pairs give the master at {median:.1} counts/s (median)");
 }

@@ -100,7 +100,7 @@ pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {
             ki_lsb_per_um_s: 18.0,
             kd_lsb_s_per_um: 0.0,
             i_zone_um: 10_000.0,
-            i_limit_lsb: 200.0,
+            i_limit_lsb: 630.0,
             kv_pos_lsb_per_um_s: 0.01389,
             kv_neg_lsb_per_um_s: 0.01683,
             ka_lsb_per_um_s2: 0.0,

@@ -11,14 +11,17 @@
 //! | TIM8 (free-running, 16-bit) | PSC 167: 1 MHz from its 168 MHz APB2 kernel clock (1 µs, wraps every 65.5 ms); SMCR.TS = ITR3 (TIM5_TRGO), slave mode off; CC1S = 11 (IC1 on TRC), CC1E = 1 | CCR1 ← its time |
 //!
 //! One capture pair per encoder line (4 counts): at 3 °/s every 1.33 ms. The tick reads
-//! the pair after the counters: TIM8's CCR1, then TIM5's CCR1 (which clears CC1IF), then
-//! TIM8's CCR1 again — if it changed, an edge came between the two reads and this
-//! tick's pair is dropped (the estimator extrapolates from the last one). The 16-bit
-//! time is extended with `EdgeClock16` (the tick reads it every period, far below the
-//! 65.5 ms wrap). The count latched is taken as the count *after* the edge (the capture
-//! and the counter step share the synchronised edge); the estimator clamps its result to
-//! the live count's cell, so an off-by-one here could cost at most what the count alone
-//! costs — to be confirmed on the first board (`host-sim capture` of a slow master).
+//! the pair after the counters, and only when both timers have captured (TIM5's and
+//! TIM8's CC1IF: TIM8's capture follows TIM5's by a few clocks, and a pair read in
+//! between would join an old time to a new count; then both flags wait for the next
+//! tick): TIM8's CCR1, then TIM5's CCR1 (which clears its CC1IF), then TIM8's CCR1
+//! again — if it changed, an edge came between the reads and this tick's pair is
+//! dropped (the estimator extrapolates from the last one). The 16-bit time is extended
+//! with `EdgeClock16` (the tick reads it every period, far below the 65.5 ms wrap; a
+//! capture after the counter's reading is placed at the reading). Whether TIM5 latches
+//! the count after or before the edge is learnt by the estimator. The first reading
+//! after boot may be a stale pair (TIM5 captures from `Qei::new` on): the estimator
+//! takes no edge on its first sample.
 
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals::{CcmrInputCcs, Mms, Sms, Ts};
@@ -49,8 +52,9 @@ impl EdgeTimer {
             w.set_cce(0, true);
         });
         t5.cr2().modify(|w| w.set_mms(Mms::COMPARE_PULSE));
-        // TIM8: clock on, free-running at 1 MHz, channel 1 captures on TRC = ITR3.
-        pac::RCC.apb2enr().modify(|w| w.set_tim8en(true));
+        // TIM8: clock on and reset (embassy's helper: the errata's delay after a clock
+        // enable), free-running at 1 MHz, channel 1 captures on TRC = ITR3.
+        embassy_stm32::rcc::enable_and_reset::<peripherals::TIM8>();
         t8.psc().write_value(PSC_1MHZ);
         t8.arr().write(|w| w.set_arr(u16::MAX));
         t8.smcr().modify(|w| {
@@ -76,7 +80,7 @@ impl EdgeTimer {
     #[inline(always)]
     pub fn read(&mut self) -> EdgeReading {
         let now = self.clock.update(self.tim8.cnt().read().cnt());
-        let edge = if self.tim5.sr().read().ccif(0) {
+        let edge = if self.tim5.sr().read().ccif(0) && self.tim8.sr().read().ccif(0) {
             let t = self.tim8.ccr(0).read().ccr();
             let count = self.tim5.ccr(0).read();
             let again = self.tim8.ccr(0).read().ccr();
