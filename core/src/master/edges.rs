@@ -22,10 +22,11 @@
 //!   estimate;
 //! * a step of the count by one between two samples, placed in the middle of the tick,
 //!   for a slow master — its last crossing at least 8 ticks old (`SLOW_TICKS`): its time
-//!   is then within 1/16 of the interval before it — and at a reversal (a step against
-//!   the last crossing). At speed these steps are not used: half a tick is then a large
-//!   part of the interval, and the A edges come often enough. A larger step against the
-//!   last crossing restarts the estimate.
+//!   is then within 1/16 of the interval before it (the interval after it, to the next
+//!   A edge, can be shorter: at 300 counts/s about 3 ticks, ±15 %) — and at a reversal
+//!   (a step against the last crossing). At speed these steps are not used: half a tick
+//!   is then a large part of the interval, and the A edges come often enough. A larger
+//!   step against the last crossing restarts the estimate.
 //!
 //! From the last two crossings `(b₀, t₀)`, `(b₁, t₁)` the same way and the sample's time
 //! `t`:

@@ -145,9 +145,10 @@ fn a_master_slowing_to_a_stop() {
             worst = worst.max((m - truth).abs());
         }
     }
-    // Never worse than the count (the cell), and on average far better while moving.
-    assert!(worst <= 1.0, "{worst}");
-    assert!(sum_est < 0.25 * sum_count, "{sum_est} vs {sum_count}");
+    // At worst as the count at its worst (measured 0.48), on average 7× better while
+    // moving (measured 32.3 against 241.7 counts summed over the ticks).
+    assert!(worst <= 0.5, "{worst}");
+    assert!(sum_est < 0.15 * sum_count, "{sum_est} vs {sum_count}");
     // At rest: the count.
     assert_eq!(
         est.update(
