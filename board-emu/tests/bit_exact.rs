@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use hydra_core::dac::DacRange;
 use hydra_core::follower::Follower;
-use hydra_core::master::{EdgeCapture, EdgeClock16, EdgeReading};
+use hydra_core::master::{EdgeCapture, EdgeReading};
 use hydra_core::profile;
 use hydra_core::runtime::encoder::{counts_from_u32, Extender16};
 use hydra_core::runtime::{BootCause, Command, EncoderSample, Runtime, Sample};
@@ -47,7 +47,7 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
     let first3 = io[0].enc[2].expect("TIM3 read") as u16;
     let mut ext = Extender16::new(first3, 0);
     let first8 = io[0].edge_now.expect("TIM8 read") as u16;
-    let mut clock = EdgeClock16::new(first8);
+    let mut clock = Extender16::new(first8, 0);
     let mut compared = 0;
     let mut edges = 0;
     let mut pairs: Vec<(u32, i32)> = Vec::new();
@@ -55,10 +55,12 @@ fn the_firmware_writes_the_host_runtimes_dac_codes_tick_for_tick() {
         let [Some(m), Some(a), Some(b)] = t.enc else {
             panic!("tick {k} did not read every encoder: {t:?}");
         };
-        let now = clock.update(t.edge_now.expect("the tick read TIM8") as u16);
+        let now = clock
+            .update(t.edge_now.expect("the tick read TIM8") as u16)
+            .0 as u32;
         let edge = match (t.edge_time, t.edge_count) {
             ([Some(t0), Some(t1)], Some(c)) if t0 == t1 => Some(EdgeCapture {
-                at_ticks: clock.past(t0 as u16),
+                at_ticks: clock.extend_past(t0 as u16).0 as u32,
                 count: counts_from_u32(c),
             }),
             _ => None,

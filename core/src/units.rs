@@ -13,7 +13,7 @@
 //! | slave velocity (feed-forward) | [`VelUmPerS`] (newtype over `I24F8`) | µm/s | 3.9 nm/s | ±8.39 m/s | product saturates to the range |
 //! | slave acceleration | [`AccUmPerS2`] = `I32F0` | µm/s² | 1 µm/s² | ±2147 m/s² | product saturates |
 //! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; the filter, predictor and in-segment test work modulo 2^64 raw (`wrapping_*`: a wrapping counter is followed through the wrap) |
-//! | master edge time, sample time | `u32` | edge-timer tick (1 µs on the board) | 1 tick | wrapping 2^32 (differences only; a 16-bit timer extended by [`crate::master::EdgeClock16`]) | only differences below 2^15 ticks (interval) and 2^16 (age) are used ([`crate::master::EdgeEstimator`]) |
+//! | master edge time, sample time | `u32` | edge-timer tick (1 µs on the board) | 1 tick | wrapping 2^32 (differences only; a 16-bit timer extended by [`crate::runtime::encoder::Extender16`]) | only differences below 2^15 ticks (interval) and 2^16 (age) are used ([`crate::master::EdgeEstimator`]) |
 //! | sub-count fraction (age / edge interval) | `u32` Q16 | 1 | 1.5e-5 | [0, 2) | age ≤ 2·interval < 2^16 ticks: `age << 16` < 2^32 |
 //! | master speed | [`MasterRate`] = `I48F16` | counts/s | 1.5e-5 counts/s | ±1.4e14 | derived from the filter state by one shift |
 //! | master-filter velocity per tick | `I32F32` (`i64`) | counts/tick | 2.3e-10 | ±2^31 | residual clamped to ±2^14 counts before the gain product; saturating adds |

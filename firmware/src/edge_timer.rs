@@ -17,8 +17,9 @@
 //! tick): TIM8's CCR1, then TIM5's CCR1 (which clears its CC1IF), then TIM8's CCR1
 //! again — if it changed, an edge came between the reads and this tick's pair is
 //! dropped (the estimator extrapolates from the last one). The 16-bit time is extended
-//! with `EdgeClock16` (the tick reads it every period, far below the 65.5 ms wrap; a
-//! capture after the counter's reading is placed at the reading). Whether TIM5 latches
+//! by the encoders' `Extender16` (the tick reads it every period, far below its 32.8 ms
+//! limit; a capture after the counter's reading extends into the future, and the
+//! estimator falls back for that one tick). Whether TIM5 latches
 //! the count after or before the edge is learnt by the estimator. The first reading
 //! after boot may be a stale pair (TIM5 captures from `Qei::new` on): the estimator
 //! takes no edge on its first sample.
@@ -28,7 +29,8 @@ use embassy_stm32::pac::timer::vals::{CcmrInputCcs, Mms, Sms, Ts};
 use embassy_stm32::pac::timer::{TimAdv, TimGp32};
 use embassy_stm32::peripherals;
 use embassy_stm32::Peri;
-use hydra_core::master::{EdgeCapture, EdgeClock16, EdgeReading};
+use hydra_core::master::{EdgeCapture, EdgeReading};
+use hydra_core::runtime::encoder::Extender16;
 use hydra_core::units::Counts;
 
 /// TIM8's prescaler: 168 MHz / (167 + 1) = 1 MHz.
@@ -39,7 +41,7 @@ pub struct EdgeTimer {
     _tim8: Peri<'static, peripherals::TIM8>,
     tim8: TimAdv,
     tim5: TimGp32,
-    clock: EdgeClock16,
+    clock: Extender16,
 }
 
 impl EdgeTimer {
@@ -66,7 +68,7 @@ impl EdgeTimer {
         // Load the prescaler, then count.
         t8.egr().write(|w| w.set_ug(true));
         t8.cr1().modify(|w| w.set_cen(true));
-        let clock = EdgeClock16::new(t8.cnt().read().cnt());
+        let clock = Extender16::new(t8.cnt().read().cnt(), 0);
         Self {
             _tim8: tim8,
             tim8: t8,
@@ -79,13 +81,14 @@ impl EdgeTimer {
     /// call (read right after the encoder counters).
     #[inline(always)]
     pub fn read(&mut self) -> EdgeReading {
-        let now = self.clock.update(self.tim8.cnt().read().cnt());
+        // The extended count read as a wrapping u32 time.
+        let now = self.clock.update(self.tim8.cnt().read().cnt()).0 as u32;
         let edge = if self.tim5.sr().read().ccif(0) && self.tim8.sr().read().ccif(0) {
             let t = self.tim8.ccr(0).read().ccr();
             let count = self.tim5.ccr(0).read();
             let again = self.tim8.ccr(0).read().ccr();
             (again == t).then(|| EdgeCapture {
-                at_ticks: self.clock.past(t),
+                at_ticks: self.clock.extend_past(t).0 as u32,
                 count: Counts(count as i32),
             })
         } else {

@@ -52,7 +52,8 @@
 //! twice the last interval old (the master stopped) or one in the future.
 //!
 //! Formats: times are edge-timer ticks in wrapping `u32` (only differences are used,
-//! valid up to 2^31 ticks); the fraction `(t − t₁)/(t₁ − t₀)` is Q16 in a `u32` (≤ 2:
+//! valid up to 2^31 ticks; a 16-bit timer is extended by the encoders' own
+//! [`crate::runtime::encoder::Extender16`], its count read as a wrapping `u32`); the fraction `(t − t₁)/(t₁ − t₀)` is Q16 in a `u32` (≤ 2:
 //! both times shifted right until the interval has 15 bits, then one 32-bit division,
 //! `(t − t₁) << 16` < 2^32); `Δb` is `I48F16` in an `i32` (`|Δb|` ≤ [`MAX_STEP_COUNTS`]
 //! < 2^13 counts); the position is [`Master`] (`I48F16` counts), formed relative to the
@@ -297,11 +298,6 @@ impl EdgeEstimator {
         num.checked_div(i64::from(dt))
             .map(crate::units::MasterRate::from_bits)
     }
-
-    /// Forgets every edge (the next two crossings start the estimate again).
-    pub fn reset(&mut self) {
-        *self = Self::START;
-    }
 }
 
 /// The boundary a crossing into count `c` marks, `I48F16` raw: `c − ½` counting up,
@@ -311,51 +307,6 @@ fn boundary(c: i32, up: bool) -> i64 {
     i64::from(c)
         .wrapping_shl(16)
         .wrapping_sub(if up { HALF } else { NEG_HALF })
-}
-
-/// Extends a 16-bit edge timer to the wrapping `u32` time the estimator takes: the
-/// timer is read every tick (its wrap must be longer than a period), a capture since the
-/// last reading is placed before it.
-///
-/// ```text
-/// now32(k) = now32(k−1) + (raw(k) − raw(k−1)) mod 2^16
-/// at32     = now32(k) − (raw(k) − capture) mod 2^16
-/// ```
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct EdgeClock16 {
-    last_raw: u16,
-    now: u32,
-}
-
-impl EdgeClock16 {
-    /// A clock at 0 for the raw reading `raw`.
-    pub const fn new(raw: u16) -> Self {
-        Self {
-            last_raw: raw,
-            now: 0,
-        }
-    }
-
-    /// Takes the timer's reading now and returns the extended time.
-    #[inline]
-    pub fn update(&mut self, raw: u16) -> u32 {
-        self.now = self
-            .now
-            .wrapping_add(u32::from(raw.wrapping_sub(self.last_raw)));
-        self.last_raw = raw;
-        self.now
-    }
-
-    /// The extended time of a capture taken at most 2^15 ticks before the last reading;
-    /// one that reads later than the reading (an edge between the two reads) is placed at
-    /// the reading.
-    #[inline]
-    pub const fn past(&self, capture: u16) -> u32 {
-        let back = self.last_raw.wrapping_sub(capture);
-        let back = if back > 1 << 15 { 0 } else { back };
-        self.now.wrapping_sub(back as u32)
-    }
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ mod edges;
 mod filter;
 mod predictor;
 
-pub use edges::{EdgeCapture, EdgeClock16, EdgeEstimator, EdgeReading};
+pub use edges::{EdgeCapture, EdgeEstimator, EdgeReading};
 pub use filter::{
     MasterAhead, MasterEstimate, MasterFilter, MasterFilterCoeffs, MasterFilterConfig,
     MasterFilterError,
