@@ -88,6 +88,14 @@ pub enum Motion {
         /// Velocity, acceleration and jerk limits.
         limits: crate::runtime::MotionLimits,
     },
+    /// The identification test move on slave `axis` (Idle or Manual, at rest,
+    /// referenced).
+    Test {
+        /// Slave axis.
+        axis: u8,
+        /// The test.
+        spec: crate::runtime::TestSpec,
+    },
 }
 
 /// What the handler needs from the machine it controls: the runtime on the board, the
@@ -727,6 +735,14 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 to: crate::units::PosUm::from_bits(to_um),
                 limits: limits.into(),
             }),
+            Request::TestMove { axis, test } => match test.spec() {
+                Some(spec) => dev.command(Motion::Test { axis, spec }),
+                None => Err(Nak::with(
+                    NakCode::Motion,
+                    u16::from(axis),
+                    super::msg::motion_reason::TEST_SPEC,
+                )),
+            },
             Request::Approach { limits } => dev
                 .command(Motion::Approach {
                     limits: limits.into(),

@@ -108,7 +108,10 @@ impl Device<S, N> for Mock {
                 Ok(())
             }
             Motion::Home { .. } => Ok(()),
-            Motion::Jog { .. } | Motion::MoveTo { .. } | Motion::Approach { .. } => {
+            Motion::Jog { .. }
+            | Motion::MoveTo { .. }
+            | Motion::Approach { .. }
+            | Motion::Test { .. } => {
                 Err(Nak::with(NakCode::BadState, 0, 1))
             }
         }

@@ -14,7 +14,7 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 /// Protocol version reported in `Info`.
-pub const PROTOCOL_VERSION: u8 = 5;
+pub const PROTOCOL_VERSION: u8 = 6;
 /// Most axes a `Status`/`Telemetry` message can describe.
 pub const MAX_AXES: usize = 8;
 /// "No table" in id fields.
@@ -54,6 +54,8 @@ pub mod ty {
     pub const MOVE_TO: u8 = 0x27;
     /// Request: move every slave to the table at the present master, then follow.
     pub const APPROACH: u8 = 0x28;
+    /// [`super::Request::TestMove`].
+    pub const TEST_MOVE: u8 = 0x29;
     /// Request: set one parameter.
     pub const SET_PARAM: u8 = 0x30;
     /// Request: persist the active table to flash.
@@ -195,6 +197,8 @@ pub mod motion_reason {
     pub const PLAN: u8 = 4;
     /// The speed is above the axis' `limits/max_speed_um_per_s`.
     pub const TOO_FAST: u8 = 5;
+    /// A test move's profile, amplitude, duration, dwell or frequency is impossible.
+    pub const TEST_SPEC: u8 = 6;
 }
 
 impl NakCode {
@@ -405,6 +409,13 @@ pub enum Request<'a> {
         /// Velocity, acceleration and jerk limits.
         limits: MotionLimitsMsg,
     },
+    /// The identification test move on slave `axis` (`runtime::test_move`).
+    TestMove {
+        /// Slave axis (0-based).
+        axis: u8,
+        /// The test.
+        test: TestMoveMsg,
+    },
     /// Set one parameter.
     SetParam {
         /// Axis (ignored by board-wide parameters).
@@ -509,6 +520,10 @@ impl<'a> Request<'a> {
             ty::APPROACH => Request::Approach {
                 limits: body(payload)?,
             },
+            ty::TEST_MOVE => {
+                let (axis, test) = body(payload)?;
+                Request::TestMove { axis, test }
+            }
             ty::SET_PARAM => {
                 let (axis, param, value) = body(payload)?;
                 Request::SetParam { axis, param, value }
@@ -554,6 +569,7 @@ impl<'a> Request<'a> {
             Request::Jog { .. } => ty::JOG,
             Request::MoveTo { .. } => ty::MOVE_TO,
             Request::Approach { .. } => ty::APPROACH,
+            Request::TestMove { .. } => ty::TEST_MOVE,
             Request::SetParam { .. } => ty::SET_PARAM,
             Request::Save => ty::SAVE,
             Request::SetTelemetry { .. } => ty::SET_TELEMETRY,
@@ -598,6 +614,7 @@ impl<'a> Request<'a> {
                 limits,
             } => put(&(axis, to_um, limits), buf),
             Request::Approach { limits } => put(&limits, buf),
+            Request::TestMove { axis, test } => put(&(axis, test), buf),
             Request::SetParam { axis, param, value } => put(&(axis, param, value), buf),
             Request::SetTelemetry { decimation } => put(&decimation, buf),
             Request::GetParam { axis, param } => put(&(axis, param), buf),
@@ -748,6 +765,49 @@ pub struct MotionLimitsMsg {
     pub acc_um_per_s2: u32,
     /// Jerk limit, µm/s³.
     pub jerk_um_per_s3: u32,
+}
+
+/// The body of a `TestMove` (`runtime::TestSpec` on the wire).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TestMoveMsg {
+    /// 0 step, 1 chirp, 2 prbs (`runtime::TestProfile::code`).
+    pub profile: u8,
+    /// Amplitude, µm.
+    pub amplitude_um: u32,
+    /// Duration, ms.
+    pub duration_ms: u32,
+    /// Step / PRBS: time per level, ms.
+    pub dwell_ms: u32,
+    /// Chirp: start frequency, mHz.
+    pub f_start_mhz: u32,
+    /// Chirp: end frequency, mHz.
+    pub f_end_mhz: u32,
+}
+
+impl TestMoveMsg {
+    /// The runtime's spec (`None`: an unknown profile).
+    pub fn spec(&self) -> Option<crate::runtime::TestSpec> {
+        Some(crate::runtime::TestSpec {
+            profile: crate::runtime::TestProfile::from_code(self.profile)?,
+            amplitude_um: self.amplitude_um,
+            duration_ms: self.duration_ms,
+            dwell_ms: self.dwell_ms,
+            f_start_mhz: self.f_start_mhz,
+            f_end_mhz: self.f_end_mhz,
+        })
+    }
+
+    /// The wire form of a spec.
+    pub fn of(s: &crate::runtime::TestSpec) -> Self {
+        Self {
+            profile: s.profile.code(),
+            amplitude_um: s.amplitude_um,
+            duration_ms: s.duration_ms,
+            dwell_ms: s.dwell_ms,
+            f_start_mhz: s.f_start_mhz,
+            f_end_mhz: s.f_end_mhz,
+        }
+    }
 }
 
 /// `Status`.

@@ -61,6 +61,14 @@ pub fn motion_command<const S: usize>(m: Motion, limits: &TableLimits<S>) -> Res
                 range: range(axis),
             }
         }
+        Motion::Test { axis, spec } => Command::Test {
+            axis,
+            spec,
+            range: range(axis),
+            max_speed_um_per_s: axis_limits(axis).map_or(0, |a| {
+                u32::try_from(a.max_speed_um_per_s.to_num::<i32>()).unwrap_or(0)
+            }),
+        },
         Motion::Approach { limits } => {
             if let Some(axis) = (0..S).find(|&i| {
                 !speed_ok(
@@ -90,6 +98,8 @@ pub const fn command_nak(state: u8, e: CommandError) -> Nak {
                 MotionError::OutsideLimits => motion_reason::OUTSIDE_LIMITS,
                 MotionError::Moving => motion_reason::MOVING,
                 MotionError::Plan => motion_reason::PLAN,
+                MotionError::TestSpec => motion_reason::TEST_SPEC,
+                MotionError::TooFast => motion_reason::TOO_FAST,
             },
         ),
         _ => Nak::with(NakCode::BadState, state as u16, refusal_reason(e)),

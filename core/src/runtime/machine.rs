@@ -8,7 +8,7 @@
 //!    │ ClearFault (cause gone)
 //!   Fault ◀──────── any fault, from every state (latched)
 //!
-//!   Idle ── Jog / MoveTo / Approach ──▶ Manual ── Stop ──▶ Idle
+//!   Idle ── Jog / MoveTo / Approach / Test ──▶ Manual ── Stop ──▶ Idle
 //!   Manual ── Start (every slave at rest), or the approach's end ──▶ Following
 //! ```
 //!
@@ -150,6 +150,19 @@ pub enum Command {
     Approach {
         /// Velocity, acceleration and jerk limits of every slave's move.
         limits: MotionLimits,
+    },
+    /// Idle or Manual, slave at rest and referenced: the identification test move
+    /// `spec` about where it holds (`super::test_move`), within `range` and
+    /// `max_speed_um_per_s`.
+    Test {
+        /// Slave axis (0-based).
+        axis: u8,
+        /// The test.
+        spec: super::test_move::TestSpec,
+        /// The slave's position limits (min, max), µm.
+        range: (PosUm, PosUm),
+        /// The slave's top speed, µm/s.
+        max_speed_um_per_s: u32,
     },
 }
 
@@ -613,7 +626,13 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         let unreferenced = self.refs.first_unreferenced();
         let manual_at_rest = self.state == State::Manual && self.manual.at_rest();
         match (cmd, self.state) {
-            (Command::Jog { .. } | Command::MoveTo { .. } | Command::Approach { .. }, _) => {
+            (
+                Command::Jog { .. }
+                | Command::MoveTo { .. }
+                | Command::Approach { .. }
+                | Command::Test { .. },
+                _,
+            ) => {
                 self.manual_command(cmd, master, pos_um)
             }
             (Command::Hold, State::Manual) => {

@@ -1,4 +1,4 @@
-//! The runtime's `Manual` state: the manual commands (jog, move, approach) and the
+//! The runtime's `Manual` state: the manual commands (jog, move, approach, test) and the
 //! manual tick ([`super::manual`] gives the references, the law follows them).
 
 use super::super::config::MasterSource;
@@ -18,7 +18,7 @@ pub const APPROACH_TOLERANCE_UM: i32 = 10;
 const APPROACH_TOLERANCE: PosUm = PosUm::from_bits(APPROACH_TOLERANCE_UM << 8);
 
 impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
-    /// Jog, MoveTo or Approach (Idle or Manual; Idle enters Manual on success).
+    /// Jog, MoveTo, Approach or Test (Idle or Manual; Idle enters Manual on success).
     pub(super) fn manual_command(
         &mut self,
         cmd: Command,
@@ -82,6 +82,19 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 }
                 self.manual
                     .move_to(usize::from(axis), to, &limits)
+                    .map_err(motion(axis))?;
+            }
+            Command::Test {
+                axis,
+                spec,
+                range,
+                max_speed_um_per_s,
+            } => {
+                if !referenced(self, axis)? {
+                    return Err(CommandError::NotReferenced { axis });
+                }
+                self.manual
+                    .test(usize::from(axis), &spec, range, max_speed_um_per_s)
                     .map_err(motion(axis))?;
             }
             Command::Approach { limits } => {

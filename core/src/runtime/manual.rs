@@ -13,8 +13,12 @@
 //! - **move**: the time-optimal rest-to-rest 7-phase S-curve of [`crate::scurve`] from the
 //!   held position to a target (planned once, sampled per tick).
 //!
+//! - **test**: the identification test move of [`super::test_move`] about the held
+//!   position (step, chirp or PRBS), then a hold at that position.
+//!
 //! A move stopped early (Stop in manual, or a jog started on a moving axis) becomes a ramp
-//! to speed 0 from the move's velocity and acceleration: no step in the reference.
+//! to speed 0 from the move's velocity and acceleration: no step in the reference. A test
+//! stopped early holds at its centre (a step of at most its amplitude, like its own).
 //!
 //! ## The ramp, per tick (all quantities per tick, `i64` Q36 µm)
 //!
@@ -35,6 +39,7 @@
 //! Q36 µm: resolution 1.5e-11 µm; positions up to 2^23 µm (the range of [`PosUm`]) are
 //! below 2^59. A jerk of 1 mm/s³ at a 100 µs period is 1e-9 µm/tick³ = 69 LSB.
 
+use super::test_move::{TestError, TestMove, TestSpec};
 use crate::axis::PosRef;
 use crate::scurve::{Limits, Plan, Profile};
 use crate::units::{AccUmPerS2, PosUm, VelUmPerS};
@@ -68,15 +73,18 @@ pub enum ManualKind {
     Jog,
     /// Moving by an S-curve.
     Move,
+    /// Running an identification test move.
+    Test,
 }
 
 impl ManualKind {
-    /// Wire code: 0 hold, 1 jog, 2 move.
+    /// Wire code: 0 hold, 1 jog, 2 move, 3 test.
     pub const fn code(self) -> u8 {
         match self {
             ManualKind::Hold => 0,
             ManualKind::Jog => 1,
             ManualKind::Move => 2,
+            ManualKind::Test => 3,
         }
     }
 }
@@ -93,6 +101,21 @@ pub enum MotionError {
     Moving,
     /// The move cannot be planned (too long for the position format or the tick count).
     Plan,
+    /// A test move's amplitude, duration, dwell or frequency is impossible
+    /// ([`TestError::Spec`]).
+    TestSpec,
+    /// A test move's peak speed is above the axis' top speed.
+    TooFast,
+}
+
+impl From<TestError> for MotionError {
+    fn from(e: TestError) -> Self {
+        match e {
+            TestError::Spec => MotionError::TestSpec,
+            TestError::OutsideLimits => MotionError::OutsideLimits,
+            TestError::TooFast => MotionError::TooFast,
+        }
+    }
 }
 
 /// Online jerk-limited velocity ramp (module docs), Q36 per tick.
@@ -132,6 +155,7 @@ enum AxisMotion {
     Hold(PosUm),
     Ramp(Ramp),
     Move(Move),
+    Test(TestMove),
 }
 
 /// The manual references of every slave, and the period they are sampled at.
@@ -350,6 +374,7 @@ impl<const S: usize> Manual<S> {
             AxisMotion::Hold(_) => ManualKind::Hold,
             AxisMotion::Ramp(_) => ManualKind::Jog,
             AxisMotion::Move(_) => ManualKind::Move,
+            AxisMotion::Test(_) => ManualKind::Test,
         })
     }
 
@@ -408,6 +433,8 @@ impl<const S: usize> Manual<S> {
                     ..Ramp::at_rest(r.x_ref_um)
                 }
             }
+            // A test runs to its end (or Hold): a jog does not take it over.
+            AxisMotion::Test(_) => return Err(MotionError::Moving),
         };
         let lims = limits.map(|(lo, hi)| (q36_of(lo), q36_of(hi)));
         if let Some((lo, hi)) = lims {
@@ -451,6 +478,30 @@ impl<const S: usize> Manual<S> {
         Ok(())
     }
 
+    /// Runs the test move `spec` on slave `axis` about where it holds, within `range`
+    /// (min, max) and the top speed `max_speed_um_per_s` (µm/s).
+    pub fn test(
+        &mut self,
+        axis: usize,
+        spec: &TestSpec,
+        range: (PosUm, PosUm),
+        max_speed_um_per_s: u32,
+    ) -> Result<(), MotionError> {
+        let period = self.period_us;
+        let slot = self.axes.get_mut(axis).ok_or(MotionError::Limits)?;
+        let AxisMotion::Hold(center) = *slot else {
+            return Err(MotionError::Moving);
+        };
+        *slot = AxisMotion::Test(TestMove::new(
+            spec,
+            center,
+            range,
+            max_speed_um_per_s,
+            period,
+        )?);
+        Ok(())
+    }
+
     /// Shifts slave `axis`' reference by `delta` (µm): its measured position moved by
     /// `delta` because the axis was just referenced (a home edge while jogging), so the
     /// reference follows and the error does not step.
@@ -466,6 +517,7 @@ impl<const S: usize> Manual<S> {
                 mv.from = shift(mv.from);
                 mv.to = shift(mv.to);
             }
+            AxisMotion::Test(t) => t.rebase(delta),
         }
     }
 
@@ -486,6 +538,7 @@ impl<const S: usize> Manual<S> {
                         ..Ramp::at_rest(r.x_ref_um)
                     });
                 }
+                AxisMotion::Test(t) => *m = AxisMotion::Hold(t.center()),
                 AxisMotion::Hold(_) => {}
             }
         }
@@ -513,6 +566,13 @@ impl<const S: usize> Manual<S> {
                     let (rf, _, _) = mv.sample(period);
                     if mv.k >= mv.profile.end_tick() {
                         *m = AxisMotion::Hold(mv.to);
+                    }
+                    rf
+                }
+                AxisMotion::Test(t) => {
+                    let rf = t.step();
+                    if t.done() {
+                        *m = AxisMotion::Hold(t.center());
                     }
                     rf
                 }

@@ -16,7 +16,8 @@
 //! - [`stall`]: master-stall detection; [`timing`]: tick execution-time statistics;
 //! - [`pressure`]: transducer scaling;
 //! - [`reference`]: where each slave is (set-position, homing, absolute encoders);
-//! - [`manual`]: moving slaves by hand (jog with a deadman, S-curve moves, the approach).
+//! - [`manual`]: moving slaves by hand (jog with a deadman, S-curve moves, the approach);
+//!   [`test_move`]: the identification test move.
 
 pub mod capture;
 pub mod config;
@@ -30,6 +31,7 @@ pub mod manual;
 pub mod pressure;
 pub mod reference;
 pub mod stall;
+pub mod test_move;
 pub mod tick;
 pub mod timing;
 
@@ -54,6 +56,7 @@ pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
 };
 pub use manual::{ManualKind, MotionError, MotionLimits, JOG_DEADMAN_US};
+pub use test_move::{TestError, TestMove, TestProfile, TestSpec};
 pub use reference::{RefState, ReferenceMode, References};
 pub use tick::{
     Reply, TickCommand, TickHost, TickLoop, TickSample, FLAG_COMMAND, FLAG_END_OF_TABLE,

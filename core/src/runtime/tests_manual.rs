@@ -319,3 +319,79 @@ fn manual_keeps_the_safety_rules() {
     assert_eq!(r.status().dac, [DacCode::new_clamped(7); 2]);
     assert!(!r.status().enable);
 }
+
+fn test_move(axis: u8, profile: TestProfile, amplitude_um: u32) -> Command {
+    Command::Test {
+        axis,
+        spec: TestSpec {
+            profile,
+            amplitude_um,
+            duration_ms: 100,
+            dwell_ms: 20,
+            f_start_mhz: 1000,
+            f_end_mhz: 20_000,
+        },
+        range: RANGE,
+        max_speed_um_per_s: 200_000,
+    }
+}
+
+#[test]
+fn a_test_move_excites_one_slave_about_where_it_holds_then_holds_there() {
+    let mut r = rt();
+    let out = r.step(
+        &sample(0, [40_000, 2000]),
+        Some(test_move(0, TestProfile::Step, 500)),
+    );
+    assert_eq!(out.reply, Some(Ok(())));
+    assert_eq!(r.state(), State::Manual);
+    assert!(out.enable, "under the law's control, valves powered");
+    assert_eq!(r.status().manual, [ManualKind::Test, ManualKind::Hold]);
+    let mut seen = std::vec::Vec::new();
+    for _ in 0..100 {
+        seen.push(r.status().target_um[0].to_num::<i32>());
+        follow(&mut r, 0, 1);
+    }
+    // +A, 0, −A, 0, +A about 40 000 µm by 20 ms levels; the other slave holds.
+    for v in [40_500, 40_000, 39_500] {
+        assert!(seen.contains(&v), "{v} in {seen:?}");
+    }
+    assert!(seen.iter().all(|v| (39_500..=40_500).contains(v)));
+    assert_eq!(r.status().target_um[1], PosUm::from_num(2000));
+    follow(&mut r, 0, 2);
+    assert_eq!(r.status().manual, [ManualKind::Hold; 2]);
+    assert_eq!(r.status().target_um[0], PosUm::from_num(40_000), "back at its centre");
+    assert_eq!(r.state(), State::Manual);
+}
+
+#[test]
+fn a_test_move_is_refused_outside_limits_too_fast_or_on_a_moving_slave() {
+    let mut r = rt();
+    let refused = |error| Some(Err(CommandError::Motion { axis: 0, error }));
+    let at = [50_000, 30_000];
+    // 60 mm about 50 mm leaves the range at 0.
+    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Prbs, 60_000)));
+    assert_eq!(out.reply, refused(MotionError::OutsideLimits));
+    assert_eq!(r.state(), State::Idle, "nothing moved");
+    // A chirp of 5 mm to 20 Hz: 628 mm/s peak, above 200 mm/s.
+    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Chirp, 5000)));
+    assert_eq!(out.reply, refused(MotionError::TooFast));
+    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Step, 0)));
+    assert_eq!(out.reply, refused(MotionError::TestSpec));
+    // While slave 0 jogs, a test on it is refused; Hold brakes it (the test's centre).
+    r.step(&sample(0, at), Some(jog(0, 1.0)));
+    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Step, 100)));
+    assert_eq!(out.reply, refused(MotionError::Moving));
+    let out = r.step(&sample(0, at), Some(test_move(1, TestProfile::Step, 100)));
+    assert_eq!(out.reply, Some(Ok(())), "the other slave may test meanwhile");
+    follow(&mut r, 0, 5);
+    assert_eq!(r.status().target_um[1], PosUm::from_num(30_100));
+    r.step(&sample(0, at), Some(Command::Hold));
+    follow(&mut r, 0, 200);
+    assert_eq!(r.status().manual, [ManualKind::Hold; 2]);
+    assert_eq!(
+        r.status().target_um[1],
+        PosUm::from_num(30_000),
+        "held at the test's centre"
+    );
+}

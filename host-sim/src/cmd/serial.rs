@@ -74,6 +74,10 @@ pub fn explain(nak: &Nak) -> String {
                 m::MOVING => "it is moving: wait until it is at rest (or hold)",
                 m::PLAN => "the move is too long to plan",
                 m::TOO_FAST => "the speed is above its limits/max_speed_um_per_s",
+                m::TEST_SPEC => {
+                    "the test's profile, amplitude (1 µm … 100 mm), duration (≤ 60 s), dwell or \
+                     frequency (≤ a tenth of the loop rate) is impossible"
+                }
                 _ => "refused",
             };
             format!("slave {d}: {why}")

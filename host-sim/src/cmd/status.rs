@@ -89,7 +89,8 @@ pub struct AxisReport {
     pub dac: i16,
     /// `referenced`, `homing` (waiting for the reference edge) or `unreferenced`.
     pub reference: String,
-    /// In state manual: `hold`, `jog` (jogging or braking) or `move` (an S-curve move).
+    /// In state manual: `hold`, `jog` (jogging or braking), `move` (an S-curve move) or
+    /// `test` (an identification test move).
     pub manual: String,
 }
 
@@ -287,6 +288,7 @@ pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: 
                 manual: match a.manual {
                     1 => "jog",
                     2 => "move",
+                    3 => "test",
                     _ => "hold",
                 }
                 .to_string(),
