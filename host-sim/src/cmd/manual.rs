@@ -33,7 +33,8 @@ pub struct ManualArgs {
     /// Jog: target speed, mm/s (signed; 0 brakes to rest).
     #[arg(long, allow_negative_numbers = true)]
     pub speed_mm_s: Option<f64>,
-    /// Jog: how long, s (default: until the process is stopped).
+    /// Jog: how long, s (default: until the process is stopped). Test: the test's
+    /// length [1.8].
     #[arg(long)]
     pub seconds: Option<f64>,
     /// Move: target position, mm.
@@ -110,6 +111,9 @@ pub fn check_args(what: What, m: &ManualArgs) -> anyhow::Result<()> {
     let limits = m.vmax.is_some() || m.amax.is_some() || m.jerk.is_some();
     let ok = match what {
         What::Jog => !moving && m.vmax.is_none() && !m.approach && m.timeout_s.is_none(),
+        What::Test => {
+            m.speed_mm_s.is_none() && !moving && !limits && !m.approach && m.timeout_s.is_none()
+        }
         What::Move => !jog && !m.approach,
         What::Start => !jog && !moving && (m.approach || (!limits && m.timeout_s.is_none())),
         _ => !jog && !moving && !limits && !m.approach && m.timeout_s.is_none(),
@@ -118,7 +122,7 @@ pub fn check_args(what: What, m: &ManualArgs) -> anyhow::Result<()> {
         ok,
         "{what:?} does not take these options (jog: --speed-mm-s --seconds --amax --jerk; \
          move: --to-mm --vmax --amax --jerk --in-position-mm --timeout-s; start --approach: \
-         --vmax --amax --jerk --timeout-s)"
+         --vmax --amax --jerk --timeout-s; test: --seconds and the test's options)"
     );
     if let Some(s) = m.seconds {
         anyhow::ensure!(s.is_finite() && s > 0.0, "--seconds {s}: must be > 0");

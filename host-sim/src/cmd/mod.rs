@@ -15,6 +15,7 @@ pub mod serial;
 pub mod serve;
 pub mod status;
 pub mod table;
+pub mod test_move;
 pub mod trace;
 pub mod upload;
 pub mod xy;

@@ -5,6 +5,8 @@
 //!
 //! `host-sim motion --port PORT jog --axis N --speed-mm-s V [--seconds S]`, `motion move
 //! --axis N --to-mm X`, `motion start --approach`: moving slaves by hand (`manual`).
+//! `motion test --axis N --profile step|chirp|prbs --csv REC.csv`: the identification
+//! test move, recorded by the capture (`test_move`).
 //!
 //! `host-sim motion --port PORT master start|stop|rewind|status [--speed-scale K]`: the
 //! virtual board's simulated master (`serve`), so a run can be repeated without
@@ -36,6 +38,8 @@ pub enum What {
     Jog,
     /// Move slave `--axis` to `--to-mm` by the S-curve; returns when it is there.
     Move,
+    /// The identification test move on slave `--axis` (`--profile`), recorded to `--csv`.
+    Test,
 }
 
 /// What to do with a virtual board's master.
@@ -75,6 +79,9 @@ pub struct Args {
     /// Manual motion limits and options (jog, move, start --approach).
     #[command(flatten)]
     pub manual: super::manual::ManualArgs,
+    /// The test move's options.
+    #[command(flatten)]
+    pub test: super::test_move::TestArgs,
 }
 
 /// The request of `args`, or why it cannot be sent.
@@ -84,6 +91,12 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
             .ok_or_else(|| anyhow::anyhow!("{:?} needs --axis N (the slave, 0-based)", args.what))
     };
     super::manual::check_args(args.what, &args.manual)?;
+    anyhow::ensure!(
+        args.what == What::Test || !args.test.any(),
+        "{:?} does not take the test's options (--profile --amplitude-mm --dwell-ms --f0-hz \
+         --f1-hz --csv --plot)",
+        args.what
+    );
     anyhow::ensure!(
         args.what == What::Master || (args.master_op.is_none() && args.speed_scale.is_none()),
         "{:?} takes no master operation or --speed-scale (those are `motion master …`)",
@@ -99,6 +112,12 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
         },
         What::Jog => super::manual::jog_request(axis()?, &args.manual, args.manual.speed()?)?,
         What::Move => super::manual::move_request(axis()?, &args.manual)?,
+        What::Test => Request::TestMove {
+            axis: axis()?,
+            test: hydra_core::protocol::msg::TestMoveMsg::of(
+                &args.test.spec(args.manual.seconds)?,
+            ),
+        },
         What::Start => Request::Start,
         What::Stop => Request::Stop,
         What::Hold => Request::Hold,
@@ -152,6 +171,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             link.expect_ack(&q)?;
             return super::manual::wait_following(&mut link, &args.manual);
         }
+        Request::TestMove { axis, .. } => {
+            return super::test_move::run(&mut link, axis, &args.test, args.manual.seconds);
+        }
         _ => {}
     }
     if let Request::VirtualMaster { .. } = q {
@@ -197,6 +219,7 @@ mod tests {
             master_op: None,
             speed_scale: None,
             manual: Default::default(),
+            test: Default::default(),
         }
     }
 
