@@ -356,6 +356,31 @@ pub fn identify(known: &HydraulicAxis, rec: &[Sample]) -> Result<Identified, Ide
             value: th[2],
         });
     }
+    push_flow_params(&mut params, &th, &sd, overlap);
+
+    // 3. Force balance.
+    let (mut rows, mut y) = (Vec::new(), Vec::new());
+    for &i in &idx {
+        let s = &rec[i];
+        let Some(a) = acc[i] else { continue };
+        let vs = c.coulomb_smoothing_m_per_s.max(1e-9);
+        rows.push(vec![a, s.v_m_s, (s.v_m_s / vs).tanh(), 1.0]);
+        y.push(aa * s.pa_pa - ab * s.pb_pa);
+    }
+    let (th, sd) = lstsq("motion", &rows, &y)?;
+    push_force_params(&mut params, &th, &sd)?;
+
+    push_derived(&mut params, known);
+    Ok(Identified {
+        params,
+        used_samples: idx.len(),
+        samples: rec.len(),
+    })
+}
+
+/// The flow-and-oil fit's parameters: the coefficients (K⁺, K⁻, 1/β) with their σ, and
+/// the overlap found by the scan.
+fn push_flow_params(params: &mut Vec<Param>, th: &[f64], sd: &[f64], overlap: f64) {
     // Rated flow at 35 bar: K·√(35e5) m³/s → l/min.
     let rated = (35e5f64).sqrt() * 60_000.0;
     params.push(Param {
@@ -379,17 +404,11 @@ pub fn identify(known: &HydraulicAxis, rec: &[Sample]) -> Result<Identified, Ide
         value: overlap,
         std: 0.0025,
     });
+}
 
-    // 3. Force balance.
-    let (mut rows, mut y) = (Vec::new(), Vec::new());
-    for &i in &idx {
-        let s = &rec[i];
-        let Some(a) = acc[i] else { continue };
-        let vs = c.coulomb_smoothing_m_per_s.max(1e-9);
-        rows.push(vec![a, s.v_m_s, (s.v_m_s / vs).tanh(), 1.0]);
-        y.push(aa * s.pa_pa - ab * s.pb_pa);
-    }
-    let (th, sd) = lstsq("motion", &rows, &y)?;
+/// The force balance's parameters (m, c, F_c, F_0 with their σ); a non-physical mass or
+/// a clearly negative friction is an error.
+fn push_force_params(params: &mut Vec<Param>, th: &[f64], sd: &[f64]) -> Result<(), IdentifyError> {
     for (j, name) in [(0, "mass_kg"), (1, "viscous_n_s_per_m"), (2, "coulomb_n")] {
         // Mass must be positive; friction may be 0 within its scatter, not clearly negative.
         let bad = if j == 0 {
@@ -412,17 +431,31 @@ pub fn identify(known: &HydraulicAxis, rec: &[Sample]) -> Result<Identified, Ide
         });
     }
 
-    // 4. Derived: the oil column at mid-stroke.
-    let (va, vb) = c.volumes(0.5 * c.stroke_m);
-    let m = th[0];
-    let k_h = beta * (aa * aa / va + ab * ab / vb);
-    let w_h = (k_h / m).sqrt();
-    let rel = (sd[0] / m).hypot(
+    Ok(())
+}
+
+/// The oil column at mid-stroke from the fitted mass and bulk modulus.
+fn push_derived(params: &mut Vec<Param>, known: &HydraulicAxis) {
+    let tau = std::f64::consts::TAU;
+    let c = &known.cylinder;
+    let (aa, ab) = (c.area_a_m2, c.area_b_m2);
+    let get = |n: &str| {
         params
             .iter()
-            .find(|p| p.name == "bulk_modulus_pa")
-            .map_or(0.0, |p| p.std / p.value),
-    );
+            .find(|p| p.name == n)
+            .map(|p| (p.value, p.std))
+    };
+    let (Some((beta, sb)), Some((m, sm)), Some((visc, sv))) = (
+        get("bulk_modulus_pa"),
+        get("mass_kg"),
+        get("viscous_n_s_per_m"),
+    ) else {
+        return;
+    };
+    let (va, vb) = c.volumes(0.5 * c.stroke_m);
+    let k_h = beta * (aa * aa / va + ab * ab / vb);
+    let w_h = (k_h / m).sqrt();
+    let rel = (sm / m).hypot(sb / beta);
     params.push(Param {
         name: "hydraulic_frequency_hz",
         value: w_h / tau,
@@ -430,15 +463,12 @@ pub fn identify(known: &HydraulicAxis, rec: &[Sample]) -> Result<Identified, Ide
     });
     params.push(Param {
         name: "hydraulic_damping",
-        value: th[1] / (2.0 * (k_h * m).sqrt()),
-        std: sd[1] / (2.0 * (k_h * m).sqrt()),
+        value: visc / (2.0 * (k_h * m).sqrt()),
+        std: sv / (2.0 * (k_h * m).sqrt()),
     });
-    Ok(Identified {
-        params,
-        used_samples: idx.len(),
-        samples: rec.len(),
-    })
 }
+
+pub mod spoolless;
 
 #[cfg(test)]
 mod tests;

@@ -111,9 +111,7 @@ impl Device<S, N> for Mock {
             Motion::Jog { .. }
             | Motion::MoveTo { .. }
             | Motion::Approach { .. }
-            | Motion::Test { .. } => {
-                Err(Nak::with(NakCode::BadState, 0, 1))
-            }
+            | Motion::Test { .. } => Err(Nak::with(NakCode::BadState, 0, 1)),
         }
     }
     fn persisted_offset_um(&self, _axis: u8) -> Option<f32> {

@@ -632,9 +632,7 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 | Command::Approach { .. }
                 | Command::Test { .. },
                 _,
-            ) => {
-                self.manual_command(cmd, master, pos_um)
-            }
+            ) => self.manual_command(cmd, master, pos_um),
             (Command::Hold, State::Manual) => {
                 self.manual.stop_all();
                 self.approach = None;

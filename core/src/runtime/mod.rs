@@ -56,8 +56,8 @@ pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
 };
 pub use manual::{ManualKind, MotionError, MotionLimits, JOG_DEADMAN_US};
-pub use test_move::{TestError, TestMove, TestProfile, TestSpec};
 pub use reference::{RefState, ReferenceMode, References};
+pub use test_move::{TestError, TestMove, TestProfile, TestSpec};
 pub use tick::{
     Reply, TickCommand, TickHost, TickLoop, TickSample, FLAG_COMMAND, FLAG_END_OF_TABLE,
     FLAG_ESTOP, FLAG_VALVE_POWER, STATE_MASK, STATUS_PERIOD_US,

@@ -341,7 +341,10 @@ mod tests {
         let high = x[..511 * 4].iter().filter(|&&v| v == 101_000).count();
         // A maximum-length sequence: 256 ones and 255 zeros per period.
         assert_eq!(high, 256 * 4);
-        assert_eq!(x[..511 * 4].iter().filter(|&&v| v == 99_000).count(), 255 * 4);
+        assert_eq!(
+            x[..511 * 4].iter().filter(|&&v| v == 99_000).count(),
+            255 * 4
+        );
     }
 
     #[test]
@@ -354,7 +357,10 @@ mod tests {
         for i in (1..1999).step_by(97) {
             let dx = (x[i + 1] - x[i - 1]) / 2e-3;
             let v = r[i].v_ff_um_per_s.to_num::<f64>();
-            assert!((dx - v).abs() < 0.02 * 1000.0 * 6.3 * 20.0, "tick {i}: {dx} vs {v}");
+            assert!(
+                (dx - v).abs() < 0.02 * 1000.0 * 6.3 * 20.0,
+                "tick {i}: {dx} vs {v}"
+            );
         }
         // The amplitude stays A, the frequency rises: zero crossings closer at the end.
         assert!(x.iter().all(|v| (v - 100_000.0).abs() <= 1000.01));
@@ -380,7 +386,11 @@ mod tests {
         s.dwell_ms = 0;
         assert_eq!(ok(&s, 100_000), Err(TestError::Spec));
         s.dwell_ms = 3000;
-        assert_eq!(ok(&s, 100_000), Err(TestError::Spec), "dwell longer than the test");
+        assert_eq!(
+            ok(&s, 100_000),
+            Err(TestError::Spec),
+            "dwell longer than the test"
+        );
         let s = spec(TestProfile::Step);
         assert_eq!(ok(&s, 500), Err(TestError::OutsideLimits));
         assert_eq!(ok(&s, 499_500), Err(TestError::OutsideLimits));

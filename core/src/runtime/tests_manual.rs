@@ -360,7 +360,11 @@ fn a_test_move_excites_one_slave_about_where_it_holds_then_holds_there() {
     assert_eq!(r.status().target_um[1], PosUm::from_num(2000));
     follow(&mut r, 0, 2);
     assert_eq!(r.status().manual, [ManualKind::Hold; 2]);
-    assert_eq!(r.status().target_um[0], PosUm::from_num(40_000), "back at its centre");
+    assert_eq!(
+        r.status().target_um[0],
+        PosUm::from_num(40_000),
+        "back at its centre"
+    );
     assert_eq!(r.state(), State::Manual);
 }
 
@@ -370,7 +374,10 @@ fn a_test_move_is_refused_outside_limits_too_fast_or_on_a_moving_slave() {
     let refused = |error| Some(Err(CommandError::Motion { axis: 0, error }));
     let at = [50_000, 30_000];
     // 60 mm about 50 mm leaves the range at 0.
-    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Prbs, 60_000)));
+    let out = r.step(
+        &sample(0, at),
+        Some(test_move(0, TestProfile::Prbs, 60_000)),
+    );
     assert_eq!(out.reply, refused(MotionError::OutsideLimits));
     assert_eq!(r.state(), State::Idle, "nothing moved");
     // A chirp of 5 mm to 20 Hz: 628 mm/s peak, above 200 mm/s.
@@ -383,7 +390,11 @@ fn a_test_move_is_refused_outside_limits_too_fast_or_on_a_moving_slave() {
     let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Step, 100)));
     assert_eq!(out.reply, refused(MotionError::Moving));
     let out = r.step(&sample(0, at), Some(test_move(1, TestProfile::Step, 100)));
-    assert_eq!(out.reply, Some(Ok(())), "the other slave may test meanwhile");
+    assert_eq!(
+        out.reply,
+        Some(Ok(())),
+        "the other slave may test meanwhile"
+    );
     follow(&mut r, 0, 5);
     assert_eq!(r.status().target_um[1], PosUm::from_num(30_100));
     r.step(&sample(0, at), Some(Command::Hold));

@@ -2,12 +2,21 @@
 //! recording (`crate::identify`) and write them as a machine file in the scenario
 //! format (`run`, `robust` and `run --tune` read it).
 //!
-//! The recording: one CSV with the header `t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool` (s,
-//! normalised command, mm, mm/s, bar, bar, normalised spool) — `host-sim open-loop`'s
-//! output joined with its command — or `open-loop`'s output alone with `--command-csv`
-//! (the `t,u` command it was driven with, held between rows).
+//! The recording is either
+//!
+//! - **the board's capture** of a test move (`host-sim motion test … --csv REC.csv`, or
+//!   any `host-sim capture` CSV: columns `t_s`, `dac<i>`, `actual<i>_mm`, `pa<i>_bar`,
+//!   `pb<i>_bar` of slave `--slave i`) — fitted without a spool signal from the
+//!   quantised readings (`crate::identify::spoolless`); `--trace` may be given several
+//!   times (e.g. a step, a chirp and a PRBS test), fitted together; or
+//! - **an open-loop recording** with the true plant signals: one CSV with the header
+//!   `t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool` (s, normalised command, mm, mm/s, bar, bar,
+//!   normalised spool) — `host-sim open-loop`'s output joined with its command — or
+//!   `open-loop`'s output alone with `--command-csv` (the `t,u` command it was driven
+//!   with, held between rows).
 
 use crate::cmd::open_loop::parse_command;
+use crate::identify::spoolless::{identify_spoolless, Recording};
 use crate::identify::{identify, Identified, Sample};
 use crate::scenario::Scenario;
 use anyhow::Context as _;
@@ -17,10 +26,14 @@ use std::path::{Path, PathBuf};
 /// Arguments of `host-sim identify`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The recording: CSV `t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool` (or without `u`, with
-    /// `--command-csv`).
-    #[arg(long, value_name = "REC.csv")]
-    pub trace: PathBuf,
+    /// The recording: a capture CSV of the board (`motion test`, `capture`; repeat
+    /// `--trace` to fit several together), or an open-loop CSV
+    /// `t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool` (or without `u`, with `--command-csv`).
+    #[arg(long, value_name = "REC.csv", required = true)]
+    pub trace: Vec<PathBuf>,
+    /// A capture's slave (0-based) [0].
+    #[arg(long)]
+    pub slave: Option<usize>,
     /// The `t,u` command the recording was driven with, when the trace has no `u` column.
     #[arg(long, value_name = "CMD.csv")]
     pub command_csv: Option<PathBuf>,
@@ -117,8 +130,87 @@ fn read_recording(trace: &Path, command: Option<&Path>) -> anyhow::Result<Vec<Sa
     Ok(out)
 }
 
+/// Whether `path` is a capture (its header has `t_s` and `dac0`).
+fn is_capture(path: &Path) -> anyhow::Result<bool> {
+    let mut r = csv::Reader::from_path(path)
+        .with_context(|| format!("reading the recording {}", path.display()))?;
+    let h = r
+        .headers()
+        .with_context(|| format!("{}: no header", path.display()))?;
+    Ok(h.iter().any(|c| c == "t_s") && h.iter().any(|c| c == "dac0"))
+}
+
+/// Reads slave `slave` of a capture CSV (`capture::csv`'s columns); errors name the file,
+/// the line and the column.
+fn read_capture(path: &Path, slave: usize) -> anyhow::Result<Recording> {
+    let mut r = csv::Reader::from_path(path)
+        .with_context(|| format!("reading the recording {}", path.display()))?;
+    let header: Vec<String> = r
+        .headers()
+        .with_context(|| format!("{}: no header", path.display()))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let names = [
+        "t_s".to_string(),
+        format!("dac{slave}"),
+        format!("actual{slave}_mm"),
+        format!("pa{slave}_bar"),
+        format!("pb{slave}_bar"),
+    ];
+    let mut idx = Vec::new();
+    for n in &names {
+        idx.push(header.iter().position(|h| h == n).with_context(|| {
+            format!(
+                "{}: no `{n}` column — the capture has no slave {slave} (header: {})",
+                path.display(),
+                header.join(",")
+            )
+        })?);
+    }
+    let mut rec = Recording::default();
+    let mut t = Vec::new();
+    for (k, row) in r.records().enumerate() {
+        let line = k + 2;
+        let row = row.with_context(|| format!("{}:{line}", path.display()))?;
+        let f = |j: usize| -> anyhow::Result<f64> {
+            row.get(idx[j])
+                .and_then(|s| s.trim().parse::<f64>().ok())
+                .filter(|v| v.is_finite())
+                .with_context(|| {
+                    format!("{}:{line}: `{}` is not a number", path.display(), names[j])
+                })
+        };
+        t.push(f(0)?);
+        let dac = f(1)?;
+        anyhow::ensure!(
+            dac.abs() <= 2047.0,
+            "{}:{line}: dac{slave} {dac} is outside the DAC's ±2047",
+            path.display()
+        );
+        rec.u.push(dac / 2047.0);
+        rec.x_m.push(f(2)? * 1e-3);
+        rec.pa_pa.push(f(3)? * 1e5);
+        rec.pb_pa.push(f(4)? * 1e5);
+    }
+    anyhow::ensure!(t.len() >= 2, "{}: fewer than two rows", path.display());
+    let period = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    for (k, w) in t.windows(2).enumerate() {
+        anyhow::ensure!(
+            ((w[1] - w[0]) - period).abs() <= 0.01 * period + 1e-4,
+            "{}:{}: the capture is not one row per tick (t_s {} after {})",
+            path.display(),
+            k + 3,
+            w[1],
+            w[0]
+        );
+    }
+    rec.period_s = period;
+    Ok(rec)
+}
+
 /// The machine file: the scenario's supply and axis geometry with the fitted values.
-fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &Path) -> String {
+fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &str) -> String {
     let v = |n: &str| id.get(n).map_or(0.0, |p| p.value);
     let line = |n: &str, key: &str| -> String {
         id.get(n).map_or(String::new(), |p| {
@@ -133,7 +225,7 @@ fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &Path) -> Str
          # (rated at 35 bar; the model has one, their mean); overlap {:.4} of the travel\n\
          # (the model has none: a fitted overlap is not simulated);\n\
          # oil column at mid-stroke {:.1} Hz, damping {:.4}.",
-        source.display(),
+        source,
         id.used_samples,
         id.samples,
         v("rated_flow_extend_l_per_min"),
@@ -184,15 +276,45 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         crate::csvout::writable(out)?;
     }
-    let rec = read_recording(&args.trace, args.command_csv.as_deref())?;
     let known = a.plant(s.supply(), 0.5 * a.cylinder.stroke_mm * 1e-3);
-    let id = identify(&known, &rec).with_context(|| {
-        format!(
-            "identifying axis `{}` from {}",
-            a.name,
-            args.trace.display()
-        )
-    })?;
+    let captures = args
+        .trace
+        .iter()
+        .map(|p| is_capture(p))
+        .collect::<anyhow::Result<Vec<bool>>>()?;
+    let names = args
+        .trace
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let id = if captures.iter().all(|&c| c) {
+        anyhow::ensure!(
+            args.command_csv.is_none(),
+            "--command-csv is for an open-loop recording; a capture has its command (dac)"
+        );
+        let recs = args
+            .trace
+            .iter()
+            .map(|p| read_capture(p, args.slave.unwrap_or(0)))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let period = recs[0].period_s;
+        anyhow::ensure!(
+            recs.iter()
+                .all(|r| (r.period_s - period).abs() <= 1e-3 * period),
+            "the captures were recorded at different periods"
+        );
+        identify_spoolless(&known, &recs)
+    } else {
+        anyhow::ensure!(
+            args.trace.len() == 1 && args.slave.is_none(),
+            "an open-loop recording is fitted alone (one --trace, no --slave); {names} mixes \
+             kinds or has several"
+        );
+        let rec = read_recording(&args.trace[0], args.command_csv.as_deref())?;
+        identify(&known, &rec)
+    }
+    .with_context(|| format!("identifying axis `{}` from {names}", a.name))?;
     if args.json {
         println!("{}", serde_json::json!({ "axis": a.name, "fit": id }));
     } else {
@@ -205,7 +327,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     }
     if let Some(out) = &args.out {
-        let text = machine_toml(&s, &a.name, &id, &args.trace);
+        let text = machine_toml(&s, &a.name, &id, &names);
         // What is written must load as a scenario (its validation names a bad value).
         Scenario::parse(&text, out)
             .and_then(|m| m.validate())

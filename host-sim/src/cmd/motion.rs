@@ -114,9 +114,7 @@ pub fn request(args: &Args) -> anyhow::Result<Request<'static>> {
         What::Move => super::manual::move_request(axis()?, &args.manual)?,
         What::Test => Request::TestMove {
             axis: axis()?,
-            test: hydra_core::protocol::msg::TestMoveMsg::of(
-                &args.test.spec(args.manual.seconds)?,
-            ),
+            test: hydra_core::protocol::msg::TestMoveMsg::of(&args.test.spec(args.manual.seconds)?),
         },
         What::Start => Request::Start,
         What::Stop => Request::Stop,

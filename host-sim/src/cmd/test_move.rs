@@ -212,7 +212,10 @@ mod tests {
             ..Default::default()
         };
         let s = t.spec(Some(1.0)).unwrap();
-        assert_eq!((s.amplitude_um, s.duration_ms, s.dwell_ms), (2000, 1000, 250));
+        assert_eq!(
+            (s.amplitude_um, s.duration_ms, s.dwell_ms),
+            (2000, 1000, 250)
+        );
         assert!(TestArgs::default().spec(None).is_err(), "no profile");
         for bad in [
             TestArgs {

@@ -1,0 +1,577 @@
+//! Identification without a spool signal, from sensor readings: the board's capture of a
+//! test move (`host-sim motion test`) — the valve command as written, the encoder's
+//! position (1 µm counts) and the two pressure transducers (12-bit ADC) every tick.
+//!
+//! **Both sides filtered alike.** The position must be differentiated twice and the
+//! pressures once; quantisation makes raw differences useless (1 µm / (1 ms)² is
+//! 1 m/s²). Every equation is linear in its signals, so it still holds, with the same
+//! parameters, after every term is passed through one linear filter `h`: a derivative
+//! moves onto the kernel, `h*ẋ = h'*x`. `h` is a Gaussian of σ = [`SMOOTH_S`] (−3 dB at
+//! 0.133/σ ≈ 53 Hz, zero phase), `h'` and `h''` its sampled derivatives, each normalised
+//! so a ramp (a parabola) gives exactly its slope (its curvature). The products that are
+//! not linear in the signals — the orifice terms `x̃_v·√Δp`, the chamber volume times
+//! the pressure's rate, the Coulomb term — are formed per sample and then filtered
+//! (orifice), or formed from the filtered signals (volume, Coulomb): a second-order
+//! error, small where the volume changes little over σ.
+//!
+//! **The spool is modelled.** `ẍ_v = ω_v²·(u(t − d) − x_v) − 2ζ_v·ω_v·ẋ_v`, the command held
+//! per tick and delayed `d` (0 … 2 ticks in eighths: the board writes its valve within
+//! the tick, the simulator a period later), integrated by RK4 in 8 sub-steps per tick. For
+//! each candidate `(ω_v, ζ_v, d)` the flow-and-oil regression of the parent module is
+//! solved; the candidate with the smallest residual is the valve's (a grid, then a
+//! finer one around its best), then the overlap is scanned the same way. The force
+//! balance is the parent's, on the filtered signals. Each value's 1σ is the fit's:
+//! for the valve's, the half-width of the grid values whose residual is within one
+//! σ̂² (Δχ² = 1) of the best.
+
+use super::{lstsq, Identified, IdentifyError, Param};
+use crate::plant::HydraulicAxis;
+
+/// The smoothing filter's σ, s.
+pub const SMOOTH_S: f64 = 2.5e-3;
+
+/// One recording: a capture of one slave, sampled every `period_s`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Recording {
+    /// Sample period, s.
+    pub period_s: f64,
+    /// Valve command per tick, normalised −1 … 1 (the DAC code / 2047).
+    pub u: Vec<f64>,
+    /// Position, m.
+    pub x_m: Vec<f64>,
+    /// Chamber A pressure, Pa.
+    pub pa_pa: Vec<f64>,
+    /// Chamber B pressure, Pa.
+    pub pb_pa: Vec<f64>,
+}
+
+/// A Gaussian kernel (`order` 0), or its first or second derivative, over ±4σ,
+/// normalised (module docs); `kernel[L + j]` weights `x[i − j]`.
+fn kernel(order: u8, sigma_ticks: f64) -> Vec<f64> {
+    let l = (4.0 * sigma_ticks).ceil().max(2.0) as i64;
+    let g = |j: f64| (-0.5 * (j / sigma_ticks).powi(2)).exp();
+    let mut raw: Vec<f64> = (-l..=l)
+        .map(|j| {
+            let j = j as f64;
+            match order {
+                0 => g(j),
+                1 => -j * g(j),
+                _ => (j * j / sigma_ticks.powi(2) - 1.0) * g(j),
+            }
+        })
+        .collect();
+    if order == 2 {
+        // The sampled, truncated second derivative does not sum to exactly 0: a constant
+        // (a position of 0.1 m) would leak into the acceleration (7 m/s² at 1 ms,
+        // measured before this correction). Remove its sum in proportion to the
+        // Gaussian's weights (the odd first derivative sums to 0 by symmetry).
+        let sum: f64 = raw.iter().sum();
+        let g0: f64 = (-l..=l).map(|j| g(j as f64)).sum();
+        for (w, j) in raw.iter_mut().zip(-l..=l) {
+            *w -= sum * g(j as f64) / g0;
+        }
+    }
+    // Normalise on the polynomial it must pass: 1, t, t²/2 (t in ticks).
+    let poly = |j: f64| match order {
+        0 => 1.0,
+        1 => -j,
+        _ => 0.5 * j * j,
+    };
+    let s: f64 = raw
+        .iter()
+        .enumerate()
+        .map(|(k, w)| w * poly((k as i64 - l) as f64))
+        .sum();
+    raw.iter().map(|w| w / s).collect()
+}
+
+/// `h * x` at every sample with full support (`None` near the ends), in units per tick^order
+/// (divide by T^order).
+fn filter(h: &[f64], x: &[f64]) -> Vec<Option<f64>> {
+    let l = h.len() / 2;
+    (0..x.len())
+        .map(|i| {
+            if i < l || i + l >= x.len() {
+                return None;
+            }
+            Some(
+                h.iter()
+                    .enumerate()
+                    .map(|(k, w)| w * x[i + l - k])
+                    .sum::<f64>(),
+            )
+        })
+        .collect()
+}
+
+/// The filtered signals of one recording.
+struct Filtered {
+    x: Vec<Option<f64>>,
+    v: Vec<Option<f64>>,
+    a: Vec<Option<f64>>,
+    pa: Vec<Option<f64>>,
+    pb: Vec<Option<f64>>,
+    dpa: Vec<Option<f64>>,
+    dpb: Vec<Option<f64>>,
+}
+
+impl Filtered {
+    fn of(r: &Recording, h: &[Vec<f64>; 3]) -> Self {
+        let t = r.period_s;
+        let scale = |v: Vec<Option<f64>>, k: f64| v.into_iter().map(|x| x.map(|x| x * k)).collect();
+        Self {
+            x: filter(&h[0], &r.x_m),
+            v: scale(filter(&h[1], &r.x_m), 1.0 / t),
+            a: scale(filter(&h[2], &r.x_m), 1.0 / (t * t)),
+            pa: filter(&h[0], &r.pa_pa),
+            pb: filter(&h[0], &r.pb_pa),
+            dpa: scale(filter(&h[1], &r.pa_pa), 1.0 / t),
+            dpb: scale(filter(&h[1], &r.pb_pa), 1.0 / t),
+        }
+    }
+}
+
+/// Sub-steps per tick of the spool's integration (and the delay's resolution).
+const SUB: usize = 8;
+
+/// The spool of a command held per tick, delayed `delay` sub-steps (1/[`SUB`] tick;
+/// module docs).
+fn spool(u: &[f64], period_s: f64, w: f64, zeta: f64, delay: usize) -> Vec<f64> {
+    let h = period_s / SUB as f64;
+    let f = |x: f64, v: f64, u: f64| (v, w * w * (u - x) - 2.0 * zeta * w * v);
+    let (mut x, mut v) = (0.0f64, 0.0f64);
+    let mut out = Vec::with_capacity(u.len());
+    for k in 0..u.len() {
+        out.push(x);
+        for sub in 0..SUB {
+            let uk = (k * SUB + sub)
+                .checked_sub(delay)
+                .map_or(0.0, |j| u[j / SUB]);
+            let (k1x, k1v) = f(x, v, uk);
+            let (k2x, k2v) = f(x + 0.5 * h * k1x, v + 0.5 * h * k1v, uk);
+            let (k3x, k3v) = f(x + 0.5 * h * k2x, v + 0.5 * h * k2v, uk);
+            let (k4x, k4v) = f(x + h * k3x, v + h * k3v, uk);
+            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+            if x.abs() >= 1.0 {
+                x = x.clamp(-1.0, 1.0);
+                if x * v > 0.0 {
+                    v = 0.0;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A valve candidate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Valve {
+    w: f64,
+    zeta: f64,
+    delay: usize,
+    overlap: f64,
+}
+
+/// The flow-and-oil fit of one candidate: coefficients (K⁺, K⁻, 1/β), their σ, the
+/// residual sum of squares and the degrees of freedom.
+type FlowFit = (Vec<f64>, Vec<f64>, f64, usize);
+
+/// What the fit needs of the recordings, computed once.
+struct Prepared<'a> {
+    known: &'a HydraulicAxis,
+    recs: &'a [Recording],
+    filt: Vec<Filtered>,
+    /// Usable samples per recording.
+    usable: Vec<Vec<usize>>,
+    h0: Vec<f64>,
+}
+
+impl Prepared<'_> {
+    fn flow(&self, c: Valve) -> Result<FlowFit, IdentifyError> {
+        let k = self.known;
+        let (cyl, sup) = (&k.cylinder, &k.supply);
+        let (aa, ab) = (cyl.area_a_m2, cyl.area_b_m2);
+        let tr = k.valve.dp_transition_pa;
+        let sq = |x: f64| crate::plant::valve::signed_sqrt(x, tr);
+        let cl = k.valve.leak_m3_per_s_pa;
+        let (mut rows, mut y) = (Vec::new(), Vec::new());
+        for ((r, f), idx) in self.recs.iter().zip(&self.filt).zip(&self.usable) {
+            let xv = spool(&r.u, r.period_s, c.w, c.zeta, c.delay);
+            // The orifice terms per sample (module docs of the parent), then filtered.
+            let mut g = [
+                vec![0.0; xv.len()],
+                vec![0.0; xv.len()],
+                vec![0.0; xv.len()],
+                vec![0.0; xv.len()],
+            ];
+            for (i, &s) in xv.iter().enumerate() {
+                let open = s.signum() * (s.abs() - c.overlap).max(0.0);
+                let (pa, pb) = (r.pa_pa[i], r.pb_pa[i]);
+                if open >= 0.0 {
+                    g[0][i] = open * sq(sup.supply_pa - pa);
+                    g[2][i] = -open * sq(pb - sup.tank_pa);
+                } else {
+                    g[1][i] = open * sq(pa - sup.tank_pa);
+                    g[3][i] = -open * sq(sup.supply_pa - pb);
+                }
+            }
+            let gf: Vec<Vec<Option<f64>>> = g.iter().map(|c| filter(&self.h0, c)).collect();
+            for &i in idx {
+                let (Some(x), Some(v), Some(pa), Some(pb), Some(dpa), Some(dpb)) =
+                    (f.x[i], f.v[i], f.pa[i], f.pb[i], f.dpa[i], f.dpb[i])
+                else {
+                    continue;
+                };
+                let (Some(g0), Some(g1), Some(g2), Some(g3)) =
+                    (gf[0][i], gf[1][i], gf[2][i], gf[3][i])
+                else {
+                    continue;
+                };
+                let (va, vb) = cyl.volumes(x);
+                let leak_a = cl * (sup.supply_pa - pa) - cl * (pa - sup.tank_pa);
+                let leak_b = cl * (sup.supply_pa - pb) - cl * (pb - sup.tank_pa);
+                rows.push(vec![g0, g1, -va * dpa]);
+                y.push(aa * v - leak_a);
+                rows.push(vec![g2, g3, -vb * dpb]);
+                y.push(-ab * v - leak_b);
+            }
+        }
+        let (th, sd) = lstsq("valve flow and oil", &rows, &y)?;
+        let ss: f64 = rows
+            .iter()
+            .zip(&y)
+            .map(|(r, y)| {
+                let e = y - r.iter().zip(&th).map(|(a, b)| a * b).sum::<f64>();
+                e * e
+            })
+            .sum();
+        let dof = rows.len().saturating_sub(3).max(1);
+        Ok((th, sd, ss, dof))
+    }
+}
+
+/// The best candidate over `cands` (the first error if none fits).
+fn best_of(
+    p: &Prepared<'_>,
+    cands: impl Iterator<Item = Valve>,
+) -> Result<(Valve, FlowFit, Vec<(Valve, f64)>), IdentifyError> {
+    let mut best: Option<(Valve, FlowFit)> = None;
+    let mut first_error = None;
+    let mut all = Vec::new();
+    for c in cands {
+        match p.flow(c) {
+            Ok(fit) => {
+                all.push((c, fit.2));
+                if best.as_ref().is_none_or(|b| fit.2 < b.1 .2) {
+                    best = Some((c, fit));
+                }
+            }
+            Err(e) => {
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    match best {
+        Some((c, f)) => Ok((c, f, all)),
+        None => Err(first_error.unwrap_or(IdentifyError::NotExcited {
+            law: "valve flow and oil",
+        })),
+    }
+}
+
+/// The half-width of the values `key` takes among candidates whose residual is within
+/// one σ̂² of the best (Δχ² = 1).
+fn spread(all: &[(Valve, f64)], best_ss: f64, dof: usize, key: impl Fn(&Valve) -> f64) -> f64 {
+    let lim = best_ss * (1.0 + 1.0 / dof as f64);
+    let vals: Vec<f64> = all
+        .iter()
+        .filter(|(_, s)| *s <= lim)
+        .map(|(c, _)| key(c))
+        .collect();
+    let (lo, hi) = vals
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    if lo.is_finite() {
+        0.5 * (hi - lo)
+    } else {
+        0.0
+    }
+}
+
+/// Fits the axis `known` (geometry, supply, leakage and Coulomb smoothing known) to the
+/// recordings (module docs).
+pub fn identify_spoolless(
+    known: &HydraulicAxis,
+    recs: &[Recording],
+) -> Result<Identified, IdentifyError> {
+    let tau = std::f64::consts::TAU;
+    let period = recs.first().map_or(1e-3, |r| r.period_s);
+    let sigma_ticks = SMOOTH_S / period;
+    let h: [Vec<f64>; 3] = [
+        kernel(0, sigma_ticks),
+        kernel(1, sigma_ticks),
+        kernel(2, sigma_ticks),
+    ];
+    let c = &known.cylinder;
+    let pmax = known.supply.max_pa;
+    let margin = 0.05 * c.stroke_m;
+    let filt: Vec<Filtered> = recs.iter().map(|r| Filtered::of(r, &h)).collect();
+    let samples: usize = recs.iter().map(|r| r.u.len()).sum();
+    let usable: Vec<Vec<usize>> = recs
+        .iter()
+        .map(|r| {
+            (0..r.u.len())
+                .filter(|&i| {
+                    let (x, pa, pb) = (r.x_m[i], r.pa_pa[i], r.pb_pa[i]);
+                    r.u[i].abs() < 0.999
+                        && x > margin
+                        && x < c.stroke_m - margin
+                        && pa > 0.01 * pmax
+                        && pa < 0.99 * pmax
+                        && pb > 0.01 * pmax
+                        && pb < 0.99 * pmax
+                        && c.contact_n(x) == 0.0
+                })
+                .collect()
+        })
+        .collect();
+    let p = Prepared {
+        known,
+        recs,
+        filt,
+        usable,
+        h0: h[0].clone(),
+    };
+
+    // The valve: a coarse grid, then a fine one around its best; then the overlap.
+    let coarse = (0..20).flat_map(|i| {
+        let f = 15.0 * 1.16f64.powi(i);
+        (0..9).flat_map(move |j| {
+            (0..=4).map(move |d| Valve {
+                w: tau * f,
+                zeta: 0.3 + 0.15 * f64::from(j),
+                delay: d * SUB / 2,
+                overlap: 0.0,
+            })
+        })
+    });
+    let (b, _, _) = best_of(&p, coarse)?;
+    let fine = (-8..=8).flat_map(|i| {
+        (-6..=6).flat_map(move |j| {
+            (-2..=2).filter_map(move |d: i64| {
+                Some(Valve {
+                    w: b.w * 1.02f64.powi(i),
+                    zeta: (b.zeta + 0.025 * f64::from(j)).max(0.05),
+                    delay: usize::try_from(b.delay as i64 + d).ok()?,
+                    ..b
+                })
+            })
+        })
+    });
+    let (b, _, all_valve) = best_of(&p, fine)?;
+    let (b, fit, _) = best_of(
+        &p,
+        (0..=20).map(|k| Valve {
+            overlap: f64::from(k) * 0.0025,
+            ..b
+        }),
+    )?;
+    let (th, sd, ss, dof) = fit;
+    if th[2].is_nan() || th[2] <= 0.0 {
+        return Err(IdentifyError::Unphysical {
+            name: "bulk_modulus_pa",
+            value: th[2],
+        });
+    }
+    let mut params = vec![
+        Param {
+            name: "valve_bandwidth_hz",
+            value: b.w / tau,
+            std: spread(&all_valve, ss, dof, |c| c.w / tau).max(0.01 * b.w / tau),
+        },
+        Param {
+            name: "valve_damping",
+            value: b.zeta,
+            std: spread(&all_valve, ss, dof, |c| c.zeta).max(0.0125),
+        },
+        Param {
+            name: "valve_delay_ms",
+            value: b.delay as f64 / SUB as f64 * period * 1e3,
+            std: spread(&all_valve, ss, dof, |c| c.delay as f64 / SUB as f64 * period * 1e3)
+                .max(0.5 / SUB as f64 * period * 1e3),
+        },
+    ];
+    super::push_flow_params(&mut params, &th, &sd, b.overlap);
+
+    // The force balance on the filtered signals.
+    let vs = c.coulomb_smoothing_m_per_s.max(1e-9);
+    let (aa, ab) = (c.area_a_m2, c.area_b_m2);
+    let (mut rows, mut y) = (Vec::new(), Vec::new());
+    for ((f, idx), r) in p.filt.iter().zip(&p.usable).zip(recs) {
+        // The Coulomb term is not linear in the signals: formed from a lightly smoothed
+        // velocity (a central difference over ±2 ticks: 1 µm counts give 0.25 mm/s at
+        // 1 ms), then filtered like the rest.
+        let n = r.x_m.len();
+        let sign: Vec<f64> = (0..n)
+            .map(|i| {
+                let (lo, hi) = (i.saturating_sub(2), (i + 2).min(n - 1));
+                let v = (r.x_m[hi] - r.x_m[lo]) / ((hi - lo).max(1) as f64 * r.period_s);
+                (v / vs).tanh()
+            })
+            .collect();
+        let coulomb = filter(&p.h0, &sign);
+        for &i in idx {
+            let (Some(a), Some(v), Some(pa), Some(pb), Some(fc)) =
+                (f.a[i], f.v[i], f.pa[i], f.pb[i], coulomb[i])
+            else {
+                continue;
+            };
+            rows.push(vec![a, v, fc, 1.0]);
+            y.push(aa * pa - ab * pb);
+        }
+    }
+    let (th, sd) = lstsq("motion", &rows, &y)?;
+    super::push_force_params(&mut params, &th, &sd)?;
+    super::push_derived(&mut params, known);
+    Ok(Identified {
+        params,
+        used_samples: p.usable.iter().map(Vec::len).sum(),
+        samples,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_kernels_pass_their_polynomials_exactly() {
+        let sig = 2.5;
+        let x: Vec<f64> = (0..200)
+            .map(|i| 3.0 + 0.5 * f64::from(i) + 0.01 * f64::from(i * i))
+            .collect();
+        let (h0, h1, h2) = (kernel(0, sig), kernel(1, sig), kernel(2, sig));
+        let i = 100usize;
+        let f = |h: &[f64]| filter(h, &x)[i].unwrap();
+        let t = i as f64;
+        // A parabola's smoothing adds σ²·x''/2 (a Gaussian's second moment).
+        assert!((f(&h0) - (3.0 + 0.5 * t + 0.01 * t * t + 0.01 * sig * sig)).abs() < 1e-3);
+        assert!((f(&h1) - (0.5 + 0.02 * t)).abs() < 1e-9);
+        assert!((f(&h2) - 0.02).abs() < 1e-9);
+        // No constant leaks into a derivative (a position of 0.1 m read every 1 ms).
+        assert!(h1.iter().sum::<f64>().abs() < 1e-15);
+        assert!(h2.iter().sum::<f64>().abs() * 0.1 / 1e-6 < 1e-6);
+        assert_eq!(filter(&h0, &x)[0], None);
+    }
+
+    #[test]
+    fn the_modelled_spool_is_a_delayed_second_order_lag() {
+        let mut u = vec![0.0; 10];
+        u.extend(vec![0.5; 490]);
+        let w = std::f64::consts::TAU * 60.0;
+        let s = spool(&u, 1e-3, w, 0.8, SUB);
+        assert_eq!(s[11], 0.0, "one tick of delay");
+        assert!(s[12] > 0.0);
+        assert!((s[499] - 0.5).abs() < 1e-6);
+        // The overshoot of ζ 0.8: exp(−πζ/√(1−ζ²)) = 1.5 %.
+        let peak = s.iter().cloned().fold(0.0, f64::max);
+        assert!((peak / 0.5 - 1.015).abs() < 0.003, "{peak}");
+    }
+}
+
+#[cfg(test)]
+mod recovery_tests {
+    use super::*;
+    use crate::cmd::open_loop::simulate;
+    use crate::scenario::Scenario;
+
+    /// The open-loop excitation of the parent's tests on `truth`, read through 1 µm
+    /// counts and a 12-bit 250 bar ADC (plus Gaussian noise of `noise_bar` on each
+    /// pressure), the command delayed `delay` ticks.
+    pub(crate) fn recording(truth: &Scenario, noise_bar: f64, seed: u64) -> Recording {
+        let cmd = super::super::tests::excitation();
+        let a = &truth.axes[0];
+        let mut plant = a.plant(truth.supply(), 0.25);
+        let out = simulate(&mut plant, &cmd, truth.step_s(), 1e-3);
+        let u_at = |t: f64| {
+            cmd.iter()
+                .take_while(|(tc, _)| *tc <= t + 1e-9)
+                .last()
+                .map_or(0.0, |c| c.1)
+        };
+        let adc = crate::plant::sensors::PressureAdc {
+            full_scale_pa: 250e5,
+            bits: 12,
+        };
+        // A small LCG and Box–Muller: reproducible noise without a dependency.
+        let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut gauss = move || {
+            let (a, b) = (uniform(), uniform());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        let mut r = Recording {
+            period_s: 1e-3,
+            ..Default::default()
+        };
+        for s in &out {
+            // The command of the tick (held), quantised by the DAC.
+            r.u.push((u_at(s.t) * 2047.0).round() / 2047.0);
+            r.x_m.push((s.x_mm * 1e3).round() * 1e-6);
+            r.pa_pa.push(adc.read_pa(s.pa_bar * 1e5 + noise_bar * 1e5 * gauss()));
+            r.pb_pa.push(adc.read_pa(s.pb_bar * 1e5 + noise_bar * 1e5 * gauss()));
+        }
+        r
+    }
+
+    pub(crate) fn off_nominal() -> Scenario {
+        let mut truth = Scenario::default();
+        let a = &mut truth.axes[0];
+        a.cylinder.mass_kg *= 1.6;
+        a.cylinder.bulk_modulus_pa *= 0.7;
+        a.valve.rated_flow_l_per_min *= 0.85;
+        a.cylinder.viscous_n_s_per_m *= 2.0;
+        a.cylinder.coulomb_n *= 1.5;
+        a.valve.bandwidth_hz *= 0.8;
+        truth
+    }
+
+    #[test]
+    fn quantised_and_noisy_readings_recover_the_machine() {
+        let truth = off_nominal();
+        let t = &truth.axes[0];
+        let nominal = Scenario::default();
+        let known = nominal.axes[0].plant(nominal.supply(), 0.25);
+        for noise in [0.0, 0.5] {
+            let rec = recording(&truth, noise, 7);
+            let id = identify_spoolless(&known, &[rec]).unwrap();
+            for (name, truth) in [
+                ("mass_kg", t.cylinder.mass_kg),
+                ("bulk_modulus_pa", t.cylinder.bulk_modulus_pa),
+                ("rated_flow_extend_l_per_min", t.valve.rated_flow_l_per_min),
+                ("rated_flow_retract_l_per_min", t.valve.rated_flow_l_per_min),
+                ("viscous_n_s_per_m", t.cylinder.viscous_n_s_per_m),
+                ("coulomb_n", t.cylinder.coulomb_n),
+                ("valve_bandwidth_hz", t.valve.bandwidth_hz),
+                ("valve_damping", t.valve.damping),
+            ] {
+                let p = id.get(name).unwrap();
+                println!(
+                    "noise {noise} bar: {name} {:.4e} ± {:.2e} (true {truth:.4e}, {:+.2} %)",
+                    p.value,
+                    p.std,
+                    100.0 * (p.value / truth - 1.0)
+                );
+            }
+            println!("delay {:?}", id.get("valve_delay_ms"));
+        }
+    }
+}
