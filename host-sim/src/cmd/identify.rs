@@ -34,6 +34,11 @@ pub struct Args {
     /// A capture's slave (0-based) [0].
     #[arg(long)]
     pub slave: Option<usize>,
+    /// A capture: the piston's position in its cylinder (0 = retracted) minus the
+    /// board's position, mm [0: the board's frame is the cylinder's]. The chamber
+    /// volumes depend on it.
+    #[arg(long, allow_negative_numbers = true)]
+    pub position_offset_mm: Option<f64>,
     /// The `t,u` command the recording was driven with, when the trace has no `u` column.
     #[arg(long, value_name = "CMD.csv")]
     pub command_csv: Option<PathBuf>,
@@ -142,7 +147,7 @@ fn is_capture(path: &Path) -> anyhow::Result<bool> {
 
 /// Reads slave `slave` of a capture CSV (`capture::csv`'s columns); errors name the file,
 /// the line and the column.
-fn read_capture(path: &Path, slave: usize) -> anyhow::Result<Recording> {
+fn read_capture(path: &Path, slave: usize, offset_mm: f64) -> anyhow::Result<Recording> {
     let mut r = csv::Reader::from_path(path)
         .with_context(|| format!("reading the recording {}", path.display()))?;
     let header: Vec<String> = r
@@ -189,7 +194,7 @@ fn read_capture(path: &Path, slave: usize) -> anyhow::Result<Recording> {
             path.display()
         );
         rec.u.push(dac / 2047.0);
-        rec.x_m.push(f(2)? * 1e-3);
+        rec.x_m.push((f(2)? + offset_mm) * 1e-3);
         rec.pa_pa.push(f(3)? * 1e5);
         rec.pb_pa.push(f(4)? * 1e5);
     }
@@ -224,7 +229,7 @@ fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &str) -> Stri
          # The valve's flow gain per direction: extend {:.3} l/min, retract {:.3} l/min\n\
          # (rated at 35 bar; the model has one, their mean); overlap {:.4} of the travel\n\
          # (the model has none: a fitted overlap is not simulated);\n\
-         # oil column at mid-stroke {:.1} Hz, damping {:.4}.",
+         # oil column at mid-stroke {:.1} Hz, damping {:.4}.{}",
         source,
         id.used_samples,
         id.samples,
@@ -233,6 +238,12 @@ fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &str) -> Stri
         v("overlap"),
         v("hydraulic_frequency_hz"),
         v("hydraulic_damping"),
+        id.get("valve_delay_ms").map_or(String::new(), |d| format!(
+            "\n# Fitted without a spool signal: a delay of {:.3} ms before the valve \
+             (not in the model: the controller's period is), lag 2ζ/ω + delay {:.3} ms.",
+            d.value,
+            v("valve_lag_ms")
+        )),
     );
     let _ = writeln!(o, "name = \"{}_identified\"\n", s.name());
     let _ = writeln!(
@@ -293,10 +304,15 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             args.command_csv.is_none(),
             "--command-csv is for an open-loop recording; a capture has its command (dac)"
         );
+        let offset_mm = args.position_offset_mm.unwrap_or(0.0);
+        anyhow::ensure!(
+            offset_mm.is_finite() && offset_mm.abs() <= 8000.0,
+            "--position-offset-mm {offset_mm}: must be within ±8000 mm"
+        );
         let recs = args
             .trace
             .iter()
-            .map(|p| read_capture(p, args.slave.unwrap_or(0)))
+            .map(|p| read_capture(p, args.slave.unwrap_or(0), offset_mm))
             .collect::<anyhow::Result<Vec<_>>>()?;
         let period = recs[0].period_s;
         anyhow::ensure!(
@@ -307,9 +323,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         identify_spoolless(&known, &recs)
     } else {
         anyhow::ensure!(
-            args.trace.len() == 1 && args.slave.is_none(),
-            "an open-loop recording is fitted alone (one --trace, no --slave); {names} mixes \
-             kinds or has several"
+            args.trace.len() == 1 && args.slave.is_none() && args.position_offset_mm.is_none(),
+            "an open-loop recording is fitted alone (one --trace, no --slave or \
+             --position-offset-mm); {names} mixes kinds or has several"
         );
         let rec = read_recording(&args.trace[0], args.command_csv.as_deref())?;
         identify(&known, &rec)

@@ -183,11 +183,17 @@ pub fn run(link: &mut Link, axis: u8, t: &TestArgs, seconds: Option<f64>) -> any
         plot(&c, p, &format!("test move, slave {axis}"))?;
         eprintln!("plot → {}", p.display());
     }
-    anyhow::ensure!(
-        !faulted,
-        "the board faulted during the test (host-sim status names the fault); the \
-         recording was written"
-    );
+    if faulted {
+        let why = super::status::fetch_on(link)
+            .ok()
+            .and_then(|r| r.fault_name)
+            .unwrap_or_else(|| "see host-sim status".into());
+        anyhow::bail!(
+            "the board faulted during the test ({why}); the recording was written. Lower \
+             the gains (param set axis/{axis}/kp_lsb_per_um …) or the amplitude, clear the \
+             fault and repeat"
+        );
+    }
     Ok(())
 }
 

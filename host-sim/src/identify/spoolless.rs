@@ -22,7 +22,13 @@
 //! finer one around its best), then the overlap is scanned the same way. The force
 //! balance is the parent's, on the filtered signals. Each value's 1σ is the fit's:
 //! for the valve's, the half-width of the grid values whose residual is within one
-//! σ̂² (Δχ² = 1) of the best.
+//! σ̂² (Δχ² = 1) of the best. Bandwidth, damping and delay trade against each other (a
+//! slower valve with less delay has almost the same phase below the oil column); their
+//! low-frequency lag `2ζ/ω_v + d` (`valve_lag_ms`) is what a recording pins down best.
+//!
+//! The chamber volumes need the piston's position in the cylinder (0 = retracted): the
+//! capture's position plus `offset` (`identify --position-offset-mm`, when the board's
+//! frame is not the cylinder's).
 
 use super::{lstsq, Identified, IdentifyError, Param};
 use crate::plant::HydraulicAxis;
@@ -301,6 +307,11 @@ fn spread(all: &[(Valve, f64)], best_ss: f64, dof: usize, key: impl Fn(&Valve) -
     }
 }
 
+/// A candidate's low-frequency lag `2ζ/ω_v + d`, ms.
+fn lag_ms(c: &Valve, period_s: f64) -> f64 {
+    (2.0 * c.zeta / c.w + c.delay as f64 / SUB as f64 * period_s) * 1e3
+}
+
 /// Fits the axis `known` (geometry, supply, leakage and Coulomb smoothing known) to the
 /// recordings (module docs).
 pub fn identify_spoolless(
@@ -400,8 +411,17 @@ pub fn identify_spoolless(
         Param {
             name: "valve_delay_ms",
             value: b.delay as f64 / SUB as f64 * period * 1e3,
-            std: spread(&all_valve, ss, dof, |c| c.delay as f64 / SUB as f64 * period * 1e3)
-                .max(0.5 / SUB as f64 * period * 1e3),
+            std: spread(&all_valve, ss, dof, |c| {
+                c.delay as f64 / SUB as f64 * period * 1e3
+            })
+            .max(0.5 / SUB as f64 * period * 1e3),
+        },
+        Param {
+            // What the three trade against each other and the recording determines best:
+            // the low-frequency lag 2ζ/ω_v + d.
+            name: "valve_lag_ms",
+            value: lag_ms(&b, period),
+            std: spread(&all_valve, ss, dof, |c| lag_ms(c, period)).max(0.01),
         },
     ];
     super::push_flow_params(&mut params, &th, &sd, b.overlap);
@@ -526,8 +546,10 @@ mod recovery_tests {
             // The command of the tick (held), quantised by the DAC.
             r.u.push((u_at(s.t) * 2047.0).round() / 2047.0);
             r.x_m.push((s.x_mm * 1e3).round() * 1e-6);
-            r.pa_pa.push(adc.read_pa(s.pa_bar * 1e5 + noise_bar * 1e5 * gauss()));
-            r.pb_pa.push(adc.read_pa(s.pb_bar * 1e5 + noise_bar * 1e5 * gauss()));
+            r.pa_pa
+                .push(adc.read_pa(s.pa_bar * 1e5 + noise_bar * 1e5 * gauss()));
+            r.pb_pa
+                .push(adc.read_pa(s.pb_bar * 1e5 + noise_bar * 1e5 * gauss()));
         }
         r
     }

@@ -17,9 +17,18 @@ impl Drop for Serve {
 }
 
 pub fn serve(flash: &Path) -> Serve {
+    serve_args(&[std::ffi::OsStr::new("--flash"), flash.as_os_str()])
+}
+
+/// A virtual board of the scenario `scenario` (its machine, the board's profile).
+pub fn serve_scenario(scenario: &Path) -> Serve {
+    serve_args(&[std::ffi::OsStr::new("--scenario"), scenario.as_os_str()])
+}
+
+fn serve_args(extra: &[&std::ffi::OsStr]) -> Serve {
     let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(["serve", "--pty", "--flash"])
-        .arg(flash)
+        .args(["serve", "--pty"])
+        .args(extra)
         .stdout(Stdio::piped())
         .spawn()
         .expect("serve starts");
