@@ -145,10 +145,17 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
     for t in &traces {
         args.extend(["--trace".to_string(), t.clone()]);
     }
+    // The virtual board reads its pressures at the tick (the firmware: 0.119 ms before).
     args.extend(
-        ["--out", &path("machine.toml"), "--json"]
-            .iter()
-            .map(|s| s.to_string()),
+        [
+            "--pressure-skew-ms",
+            "0",
+            "--out",
+            &path("machine.toml"),
+            "--json",
+        ]
+        .iter()
+        .map(|s| s.to_string()),
     );
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))

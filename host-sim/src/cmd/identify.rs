@@ -39,6 +39,11 @@ pub struct Args {
     /// volumes depend on it.
     #[arg(long, allow_negative_numbers = true)]
     pub position_offset_mm: Option<f64>,
+    /// A capture: how much later than the position the board's pressures were sampled,
+    /// ms [0]. The viscous friction is sensitive to it (module docs of
+    /// `identify::spoolless`).
+    #[arg(long, allow_negative_numbers = true)]
+    pub pressure_skew_ms: Option<f64>,
     /// The `t,u` command the recording was driven with, when the trace has no `u` column.
     #[arg(long, value_name = "CMD.csv")]
     pub command_csv: Option<PathBuf>,
@@ -145,9 +150,10 @@ fn is_capture(path: &Path) -> anyhow::Result<bool> {
     Ok(h.iter().any(|c| c == "t_s") && h.iter().any(|c| c == "dac0"))
 }
 
-/// Reads slave `slave` of a capture CSV (`capture::csv`'s columns); errors name the file,
-/// the line and the column.
-fn read_capture(path: &Path, slave: usize, offset_mm: f64) -> anyhow::Result<Recording> {
+/// Reads slave `slave` of a capture CSV (`capture::csv`'s columns), the position moved
+/// by `offset_mm` into the cylinder's frame; errors name the file, the line and the
+/// column.
+pub fn read_capture(path: &Path, slave: usize, offset_mm: f64) -> anyhow::Result<Recording> {
     let mut r = csv::Reader::from_path(path)
         .with_context(|| format!("reading the recording {}", path.display()))?;
     let header: Vec<String> = r
@@ -320,12 +326,21 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 .all(|r| (r.period_s - period).abs() <= 1e-3 * period),
             "the captures were recorded at different periods"
         );
-        identify_spoolless(&known, &recs)
+        let skew_ms = args.pressure_skew_ms.unwrap_or(0.0);
+        anyhow::ensure!(
+            skew_ms.is_finite() && skew_ms.abs() <= 1e3 * period,
+            "--pressure-skew-ms {skew_ms}: must be within one period ({} ms)",
+            1e3 * period
+        );
+        identify_spoolless(&known, &recs, skew_ms * 1e-3)
     } else {
         anyhow::ensure!(
-            args.trace.len() == 1 && args.slave.is_none() && args.position_offset_mm.is_none(),
+            args.trace.len() == 1
+                && args.slave.is_none()
+                && args.position_offset_mm.is_none()
+                && args.pressure_skew_ms.is_none(),
             "an open-loop recording is fitted alone (one --trace, no --slave or \
-             --position-offset-mm); {names} mixes kinds or has several"
+             --position-offset-mm or --pressure-skew-ms); {names} mixes kinds or has several"
         );
         let rec = read_recording(&args.trace[0], args.command_csv.as_deref())?;
         identify(&known, &rec)

@@ -26,6 +26,17 @@
 //! slower valve with less delay has almost the same phase below the oil column); their
 //! low-frequency lag `2ζ/ω_v + d` (`valve_lag_ms`) is what a recording pins down best.
 //!
+//! **The pressures' timing.** A board converts its pressures over part of the tick, not
+//! at the instant it latches the encoder; a skew `τ` between them shows in the force
+//! balance as a viscous term `τ·m·ω²` — +10 % on the real firmware in board-emu, whose
+//! pressures are the mean of the ≤ 8 ADC scans (238 µs) before the tick reads them, so
+//! 0.119 ms before the encoders (`firmware/src/pressure.rs`). The residual cannot find
+//! τ itself (a scan of it picked noise: the viscous term is that sensitive), so it is
+//! given — `pressure_skew_s`, positive when the pressures were read after the position
+//! (`identify --pressure-skew-ms`, default the firmware's −0.119 ms) — and the force
+//! balance reads the pressures through the Gaussian shifted by −τ. (The flow equations
+//! absorb it in the spool's fitted delay.)
+//!
 //! The chamber volumes need the piston's position in the cylinder (0 = retracted): the
 //! capture's position plus `offset` (`identify --position-offset-mm`, when the board's
 //! frame is not the cylinder's).
@@ -88,6 +99,17 @@ fn kernel(order: u8, sigma_ticks: f64) -> Vec<f64> {
         .enumerate()
         .map(|(k, w)| w * poly((k as i64 - l) as f64))
         .sum();
+    raw.iter().map(|w| w / s).collect()
+}
+
+/// The Gaussian smoothing kernel delayed by `delay` ticks (fractional): `h * x` is then
+/// the smoothed `x(t − delay)`.
+fn shifted(sigma_ticks: f64, delay: f64) -> Vec<f64> {
+    let l = (4.0 * sigma_ticks).ceil().max(2.0) as i64 + 1;
+    let raw: Vec<f64> = (-l..=l)
+        .map(|j| (-0.5 * ((j as f64 - delay) / sigma_ticks).powi(2)).exp())
+        .collect();
+    let s: f64 = raw.iter().sum();
     raw.iter().map(|w| w / s).collect()
 }
 
@@ -317,6 +339,7 @@ fn lag_ms(c: &Valve, period_s: f64) -> f64 {
 pub fn identify_spoolless(
     known: &HydraulicAxis,
     recs: &[Recording],
+    pressure_skew_s: f64,
 ) -> Result<Identified, IdentifyError> {
     let tau = std::f64::consts::TAU;
     let period = recs.first().map_or(1e-3, |r| r.period_s);
@@ -426,33 +449,46 @@ pub fn identify_spoolless(
     ];
     super::push_flow_params(&mut params, &th, &sd, b.overlap);
 
-    // The force balance on the filtered signals.
+    // The force balance on the filtered signals, the pressures moved to the position's
+    // instant (module docs).
     let vs = c.coulomb_smoothing_m_per_s.max(1e-9);
     let (aa, ab) = (c.area_a_m2, c.area_b_m2);
-    let (mut rows, mut y) = (Vec::new(), Vec::new());
-    for ((f, idx), r) in p.filt.iter().zip(&p.usable).zip(recs) {
-        // The Coulomb term is not linear in the signals: formed from a lightly smoothed
-        // velocity (a central difference over ±2 ticks: 1 µm counts give 0.25 mm/s at
-        // 1 ms), then filtered like the rest.
-        let n = r.x_m.len();
-        let sign: Vec<f64> = (0..n)
-            .map(|i| {
-                let (lo, hi) = (i.saturating_sub(2), (i + 2).min(n - 1));
-                let v = (r.x_m[hi] - r.x_m[lo]) / ((hi - lo).max(1) as f64 * r.period_s);
-                (v / vs).tanh()
-            })
-            .collect();
-        let coulomb = filter(&p.h0, &sign);
-        for &i in idx {
-            let (Some(a), Some(v), Some(pa), Some(pb), Some(fc)) =
-                (f.a[i], f.v[i], f.pa[i], f.pb[i], coulomb[i])
-            else {
-                continue;
-            };
-            rows.push(vec![a, v, fc, 1.0]);
-            y.push(aa * pa - ab * pb);
+    let coulomb: Vec<Vec<Option<f64>>> = recs
+        .iter()
+        .map(|r| {
+            // The Coulomb term is not linear in the signals: formed from a lightly smoothed
+            // velocity (a central difference over ±2 ticks: 1 µm counts give 0.25 mm/s at
+            // 1 ms), then filtered like the rest.
+            let n = r.x_m.len();
+            let sign: Vec<f64> = (0..n)
+                .map(|i| {
+                    let (lo, hi) = (i.saturating_sub(2), (i + 2).min(n - 1));
+                    let v = (r.x_m[hi] - r.x_m[lo]) / ((hi - lo).max(1) as f64 * r.period_s);
+                    (v / vs).tanh()
+                })
+                .collect();
+            filter(&p.h0, &sign)
+        })
+        .collect();
+    let force_rows = |skew: f64| {
+        let h = shifted(sigma_ticks, skew);
+        let (mut rows, mut y) = (Vec::new(), Vec::new());
+        for (((f, idx), r), fc) in p.filt.iter().zip(&p.usable).zip(recs).zip(&coulomb) {
+            let (pa, pb) = (filter(&h, &r.pa_pa), filter(&h, &r.pb_pa));
+            for &i in idx {
+                let (Some(a), Some(v), Some(pa), Some(pb), Some(fc)) =
+                    (f.a[i], f.v[i], pa[i], pb[i], fc[i])
+                else {
+                    continue;
+                };
+                rows.push(vec![a, v, fc, 1.0]);
+                y.push(aa * pa - ab * pb);
+            }
         }
-    }
+        (rows, y)
+    };
+    let skew = -pressure_skew_s / period;
+    let (rows, y) = force_rows(skew);
     let (th, sd) = lstsq("motion", &rows, &y)?;
     super::push_force_params(&mut params, &th, &sd)?;
     super::push_derived(&mut params, known);
@@ -574,7 +610,7 @@ mod recovery_tests {
         let known = nominal.axes[0].plant(nominal.supply(), 0.25);
         for noise in [0.0, 0.5] {
             let rec = recording(&truth, noise, 7);
-            let id = identify_spoolless(&known, &[rec]).unwrap();
+            let id = identify_spoolless(&known, &[rec], 0.0).unwrap();
             for (name, truth) in [
                 ("mass_kg", t.cylinder.mass_kg),
                 ("bulk_modulus_pa", t.cylinder.bulk_modulus_pa),
