@@ -19,9 +19,11 @@ enum Command {
     Robust(cmd::robust::Args),
     /// The fair comparison: every controller tuned by the same procedure at each period.
     Fair(cmd::fair::Args),
-    /// Fit an axis' valve, oil, mass and friction to an open-loop recording; write the
-    /// machine file.
+    /// Fit an axis' valve, oil, mass and friction to the board's capture of a test move
+    /// (`motion test`) or an open-loop recording; write the machine file.
     Identify(cmd::identify::Args),
+    /// Gains for a machine file (`identify --out`) by the tuning procedure, checked on it.
+    Tune(cmd::tune::Args),
     /// Drive the plant with a recorded valve command.
     OpenLoop(cmd::open_loop::Args),
     /// Plan a jerk-limited 7-phase move (N-axis straight line) and sample it.
@@ -41,7 +43,8 @@ enum Command {
     /// Record every tick around a trigger (fault, state change, command, threshold) to
     /// CSV and an SVG plot.
     Capture(cmd::capture::Args),
-    /// Send Start / Stop / Hold / ClearFault / set-position / home to a board.
+    /// Send Start / Stop / Hold / ClearFault / set-position / home to a board; move, jog
+    /// and run test moves by hand.
     Motion(cmd::motion::Args),
     /// List a board's tables or activate a committed one.
     Table(cmd::table::Args),
@@ -73,6 +76,7 @@ fn dispatch() -> anyhow::Result<()> {
         Some(Command::Robust(a)) => cmd::robust::run(&a),
         Some(Command::Fair(a)) => cmd::fair::run(&a),
         Some(Command::Identify(a)) => cmd::identify::run(&a),
+        Some(Command::Tune(a)) => cmd::tune::run(&a),
         Some(Command::OpenLoop(a)) => cmd::open_loop::run(&a),
         Some(Command::Scurve(a)) => cmd::scurve::run(&a),
         Some(Command::ContourEstimate(a)) => cmd::contour_estimate::run(&a),

@@ -201,6 +201,46 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
         "valve {bw:.1} Hz, lag {lag:.3} ms (true 48 Hz, ζ 0.8 + one period: {:.3} ms)",
         1.6 / (std::f64::consts::TAU * 0.048) + 1.0
     );
+    // `tune --machine`: gains for the identified machine by the tuning procedure, checked
+    // on it, written with it; the shipped gains on the true machine for comparison.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args([
+            "tune",
+            "--machine",
+            &path("machine.toml"),
+            "--out",
+            &path("tuned.toml"),
+            "--json",
+        ])
+        .output()
+        .expect("tune");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let t = json(&String::from_utf8_lossy(&o.stdout));
+    let (max, rms) = (
+        t["check"]["max_um"].as_f64().expect("max"),
+        t["check"]["rms_um"].as_f64().expect("rms"),
+    );
+    println!(
+        "tuned for the identified machine: {max:.2} / {rms:.3} µm, {}",
+        t["gains"]
+    );
+    assert_eq!(t["check"]["oscillating"], false);
+    assert!(max < 30.0, "{max} µm");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args([
+            "tune",
+            "--machine",
+            &path("tuned.toml"),
+            "--out",
+            &path("again.toml"),
+        ])
+        .output()
+        .expect("tune");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("already has a gain set"),
+        "{e}"
+    );
     // The machine file is a scenario: `run` follows the reference table on it.
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args(["run", &path("machine.toml"), "--json"])

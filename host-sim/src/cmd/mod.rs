@@ -17,6 +17,7 @@ pub mod status;
 pub mod table;
 pub mod test_move;
 pub mod trace;
+pub mod tune;
 pub mod upload;
 pub mod xy;
 

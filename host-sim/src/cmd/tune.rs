@@ -1,0 +1,163 @@
+//! `host-sim tune --machine MACHINE.toml [--period-us N] [--controller C] [--margins
+//! nominal|box] [--out TUNED.toml] [--json]`: gains for the machine the board is
+//! connected to — typically the machine file `host-sim identify` wrote from the board's
+//! own test moves — by the project's one tuning procedure (`crate::autotune`: the
+//! ultimate gain of a P step test on *that* machine, Kp = K_u/2 — a 6 dB gain margin —,
+//! the PI corner a quarter of the crossover, the feed-forward from *its* valve's
+//! full-opening speeds), then checked: the machine follows its table with the new gains
+//! (max / RMS error and whether it oscillates, as `robust` judges it).
+//!
+//! `--margins box` asks the 6 dB on every machine of the robustness box around the
+//! machine file instead (robust against what identification missed, at the price of
+//! the nominal figure). `--out` writes the machine file with the new `[[tuning]]`
+//! appended (what `run`, `robust` and the next `tune` read); without it the gain set is
+//! printed in the scenario's TOML (and the board's settings to set with `param set`).
+
+use crate::autotune::{tune, Margins};
+use crate::robust::{evaluate, Variant};
+use crate::scenario::{Controller, Scenario};
+use anyhow::Context as _;
+use std::path::PathBuf;
+
+/// Arguments of `host-sim tune`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The machine: a scenario file (`identify --out` writes one).
+    #[arg(long, value_name = "MACHINE.toml")]
+    pub machine: PathBuf,
+    /// Control period, µs (default: the machine file's `sim.period_us`).
+    #[arg(long, value_name = "N")]
+    pub period_us: Option<u32>,
+    /// Follower law [feedforward: the board's].
+    #[arg(long, value_enum)]
+    pub controller: Option<Controller>,
+    /// Where the 6 dB gain margin must hold: the machine itself, or every machine of the
+    /// robustness box around it.
+    #[arg(long, value_enum, default_value = "nominal")]
+    pub margins: Margins,
+    /// Write the machine file with the new gain set appended here.
+    #[arg(long, value_name = "TUNED.toml")]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object: `ultimate_gain`, `gains` (the TOML), `check` (max_um,
+    /// rms_um, oscillating, faults).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `host-sim tune`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    if let Some(out) = &args.out {
+        crate::csvout::writable(out)?;
+    }
+    let mut s = Scenario::load(&args.machine)?;
+    let original = std::fs::read_to_string(&args.machine)
+        .with_context(|| format!("reading {}", args.machine.display()))?;
+    let controller = args.controller.unwrap_or(Controller::Feedforward);
+    let period_us = args.period_us.unwrap_or(s.sim.period_us);
+    if args.out.is_some() {
+        // The file's own gain sets (not the reference ones a file without any gets).
+        let own: toml::Value = toml::from_str(&original)
+            .with_context(|| format!("reading {}", args.machine.display()))?;
+        let has = own
+            .get("tuning")
+            .and_then(toml::Value::as_array)
+            .is_some_and(|a| {
+                a.iter().any(|t| {
+                    t.get("controller").and_then(toml::Value::as_str) == Some(controller.name())
+                        && t.get("period_us").and_then(toml::Value::as_integer)
+                            == Some(i64::from(period_us))
+                })
+            });
+        anyhow::ensure!(
+            !has,
+            "{} already has a gain set for {} @ {period_us} µs: tune the machine file \
+             `identify` wrote (or remove that [[tuning]])",
+            args.machine.display(),
+            controller.name()
+        );
+    }
+    let (t, ku) = tune(&s, controller, period_us, args.margins)
+        .with_context(|| format!("tuning {}", args.machine.display()))?;
+    let text = crate::autotune::to_toml(&t);
+    s.tuning
+        .retain(|x| !(x.controller == controller && x.period_us == period_us));
+    s.tuning.push(t);
+    let table = s.load_table(None)?;
+    let check = evaluate(
+        &s,
+        &table,
+        controller,
+        period_us,
+        &[Variant::nominal(&s)],
+        &|_| {},
+    )?;
+    let c = check
+        .first()
+        .ok_or_else(|| anyhow::anyhow!("the check ran no case"))?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "machine": args.machine.display().to_string(),
+                "controller": controller.name(),
+                "period_us": period_us,
+                "ultimate_gain": ku.iter().map(|(a, k)| serde_json::json!({"axis": a, "k_u": k})).collect::<Vec<_>>(),
+                "gains": text,
+                "check": {"max_um": c.max_um, "rms_um": c.rms_um, "oscillating": c.oscillating, "faults": c.faults},
+            })
+        );
+    } else {
+        for (axis, k) in &ku {
+            println!(
+                "# {axis}: ultimate gain K_u = {k:.4} ({} @ {period_us} µs{})",
+                controller.name(),
+                match args.margins {
+                    Margins::Nominal => "",
+                    Margins::Box => ", smallest over the robustness box",
+                }
+            );
+        }
+        println!("{text}");
+        println!(
+            "# check on {}: max {:.2} µm, RMS {:.3} µm, {}",
+            args.machine.display(),
+            c.max_um,
+            c.rms_um,
+            if c.oscillating {
+                format!("OSCILLATES ({})", c.faults.join(", "))
+            } else {
+                "no oscillation".into()
+            }
+        );
+    }
+    if let Some(out) = &args.out {
+        let mut body = format!(
+            "{original}\n# Tuned by `host-sim tune --margins {}` ({} @ {period_us} µs).\n{text}",
+            match args.margins {
+                Margins::Nominal => "nominal",
+                Margins::Box => "box",
+            },
+            controller.name()
+        );
+        if !body.ends_with('\n') {
+            body.push('\n');
+        }
+        // What is written must load as a scenario with this gain set in it.
+        let back = Scenario::parse(&body, out)
+            .and_then(|m| m.validate().map(|()| m))
+            .context("the tuned machine file is not a valid scenario")?;
+        anyhow::ensure!(
+            back.tuning
+                .iter()
+                .any(|x| x.controller == controller && x.period_us == period_us),
+            "the tuned machine file lost its gain set"
+        );
+        crate::csvout::save(out, &body)?;
+        eprintln!("tune: machine with its gains written to {}", out.display());
+    }
+    anyhow::ensure!(
+        !c.oscillating,
+        "the machine oscillates with the gains the procedure chose (see the check above)"
+    );
+    Ok(())
+}
