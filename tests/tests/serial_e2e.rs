@@ -29,6 +29,7 @@ fn reference_all(port: &str) {
             master_op: None,
             speed_scale: None,
             manual: Default::default(),
+            test: Default::default(),
         })
         .unwrap();
     }

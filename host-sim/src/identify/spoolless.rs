@@ -279,11 +279,11 @@ impl Prepared<'_> {
     }
 }
 
+/// The outcome of a search: the best candidate, its fit, and every candidate's residual.
+type Search = (Valve, FlowFit, Vec<(Valve, f64)>);
+
 /// The best candidate over `cands` (the first error if none fits).
-fn best_of(
-    p: &Prepared<'_>,
-    cands: impl Iterator<Item = Valve>,
-) -> Result<(Valve, FlowFit, Vec<(Valve, f64)>), IdentifyError> {
+fn best_of(p: &Prepared<'_>, cands: impl Iterator<Item = Valve>) -> Result<Search, IdentifyError> {
     let mut best: Option<(Valve, FlowFit)> = None;
     let mut first_error = None;
     let mut all = Vec::new();
