@@ -368,3 +368,80 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HEADER: &str = "t_s,tick,master_deg,state,valve_power,estop,command,target0_mm,\
+                          actual0_mm,error0_mm,dac0,pa0_bar,pb0_bar";
+
+    fn write(dir: &Path, name: &str, rows: &[&str]) -> PathBuf {
+        let p = dir.join(name);
+        let mut text = format!("{HEADER}\n");
+        for r in rows {
+            text.push_str(r);
+            text.push('\n');
+        }
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    fn row(t: f64, dac: &str) -> String {
+        format!("{t:.4},1,0,manual,1,0,0,250,250.001,-0.001,{dac},62.5,91.5")
+    }
+
+    #[test]
+    fn a_capture_is_read_in_the_cylinders_frame_and_bad_ones_are_refused_by_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let good: Vec<String> = (0..5).map(|k| row(f64::from(k) * 1e-3, "-2047")).collect();
+        let good: Vec<&str> = good.iter().map(String::as_str).collect();
+        let p = write(dir.path(), "good.csv", &good);
+        assert!(is_capture(&p).unwrap());
+        let r = read_capture(&p, 0, 10.0).unwrap();
+        assert!((r.period_s - 1e-3).abs() < 1e-12);
+        assert_eq!(r.u[0], -1.0);
+        assert!((r.x_m[0] - 0.260_001).abs() < 1e-12, "offset added");
+        assert!((r.pa_pa[0] - 62.5e5).abs() < 1e-6);
+        // No slave 1 in this capture.
+        let e = read_capture(&p, 1, 0.0).unwrap_err().to_string();
+        assert!(e.contains("no `dac1` column"), "{e}");
+        // A DAC code out of range, a missing tick, not a number: the line named.
+        let bad = [row(0.0, "0"), row(1e-3, "5000")];
+        let bad: Vec<&str> = bad.iter().map(String::as_str).collect();
+        let e = format!(
+            "{:#}",
+            read_capture(&write(dir.path(), "dac.csv", &bad), 0, 0.0).unwrap_err()
+        );
+        assert!(e.contains("dac.csv:3") && e.contains("±2047"), "{e}");
+        let gap = [
+            row(0.0, "0"),
+            row(1e-3, "0"),
+            row(3e-3, "0"),
+            row(4e-3, "0"),
+        ];
+        let gap: Vec<&str> = gap.iter().map(String::as_str).collect();
+        let e = format!(
+            "{:#}",
+            read_capture(&write(dir.path(), "gap.csv", &gap), 0, 0.0).unwrap_err()
+        );
+        assert!(e.contains("not one row per tick"), "{e}");
+        let nan = [row(0.0, "0"), row(1e-3, "x")];
+        let nan: Vec<&str> = nan.iter().map(String::as_str).collect();
+        let e = format!(
+            "{:#}",
+            read_capture(&write(dir.path(), "nan.csv", &nan), 0, 0.0).unwrap_err()
+        );
+        assert!(
+            e.contains("nan.csv:3") && e.contains("`dac0` is not a number"),
+            "{e}"
+        );
+        let one = [row(0.0, "0")];
+        let one: Vec<&str> = one.iter().map(String::as_str).collect();
+        assert!(read_capture(&write(dir.path(), "one.csv", &one), 0, 0.0).is_err());
+        // An open-loop recording is not a capture.
+        let ol = dir.path().join("ol.csv");
+        std::fs::write(&ol, "t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool\n").unwrap();
+        assert!(!is_capture(&ol).unwrap());
+    }
+}
