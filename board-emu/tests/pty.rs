@@ -128,7 +128,7 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
     // The identification test move on the real firmware, recorded by its capture, and the
     // fit of the recording (the nominal machine: within 10 %, the criterion, but
     // the viscous friction: 15 %).
-    let rec = dir.path().join("prbs.csv");
+    let rec = dir.path().join("step.csv");
     // (A manual command from Idle waits out the jog's 300 ms lockout after a Stop.)
     std::thread::sleep(std::time::Duration::from_millis(400));
     host_sim::cmd::motion::run(&host_sim::cmd::motion::Args {
@@ -145,11 +145,11 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
             ..Default::default()
         },
     })
-    .expect("motion test --profile prbs");
+    .expect("motion test --profile step");
     // The plant started at the table's first value with the encoder at 0, and the slave was
     // declared there when it had drifted `raw0_mm`: the piston is at the board's position
     // plus `raw0_mm`.
-    let r = host_sim::cmd::identify::read_capture(&rec, 0, raw0_mm).expect("the capture");
+    let r = host_sim::cmd::identify::read_capture(&rec, 0, raw0_mm, 0.0).expect("the capture");
     let s0 = scenario();
     let a = &s0.axes[0];
     let known = a.plant(s0.supply(), 0.25);

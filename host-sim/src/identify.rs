@@ -25,11 +25,10 @@
 //!
 //! Derivatives are five-point central differences of the samples; samples at a spool or
 //! pressure clamp, near an end stop (within 5 % of the stroke), against a contact, and
-//! the first and last are left out. The signals are used as recorded: the fit is
-//! validated on host-sim's true plant signals (`open-loop`'s output), not yet on
-//! quantised, noisy sensor readings — those need both sides of each equation filtered
-//! alike, and a velocity estimated from the encoder. Validated on host-sim's plant (`tests`): a machine with mass, bulk
-//! modulus, valve flow and friction off nominal is recovered within 4 %.
+//! the first and last are left out. The signals are used as recorded (host-sim's true
+//! plant signals, `open-loop`'s output); validated on host-sim's plant (`tests`): a
+//! machine with mass, bulk modulus, valve flow and friction off nominal is recovered
+//! within 4 %. The board's quantised readings without a spool signal are [`spoolless`]'s.
 
 use crate::plant::HydraulicAxis;
 use nalgebra::{DMatrix, DVector};

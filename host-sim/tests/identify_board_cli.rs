@@ -53,7 +53,8 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
     );
     assert!(e.contains("slave 0 is not referenced"), "{e}");
     reference_where_they_are(&s);
-    // The board's refusals: out of the axis' limits (the side press at 10 mm ± 20 mm),
+    // The board's refusals: out of the axis' limits (the side press at 10 mm, ± 9 mm plus
+    // its 2 mm following-error limit), a step the following-error limit would trip on,
     // too fast, impossible.
     let e = refused(
         &s,
@@ -63,14 +64,33 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
             "--axis",
             "1",
             "--profile",
-            "step",
+            "chirp",
             "--amplitude-mm",
-            "20",
+            "9",
+            "--f1-hz",
+            "2",
             "--csv",
             &path("x.csv"),
         ],
     );
     assert!(e.contains("outside its limits"), "{e}");
+    // A step as large as the following-error limit (2 mm) would trip it at once.
+    let e = refused(
+        &s,
+        &[
+            "motion",
+            "test",
+            "--axis",
+            "0",
+            "--profile",
+            "step",
+            "--amplitude-mm",
+            "2",
+            "--csv",
+            &path("x.csv"),
+        ],
+    );
+    assert!(e.contains("following-error limit"), "{e}");
     let e = refused(
         &s,
         &[

@@ -736,7 +736,12 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 limits: limits.into(),
             }),
             Request::TestMove { axis, test } => match test.spec() {
-                Some(spec) => dev.command(Motion::Test { axis, spec }),
+                Some(spec) => dev.command(Motion::Test { axis, spec }).map(|()| {
+                    // The link watchdog watches a test like a run: a lost host holds the
+                    // axes (the test ends at its centre).
+                    self.link.host_started = true;
+                    self.link.lost = false;
+                }),
                 None => Err(Nak::with(
                     NakCode::Motion,
                     u16::from(axis),

@@ -199,6 +199,8 @@ pub mod motion_reason {
     pub const TOO_FAST: u8 = 5;
     /// A test move's profile, amplitude, duration, dwell or frequency is impossible.
     pub const TEST_SPEC: u8 = 6;
+    /// A test move's step (`A`, PRBS `2A`) is not below the axis' following-error limit.
+    pub const TEST_STEP: u8 = 7;
 }
 
 impl NakCode {

@@ -100,6 +100,7 @@ pub const fn command_nak(state: u8, e: CommandError) -> Nak {
                 MotionError::Plan => motion_reason::PLAN,
                 MotionError::TestSpec => motion_reason::TEST_SPEC,
                 MotionError::TooFast => motion_reason::TOO_FAST,
+                MotionError::TestStep => motion_reason::TEST_STEP,
             },
         ),
         _ => Nak::with(NakCode::BadState, state as u16, refusal_reason(e)),

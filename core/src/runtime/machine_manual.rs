@@ -93,8 +93,23 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
                 if !referenced(self, axis)? {
                     return Err(CommandError::NotReferenced { axis });
                 }
+                // The following-error limit in force: the runtime's, or the law's own
+                // where it is lower.
+                let i = usize::from(axis);
+                let runtime = self
+                    .cfg
+                    .following_error_limit_um
+                    .get(i)
+                    .copied()
+                    .ok_or(CommandError::NoAxis { axis })?
+                    .saturating_abs();
+                let own = self
+                    .law
+                    .as_ref()
+                    .and_then(|l| l.following_error_limit_um(i))
+                    .map_or(runtime, PosUm::saturating_abs);
                 self.manual
-                    .test(usize::from(axis), &spec, range, max_speed_um_per_s)
+                    .test(i, &spec, range, max_speed_um_per_s, runtime.min(own))
                     .map_err(motion(axis))?;
             }
             Command::Approach { limits } => {

@@ -106,6 +106,8 @@ pub enum MotionError {
     TestSpec,
     /// A test move's peak speed is above the axis' top speed.
     TooFast,
+    /// A test move's step (`A`, PRBS `2A`) is not below the following-error limit.
+    TestStep,
 }
 
 impl From<TestError> for MotionError {
@@ -114,6 +116,7 @@ impl From<TestError> for MotionError {
             TestError::Spec => MotionError::TestSpec,
             TestError::OutsideLimits => MotionError::OutsideLimits,
             TestError::TooFast => MotionError::TooFast,
+            TestError::Step => MotionError::TestStep,
         }
     }
 }
@@ -479,13 +482,15 @@ impl<const S: usize> Manual<S> {
     }
 
     /// Runs the test move `spec` on slave `axis` about where it holds, within `range`
-    /// (min, max) and the top speed `max_speed_um_per_s` (µm/s).
+    /// (min, max), the top speed `max_speed_um_per_s` (µm/s) and the following-error
+    /// limit `max_error` ([`TestMove::new`]).
     pub fn test(
         &mut self,
         axis: usize,
         spec: &TestSpec,
         range: (PosUm, PosUm),
         max_speed_um_per_s: u32,
+        max_error: PosUm,
     ) -> Result<(), MotionError> {
         let period = self.period_us;
         let slot = self.axes.get_mut(axis).ok_or(MotionError::Limits)?;
@@ -497,6 +502,7 @@ impl<const S: usize> Manual<S> {
             center,
             range,
             max_speed_um_per_s,
+            max_error,
             period,
         )?);
         Ok(())

@@ -15,10 +15,17 @@
 //!   `f₁` over the test; velocity and acceleration feed-forward `A·φ̇·cos φ` and
 //!   `A·(φ̈·cos φ − φ̇²·sin φ)`.
 //!
-//! After `duration` the reference returns to `c` (a step of at most `A`) and holds.
-//! Step and PRBS references step: the law's error is `A` at each step, so `A` must stay
-//! below the axis' following-error limit (the host checks it; the board's fault rules
-//! act if not — a fault with valves at null).
+//! After `duration` the reference returns to `c` (a step of at most `A`; a chirp's
+//! velocity feed-forward steps from up to `A·2π·f₁` to 0) and holds.
+//!
+//! **Refused before anything moves**: a step of the reference — `A` for step, `2A` for
+//! PRBS (−A → +A) — not below the axis' following-error limit `e_max` (the first step
+//! would trip it); `c ± (A + e_max)` outside the axis' limits (the reference stays within
+//! `c ± A`, and the axis cannot get further than `e_max` beyond it without the
+//! following-error fault: valves at null); a chirp whose peak speed `A·2π·max(f₀, f₁)`
+//! is above the axis' top speed. The default 1.8 s PRBS with 20 ms bits uses 90 of the
+//! sequence's 511 bits: a pseudo-random square wave, not the full maximum-length
+//! spectrum.
 //!
 //! Fixed point: the phase is a `u32` fraction of a turn (2⁻³² turn), its increment per
 //! tick `f·T·2³²` (≤ 2³²/10: `f ≤ 1/(10T)`); sine and cosine in `f32` (the M4's FPU;
@@ -90,8 +97,10 @@ pub enum TestError {
     /// Amplitude 0 or above [`TEST_AMPLITUDE_MAX_UM`], duration or dwell shorter than a
     /// period or too long, a chirp frequency above 1/(10T).
     Spec,
-    /// `c ± A` leaves the axis' limits.
+    /// `c ± (A + e_max)` leaves the axis' limits.
     OutsideLimits,
+    /// A step of the reference (`A`, PRBS `2A`) is not below the following-error limit.
+    Step,
     /// The chirp's peak speed `A·2π·f₁` is above the axis' top speed.
     TooFast,
 }
@@ -120,19 +129,21 @@ pub struct TestMove {
     period_s: f32,
 }
 
-/// `x · num / den` in i64 (0 for den = 0; the operands here are < 2³²).
+/// `x · num / den` in u64, saturating (0 for den = 0).
 fn mul_div_u(x: u64, num: u64, den: u64) -> u64 {
     x.saturating_mul(num).checked_div(den).unwrap_or(0)
 }
 
 impl TestMove {
-    /// Plans a test about `center` at `period_us`, within `range` (min, max) and the top
-    /// speed `max_speed_um_per_s`.
+    /// Plans a test about `center` at `period_us`, within `range` (min, max), the top
+    /// speed `max_speed_um_per_s` and the following-error limit `max_error` (module
+    /// docs).
     pub fn new(
         spec: &TestSpec,
         center: PosUm,
         range: (PosUm, PosUm),
         max_speed_um_per_s: u32,
+        max_error: PosUm,
         period_us: u32,
     ) -> Result<Self, TestError> {
         let period_us64 = u64::from(period_us.max(1));
@@ -160,8 +171,18 @@ impl TestMove {
             .and_then(|a| a.checked_mul(256))
             .ok_or(TestError::Spec)?;
         let amplitude = PosUm::from_bits(amp_bits);
+        let e_max = i64::from(max_error.to_bits()).saturating_abs();
         let (c, a) = (i64::from(center.to_bits()), i64::from(amp_bits));
-        let (lo, hi) = (c.saturating_sub(a), c.saturating_add(a));
+        let step = match spec.profile {
+            TestProfile::Step => a,
+            TestProfile::Prbs => a.saturating_mul(2),
+            TestProfile::Chirp => 0,
+        };
+        if step >= e_max {
+            return Err(TestError::Step);
+        }
+        let reach = a.saturating_add(e_max);
+        let (lo, hi) = (c.saturating_sub(reach), c.saturating_add(reach));
         if lo < i64::from(range.0.to_bits()) || hi > i64::from(range.1.to_bits()) {
             return Err(TestError::OutsideLimits);
         }
@@ -272,12 +293,13 @@ impl TestMove {
             / (t * t * self.n.max(1) as f32);
         let a_um = self.amplitude.to_num::<f32>();
         self.phase = self.phase.wrapping_add(u32::try_from(d).unwrap_or(0));
-        // I24F8 bits of a value in µm (a float-to-integer `as` saturates; NaN gives 0).
+        // I24F8 bits of a value in µm (a float-to-integer `as` saturates; NaN gives 0);
+        // the acceleration is `I32F0`, whole µm/s².
         let q8 = |x: f32| (x * 256.0) as i32;
         PosRef {
             x_ref_um: self.center.saturating_add(PosUm::from_bits(q8(a_um * s))),
             v_ff_um_per_s: VelUmPerS::from_bits(q8(a_um * w * c)),
-            a_ff_um_per_s2: AccUmPerS2::from_bits(q8(a_um * (wdot * c - w * w * s))),
+            a_ff_um_per_s2: AccUmPerS2::from_bits((a_um * (wdot * c - w * w * s)) as i32),
         }
     }
 }
@@ -302,6 +324,8 @@ mod tests {
     }
 
     const RANGE: (PosUm, PosUm) = (PosUm::ZERO, PosUm::from_bits(500_000 << 8));
+    /// The following-error limit, 5 mm.
+    const E: PosUm = PosUm::from_bits(5000 << 8);
 
     fn run(mut t: TestMove) -> std::vec::Vec<PosRef> {
         let mut out = std::vec::Vec::new();
@@ -314,8 +338,15 @@ mod tests {
 
     #[test]
     fn the_step_is_a_square_wave_through_the_centre_and_returns() {
-        let t = TestMove::new(&spec(TestProfile::Step), um(100_000), RANGE, 200_000, 1000)
-            .expect("valid");
+        let t = TestMove::new(
+            &spec(TestProfile::Step),
+            um(100_000),
+            RANGE,
+            200_000,
+            E,
+            1000,
+        )
+        .expect("valid");
         let r = run(t);
         assert_eq!(r.len(), 2001);
         let x = |i: usize| r[i].x_ref_um.to_num::<i32>();
@@ -331,7 +362,7 @@ mod tests {
         let mut s = spec(TestProfile::Prbs);
         s.dwell_ms = 4;
         s.duration_ms = 511 * 4;
-        let r = run(TestMove::new(&s, um(100_000), RANGE, 200_000, 1000).expect("valid"));
+        let r = run(TestMove::new(&s, um(100_000), RANGE, 200_000, E, 1000).expect("valid"));
         let x: std::vec::Vec<i32> = r.iter().map(|p| p.x_ref_um.to_num::<i32>()).collect();
         for (i, w) in x[..511 * 4].windows(2).enumerate() {
             if (i + 1) % 4 != 0 {
@@ -349,8 +380,15 @@ mod tests {
 
     #[test]
     fn the_chirp_sweeps_with_consistent_feed_forward() {
-        let t = TestMove::new(&spec(TestProfile::Chirp), um(100_000), RANGE, 200_000, 1000)
-            .expect("valid");
+        let t = TestMove::new(
+            &spec(TestProfile::Chirp),
+            um(100_000),
+            RANGE,
+            200_000,
+            E,
+            1000,
+        )
+        .expect("valid");
         let r = run(t);
         let x: std::vec::Vec<f64> = r.iter().map(|p| p.x_ref_um.to_num::<f64>()).collect();
         // The velocity feed-forward is the reference's derivative (central difference).
@@ -361,6 +399,13 @@ mod tests {
                 (dx - v).abs() < 0.02 * 1000.0 * 6.3 * 20.0,
                 "tick {i}: {dx} vs {v}"
             );
+        }
+        // The acceleration feed-forward (whole µm/s²) is its second difference.
+        for i in (1..1999).step_by(89) {
+            let ddx = (x[i + 1] - 2.0 * x[i] + x[i - 1]) / 1e-6;
+            let a = f64::from(r[i].a_ff_um_per_s2.to_bits());
+            let peak = 1000.0 * (std::f64::consts::TAU * 20.0).powi(2);
+            assert!((ddx - a).abs() < 0.02 * peak, "tick {i}: {ddx} vs {a}");
         }
         // The amplitude stays A, the frequency rises: zero crossings closer at the end.
         assert!(x.iter().all(|v| (v - 100_000.0).abs() <= 1000.01));
@@ -376,7 +421,7 @@ mod tests {
 
     #[test]
     fn impossible_tests_are_refused_before_anything_moves() {
-        let ok = |s: &TestSpec, c: i32| TestMove::new(s, um(c), RANGE, 200_000, 1000);
+        let ok = |s: &TestSpec, c: i32| TestMove::new(s, um(c), RANGE, 200_000, E, 1000);
         let mut s = spec(TestProfile::Step);
         s.amplitude_um = 0;
         assert_eq!(ok(&s, 1000), Err(TestError::Spec));
@@ -394,6 +439,22 @@ mod tests {
         let s = spec(TestProfile::Step);
         assert_eq!(ok(&s, 500), Err(TestError::OutsideLimits));
         assert_eq!(ok(&s, 499_500), Err(TestError::OutsideLimits));
+        // c − A − e_max: 5 999 µm leaves 0 by 1 µm, 6 000 does not.
+        assert_eq!(ok(&s, 5999), Err(TestError::OutsideLimits));
+        assert!(ok(&s, 6000).is_ok());
+        // A step of A (PRBS 2A) must stay below the following-error limit of 5 mm.
+        let mut s = spec(TestProfile::Step);
+        s.amplitude_um = 5000;
+        assert_eq!(ok(&s, 100_000), Err(TestError::Step));
+        let mut s = spec(TestProfile::Prbs);
+        s.amplitude_um = 2500;
+        assert_eq!(ok(&s, 100_000), Err(TestError::Step));
+        s.amplitude_um = 2499;
+        assert!(ok(&s, 100_000).is_ok());
+        let mut s = spec(TestProfile::Chirp);
+        s.amplitude_um = 5000;
+        s.f_end_mhz = 5000;
+        assert!(ok(&s, 100_000).is_ok(), "a chirp does not step");
         let mut s = spec(TestProfile::Chirp);
         s.f_end_mhz = 101_000; // above 1/(10T) at 1 ms
         assert_eq!(ok(&s, 100_000), Err(TestError::Spec));

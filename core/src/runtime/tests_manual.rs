@@ -373,12 +373,18 @@ fn a_test_move_is_refused_outside_limits_too_fast_or_on_a_moving_slave() {
     let mut r = rt();
     let refused = |error| Some(Err(CommandError::Motion { axis: 0, error }));
     let at = [50_000, 30_000];
-    // 60 mm about 50 mm leaves the range at 0.
+    // A chirp of 49 mm about 50 mm, plus the following-error limit of 2 mm, leaves the
+    // range at 0.
     let out = r.step(
         &sample(0, at),
-        Some(test_move(0, TestProfile::Prbs, 60_000)),
+        Some(test_move(0, TestProfile::Chirp, 49_000)),
     );
     assert_eq!(out.reply, refused(MotionError::OutsideLimits));
+    // A step of 2 mm (a PRBS of 1 mm: −1 → +1) would trip the 2 mm following-error limit.
+    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Step, 2000)));
+    assert_eq!(out.reply, refused(MotionError::TestStep));
+    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Prbs, 1000)));
+    assert_eq!(out.reply, refused(MotionError::TestStep));
     assert_eq!(r.state(), State::Idle, "nothing moved");
     // A chirp of 5 mm to 20 Hz: 628 mm/s peak, above 200 mm/s.
     let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Chirp, 5000)));

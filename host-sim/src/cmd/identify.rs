@@ -39,6 +39,9 @@ pub struct Args {
     /// volumes depend on it.
     #[arg(long, allow_negative_numbers = true)]
     pub position_offset_mm: Option<f64>,
+    /// A capture: the valve's null code (the board's `axis/<n>/valve/null_lsb`), LSB [0].
+    #[arg(long, allow_negative_numbers = true)]
+    pub valve_null_lsb: Option<f64>,
     /// A capture: how much later than the position the board's pressures were sampled,
     /// ms [0]. The viscous friction is sensitive to it (module docs of
     /// `identify::spoolless`).
@@ -150,10 +153,18 @@ fn is_capture(path: &Path) -> anyhow::Result<bool> {
     Ok(h.iter().any(|c| c == "t_s") && h.iter().any(|c| c == "dac0"))
 }
 
-/// Reads slave `slave` of a capture CSV (`capture::csv`'s columns), the position moved
-/// by `offset_mm` into the cylinder's frame; errors name the file, the line and the
-/// column.
-pub fn read_capture(path: &Path, slave: usize, offset_mm: f64) -> anyhow::Result<Recording> {
+/// Reads slave `slave` of a capture CSV (`capture::csv`'s columns): the position moved by
+/// `offset_mm` into the cylinder's frame, the valve command less the null `null_lsb`
+/// (LSB) over the DAC's 2 047, a tick driven when `valve_power` is 1 and the state is
+/// manual, following or holding (when the capture has those columns); the ticks must be
+/// consecutive (`tick`, when present) and evenly spaced. Errors name the file, the line
+/// and the column.
+pub fn read_capture(
+    path: &Path,
+    slave: usize,
+    offset_mm: f64,
+    null_lsb: f64,
+) -> anyhow::Result<Recording> {
     let mut r = csv::Reader::from_path(path)
         .with_context(|| format!("reading the recording {}", path.display()))?;
     let header: Vec<String> = r
@@ -179,8 +190,11 @@ pub fn read_capture(path: &Path, slave: usize, offset_mm: f64) -> anyhow::Result
             )
         })?);
     }
+    let col = |n: &str| header.iter().position(|h| h == n);
+    let (tick_col, state_col, power_col) = (col("tick"), col("state"), col("valve_power"));
     let mut rec = Recording::default();
     let mut t = Vec::new();
+    let mut last_tick: Option<u64> = None;
     for (k, row) in r.records().enumerate() {
         let line = k + 2;
         let row = row.with_context(|| format!("{}:{line}", path.display()))?;
@@ -192,6 +206,22 @@ pub fn read_capture(path: &Path, slave: usize, offset_mm: f64) -> anyhow::Result
                     format!("{}:{line}: `{}` is not a number", path.display(), names[j])
                 })
         };
+        if let Some(c) = tick_col {
+            let tick: u64 = row
+                .get(c)
+                .and_then(|s| s.trim().parse().ok())
+                .with_context(|| format!("{}:{line}: `tick` is not a tick", path.display()))?;
+            if let Some(prev) = last_tick {
+                // The board's tick counter is 32 bits: it may wrap inside a capture.
+                anyhow::ensure!(
+                    tick == prev + 1 || (prev == u64::from(u32::MAX) && tick == 0),
+                    "{}:{line}: tick {tick} does not follow {prev}: the capture is not one \
+                     row per tick",
+                    path.display()
+                );
+            }
+            last_tick = Some(tick);
+        }
         t.push(f(0)?);
         let dac = f(1)?;
         anyhow::ensure!(
@@ -199,16 +229,32 @@ pub fn read_capture(path: &Path, slave: usize, offset_mm: f64) -> anyhow::Result
             "{}:{line}: dac{slave} {dac} is outside the DAC's ±2047",
             path.display()
         );
-        rec.u.push(dac / 2047.0);
+        rec.u.push(((dac - null_lsb) / 2047.0).clamp(-1.0, 1.0));
         rec.x_m.push((f(2)? + offset_mm) * 1e-3);
         rec.pa_pa.push(f(3)? * 1e5);
         rec.pb_pa.push(f(4)? * 1e5);
+        let powered = power_col.is_none_or(|c| row.get(c).map(str::trim) == Some("1"));
+        let controlled = state_col.is_none_or(|c| {
+            matches!(
+                row.get(c).map(str::trim),
+                Some("manual" | "following" | "holding" | "holding_end")
+            )
+        });
+        rec.driven.push(powered && controlled);
     }
     anyhow::ensure!(t.len() >= 2, "{}: fewer than two rows", path.display());
     let period = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    anyhow::ensure!(
+        period > 0.0,
+        "{}: `t_s` does not increase ({} s … {} s)",
+        path.display(),
+        t[0],
+        t[t.len() - 1]
+    );
     for (k, w) in t.windows(2).enumerate() {
+        // `t_s` is printed to 0.1 ms: each step within 1 % of the period plus that.
         anyhow::ensure!(
-            ((w[1] - w[0]) - period).abs() <= 0.01 * period + 1e-4,
+            ((w[1] - w[0]) - period).abs() <= 0.01 * period + 0.6e-4,
             "{}:{}: the capture is not one row per tick (t_s {} after {})",
             path.display(),
             k + 3,
@@ -216,6 +262,11 @@ pub fn read_capture(path: &Path, slave: usize, offset_mm: f64) -> anyhow::Result
             w[0]
         );
     }
+    anyhow::ensure!(
+        rec.driven.iter().any(|&d| d),
+        "{}: the valve was never powered and in control (valve_power, state)",
+        path.display()
+    );
     rec.period_s = period;
     Ok(rec)
 }
@@ -310,6 +361,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             args.command_csv.is_none(),
             "--command-csv is for an open-loop recording; a capture has its command (dac)"
         );
+        let null_lsb = args.valve_null_lsb.unwrap_or(0.0);
+        anyhow::ensure!(
+            null_lsb.is_finite() && null_lsb.abs() <= 2047.0,
+            "--valve-null-lsb {null_lsb}: must be within ±2047"
+        );
         let offset_mm = args.position_offset_mm.unwrap_or(0.0);
         anyhow::ensure!(
             offset_mm.is_finite() && offset_mm.abs() <= 8000.0,
@@ -318,7 +374,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let recs = args
             .trace
             .iter()
-            .map(|p| read_capture(p, args.slave.unwrap_or(0), offset_mm))
+            .map(|p| read_capture(p, args.slave.unwrap_or(0), offset_mm, null_lsb))
             .collect::<anyhow::Result<Vec<_>>>()?;
         let period = recs[0].period_s;
         anyhow::ensure!(
@@ -338,9 +394,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             args.trace.len() == 1
                 && args.slave.is_none()
                 && args.position_offset_mm.is_none()
-                && args.pressure_skew_ms.is_none(),
+                && args.pressure_skew_ms.is_none()
+                && args.valve_null_lsb.is_none(),
             "an open-loop recording is fitted alone (one --trace, no --slave or \
-             --position-offset-mm or --pressure-skew-ms); {names} mixes kinds or has several"
+             --position-offset-mm, --pressure-skew-ms or --valve-null-lsb); {names} mixes \
+             kinds or has several"
         );
         let rec = read_recording(&args.trace[0], args.command_csv.as_deref())?;
         identify(&known, &rec)
@@ -388,7 +446,8 @@ mod tests {
     }
 
     fn row(t: f64, dac: &str) -> String {
-        format!("{t:.4},1,0,manual,1,0,0,250,250.001,-0.001,{dac},62.5,91.5")
+        let tick = (t * 1e3).round() as u64 + 100;
+        format!("{t:.4},{tick},0,manual,1,0,0,250,250.001,-0.001,{dac},62.5,91.5")
     }
 
     #[test]
@@ -398,20 +457,20 @@ mod tests {
         let good: Vec<&str> = good.iter().map(String::as_str).collect();
         let p = write(dir.path(), "good.csv", &good);
         assert!(is_capture(&p).unwrap());
-        let r = read_capture(&p, 0, 10.0).unwrap();
+        let r = read_capture(&p, 0, 10.0, 0.0).unwrap();
         assert!((r.period_s - 1e-3).abs() < 1e-12);
         assert_eq!(r.u[0], -1.0);
         assert!((r.x_m[0] - 0.260_001).abs() < 1e-12, "offset added");
         assert!((r.pa_pa[0] - 62.5e5).abs() < 1e-6);
         // No slave 1 in this capture.
-        let e = read_capture(&p, 1, 0.0).unwrap_err().to_string();
+        let e = read_capture(&p, 1, 0.0, 0.0).unwrap_err().to_string();
         assert!(e.contains("no `dac1` column"), "{e}");
         // A DAC code out of range, a missing tick, not a number: the line named.
         let bad = [row(0.0, "0"), row(1e-3, "5000")];
         let bad: Vec<&str> = bad.iter().map(String::as_str).collect();
         let e = format!(
             "{:#}",
-            read_capture(&write(dir.path(), "dac.csv", &bad), 0, 0.0).unwrap_err()
+            read_capture(&write(dir.path(), "dac.csv", &bad), 0, 0.0, 0.0).unwrap_err()
         );
         assert!(e.contains("dac.csv:3") && e.contains("±2047"), "{e}");
         let gap = [
@@ -423,14 +482,14 @@ mod tests {
         let gap: Vec<&str> = gap.iter().map(String::as_str).collect();
         let e = format!(
             "{:#}",
-            read_capture(&write(dir.path(), "gap.csv", &gap), 0, 0.0).unwrap_err()
+            read_capture(&write(dir.path(), "gap.csv", &gap), 0, 0.0, 0.0).unwrap_err()
         );
         assert!(e.contains("not one row per tick"), "{e}");
         let nan = [row(0.0, "0"), row(1e-3, "x")];
         let nan: Vec<&str> = nan.iter().map(String::as_str).collect();
         let e = format!(
             "{:#}",
-            read_capture(&write(dir.path(), "nan.csv", &nan), 0, 0.0).unwrap_err()
+            read_capture(&write(dir.path(), "nan.csv", &nan), 0, 0.0, 0.0).unwrap_err()
         );
         assert!(
             e.contains("nan.csv:3") && e.contains("`dac0` is not a number"),
@@ -438,7 +497,36 @@ mod tests {
         );
         let one = [row(0.0, "0")];
         let one: Vec<&str> = one.iter().map(String::as_str).collect();
-        assert!(read_capture(&write(dir.path(), "one.csv", &one), 0, 0.0).is_err());
+        assert!(read_capture(&write(dir.path(), "one.csv", &one), 0, 0.0, 0.0).is_err());
+        // The null is taken off the command; an unpowered (idle) tick is not driven.
+        let mixed = [
+            row(0.0, "-12").replace("manual,1", "idle,0"),
+            row(1e-3, "-12"),
+            row(2e-3, "2035"),
+        ];
+        let mixed: Vec<&str> = mixed.iter().map(String::as_str).collect();
+        let r = read_capture(&write(dir.path(), "mixed.csv", &mixed), 0, 0.0, -12.0).unwrap();
+        assert_eq!(r.u, vec![0.0, 0.0, 2047.0 / 2047.0]);
+        assert_eq!(r.driven, vec![false, true, true]);
+        // A time that does not increase (ticks unknown), or a valve never driven: refused.
+        let flat = [
+            "0,,,manual,1,0,0,0,250,0,0,60,90",
+            "0,,,manual,1,0,0,0,250,0,0,60,90",
+        ];
+        let header_no_tick = HEADER.replace("t_s,tick", "t_s,tick_");
+        let p = dir.path().join("flat.csv");
+        std::fs::write(&p, format!("{header_no_tick}\n{}\n{}\n", flat[0], flat[1])).unwrap();
+        let e = format!("{:#}", read_capture(&p, 0, 0.0, 0.0).unwrap_err());
+        assert!(e.contains("does not increase"), "{e}");
+        let idle: Vec<String> = (0..3)
+            .map(|k| row(f64::from(k) * 1e-3, "0").replace("manual,1", "idle,0"))
+            .collect();
+        let idle: Vec<&str> = idle.iter().map(String::as_str).collect();
+        let e = format!(
+            "{:#}",
+            read_capture(&write(dir.path(), "idle.csv", &idle), 0, 0.0, 0.0).unwrap_err()
+        );
+        assert!(e.contains("never powered"), "{e}");
         // An open-loop recording is not a capture.
         let ol = dir.path().join("ol.csv");
         std::fs::write(&ol, "t,u,x_mm,v_mm_s,pA_bar,pB_bar,spool\n").unwrap();

@@ -69,11 +69,16 @@ pub fn explain(nak: &Nak) -> String {
             let why = match d2 {
                 m::LIMITS => "a speed, acceleration or jerk limit is zero or too large",
                 m::OUTSIDE_LIMITS => {
-                    "the target is outside its limits/min_um … max_um (or the jog points out of them)"
+                    "the target is outside its limits/min_um … max_um (or the jog points out of \
+                     them; a test needs its amplitude plus the following-error limit inside)"
                 }
                 m::MOVING => "it is moving: wait until it is at rest (or hold)",
                 m::PLAN => "the move is too long to plan",
                 m::TOO_FAST => "the speed is above its limits/max_speed_um_per_s",
+                m::TEST_STEP => {
+                    "a step of the test (its amplitude; a PRBS twice it) is not below the \
+                     axis' following-error limit"
+                }
                 m::TEST_SPEC => {
                     "the test's profile, amplitude (1 µm … 100 mm), duration (≤ 60 s), dwell or \
                      frequency (≤ a tenth of the loop rate) is impossible"

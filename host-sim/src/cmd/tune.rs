@@ -10,8 +10,11 @@
 //! `--margins box` asks the 6 dB on every machine of the robustness box around the
 //! machine file instead (robust against what identification missed, at the price of
 //! the nominal figure). `--out` writes the machine file with the new `[[tuning]]`
-//! appended (what `run`, `robust` and the next `tune` read); without it the gain set is
-//! printed in the scenario's TOML (and the board's settings to set with `param set`).
+//! appended (what `run`, `robust` and the next `tune` read), only when the check did not
+//! oscillate; the gain set is printed in the scenario's TOML either way — each key of
+//! `[tuning.axes.<name>]` is the board's setting `axis/<n>/<key>` (`param set`). The
+//! check runs the machine file's own table (the reference table unless it names one) at
+//! the machine file's period unless `--period-us` says otherwise: give the board's.
 
 use crate::autotune::{tune, Margins};
 use crate::robust::{evaluate, Variant};
@@ -130,6 +133,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             }
         );
     }
+    anyhow::ensure!(
+        !c.oscillating,
+        "the machine oscillates with the gains the procedure chose (see the check above); \
+         nothing written"
+    );
     if let Some(out) = &args.out {
         let mut body = format!(
             "{original}\n# Tuned by `host-sim tune --margins {}` ({} @ {period_us} µs).\n{text}",
@@ -155,9 +163,5 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         crate::csvout::save(out, &body)?;
         eprintln!("tune: machine with its gains written to {}", out.display());
     }
-    anyhow::ensure!(
-        !c.oscillating,
-        "the machine oscillates with the gains the procedure chose (see the check above)"
-    );
     Ok(())
 }

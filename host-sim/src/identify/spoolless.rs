@@ -26,16 +26,23 @@
 //! slower valve with less delay has almost the same phase below the oil column); their
 //! low-frequency lag `2ζ/ω_v + d` (`valve_lag_ms`) is what a recording pins down best.
 //!
-//! **The pressures' timing.** A board converts its pressures over part of the tick, not
-//! at the instant it latches the encoder; a skew `τ` between them shows in the force
-//! balance as a viscous term `τ·m·ω²` — +10 % on the real firmware in board-emu, whose
-//! pressures are the mean of the ≤ 8 ADC scans (238 µs) before the tick reads them, so
-//! 0.119 ms before the encoders (`firmware/src/pressure.rs`). The residual cannot find
-//! τ itself (a scan of it picked noise: the viscous term is that sensitive), so it is
-//! given — `pressure_skew_s`, positive when the pressures were read after the position
-//! (`identify --pressure-skew-ms`, default the firmware's −0.119 ms) — and the force
-//! balance reads the pressures through the Gaussian shifted by −τ. (The flow equations
-//! absorb it in the spool's fitted delay.)
+//! **The pressures' timing.** A board may convert its pressures over part of the tick,
+//! not at the instant it latches the encoder; a skew `τ` between them shows in the force
+//! balance as a viscous term `τ·m·ω²`. On the release ELF in board-emu the viscous
+//! friction came out +4 … +10 % (the virtual board, which reads both at the tick: +1.3 %),
+//! and a scan of the skew moved it ≈ 18 % per 50 µs. The residual cannot find τ itself
+//! (such a scan picked noise), so it is given: `pressure_skew_s`, positive when the
+//! pressures were sampled after the position (`identify --pressure-skew-ms`, default 0);
+//! the force balance reads the pressures through the Gaussian delayed by `τ` (a recorded
+//! `p(t)` is the true `p(t + τ)`). The flow equations absorb it in the spool's fitted
+//! delay.
+//!
+//! **Uncertainty.** The filtered rows are correlated over the Gaussian's equivalent width
+//! `2√π·σ` (≈ 8.9 rows at 1 ms): every σ of this fit is the regression's σ̂·√((XᵀX)⁻¹)
+//! scaled by the square root of that width, and the valve's Δχ² = 1 interval counts σ̂²
+//! per independent sample. Unpowered ticks (the capture's `valve_power` 0, or a state
+//! other than manual, following or holding) are commanded 0 and not fitted; a sample is
+//! fitted only when every sample within the kernel's half-width may be.
 //!
 //! The chamber volumes need the piston's position in the cylinder (0 = retracted): the
 //! capture's position plus `offset` (`identify --position-offset-mm`, when the board's
@@ -60,6 +67,16 @@ pub struct Recording {
     pub pa_pa: Vec<f64>,
     /// Chamber B pressure, Pa.
     pub pb_pa: Vec<f64>,
+    /// Whether the valve was driven in the tick (powered, in control); an unpowered tick's
+    /// command is taken as 0 and it is not fitted. Empty: every tick.
+    pub driven: Vec<bool>,
+}
+
+impl Recording {
+    /// Whether tick `i` was driven (see [`Recording::driven`]).
+    fn driven(&self, i: usize) -> bool {
+        self.driven.get(i).copied().unwrap_or(true)
+    }
 }
 
 /// A Gaussian kernel (`order` 0), or its first or second derivative, over ±4σ,
@@ -167,14 +184,14 @@ const SUB: usize = 8;
 fn spool(u: &[f64], period_s: f64, w: f64, zeta: f64, delay: usize) -> Vec<f64> {
     let h = period_s / SUB as f64;
     let f = |x: f64, v: f64, u: f64| (v, w * w * (u - x) - 2.0 * zeta * w * v);
-    let (mut x, mut v) = (0.0f64, 0.0f64);
+    // At rest at the first command (the recording starts from a holding axis).
+    let (mut x, mut v) = (u.first().copied().unwrap_or(0.0), 0.0f64);
     let mut out = Vec::with_capacity(u.len());
     for k in 0..u.len() {
         out.push(x);
         for sub in 0..SUB {
-            let uk = (k * SUB + sub)
-                .checked_sub(delay)
-                .map_or(0.0, |j| u[j / SUB]);
+            // Before the recording's first command: that command (the law held it).
+            let uk = u[(k * SUB + sub).saturating_sub(delay) / SUB];
             let (k1x, k1v) = f(x, v, uk);
             let (k2x, k2v) = f(x + 0.5 * h * k1x, v + 0.5 * h * k1v, uk);
             let (k3x, k3v) = f(x + 0.5 * h * k2x, v + 0.5 * h * k2v, uk);
@@ -225,7 +242,10 @@ impl Prepared<'_> {
         let cl = k.valve.leak_m3_per_s_pa;
         let (mut rows, mut y) = (Vec::new(), Vec::new());
         for ((r, f), idx) in self.recs.iter().zip(&self.filt).zip(&self.usable) {
-            let xv = spool(&r.u, r.period_s, c.w, c.zeta, c.delay);
+            let u: Vec<f64> = (0..r.u.len())
+                .map(|i| if r.driven(i) { r.u[i] } else { 0.0 })
+                .collect();
+            let xv = spool(&u, r.period_s, c.w, c.zeta, c.delay);
             // The orifice terms per sample (module docs of the parent), then filtered.
             let mut g = [
                 vec![0.0; xv.len()],
@@ -308,10 +328,13 @@ fn best_of(p: &Prepared<'_>, cands: impl Iterator<Item = Valve>) -> Result<Searc
     }
 }
 
-/// The half-width of the values `key` takes among candidates whose residual is within
-/// one σ̂² of the best (Δχ² = 1).
-fn spread(all: &[(Valve, f64)], best_ss: f64, dof: usize, key: impl Fn(&Valve) -> f64) -> f64 {
-    let lim = best_ss * (1.0 + 1.0 / dof as f64);
+/// The half-width of the values `key` takes among the candidates of one search whose
+/// residual is within one σ̂² of that search's best (Δχ² = 1), σ̂² counted per
+/// independent sample: the filtered rows are correlated over ≈ `corr` rows
+/// ([`correlated_rows`]).
+fn spread(all: &[(Valve, f64)], dof: usize, corr: f64, key: impl Fn(&Valve) -> f64) -> f64 {
+    let best_ss = all.iter().map(|(_, s)| *s).fold(f64::INFINITY, f64::min);
+    let lim = best_ss * (1.0 + corr / dof as f64);
     let vals: Vec<f64> = all
         .iter()
         .filter(|(_, s)| *s <= lim)
@@ -327,6 +350,13 @@ fn spread(all: &[(Valve, f64)], best_ss: f64, dof: usize, key: impl Fn(&Valve) -
     } else {
         0.0
     }
+}
+
+/// Rows of the filtered regressions that one independent sample spreads over: the
+/// Gaussian's equivalent width `2√π·σ` in ticks (its residuals are correlated over it, so
+/// the fits' σ from σ̂²·(XᵀX)⁻¹ are scaled by the square root of this).
+fn correlated_rows(sigma_ticks: f64) -> f64 {
+    (2.0 * std::f64::consts::PI.sqrt() * sigma_ticks).max(1.0)
 }
 
 /// A candidate's low-frequency lag `2ζ/ω_v + d`, ms.
@@ -354,13 +384,17 @@ pub fn identify_spoolless(
     let margin = 0.05 * c.stroke_m;
     let filt: Vec<Filtered> = recs.iter().map(|r| Filtered::of(r, &h)).collect();
     let samples: usize = recs.iter().map(|r| r.u.len()).sum();
+    // A filtered equation holds where it holds over the whole kernel: a sample is used
+    // only when every sample within the kernel's half-width is.
+    let half = h[0].len() / 2;
     let usable: Vec<Vec<usize>> = recs
         .iter()
         .map(|r| {
-            (0..r.u.len())
-                .filter(|&i| {
+            let ok: Vec<bool> = (0..r.u.len())
+                .map(|i| {
                     let (x, pa, pb) = (r.x_m[i], r.pa_pa[i], r.pb_pa[i]);
-                    r.u[i].abs() < 0.999
+                    r.driven(i)
+                        && r.u[i].abs() < 0.999
                         && x > margin
                         && x < c.stroke_m - margin
                         && pa > 0.01 * pmax
@@ -369,9 +403,17 @@ pub fn identify_spoolless(
                         && pb < 0.99 * pmax
                         && c.contact_n(x) == 0.0
                 })
+                .collect();
+            (0..ok.len())
+                .filter(|&i| {
+                    let lo = i.saturating_sub(half);
+                    let hi = (i + half + 1).min(ok.len());
+                    ok[lo..hi].iter().all(|&b| b)
+                })
                 .collect()
         })
         .collect();
+    let corr = correlated_rows(sigma_ticks);
     let p = Prepared {
         known,
         recs,
@@ -413,7 +455,8 @@ pub fn identify_spoolless(
             ..b
         }),
     )?;
-    let (th, sd, ss, dof) = fit;
+    let (th, sd, _, dof) = fit;
+    let sd: Vec<f64> = sd.iter().map(|x| x * corr.sqrt()).collect();
     if th[2].is_nan() || th[2] <= 0.0 {
         return Err(IdentifyError::Unphysical {
             name: "bulk_modulus_pa",
@@ -424,17 +467,17 @@ pub fn identify_spoolless(
         Param {
             name: "valve_bandwidth_hz",
             value: b.w / tau,
-            std: spread(&all_valve, ss, dof, |c| c.w / tau).max(0.01 * b.w / tau),
+            std: spread(&all_valve, dof, corr, |c| c.w / tau).max(0.01 * b.w / tau),
         },
         Param {
             name: "valve_damping",
             value: b.zeta,
-            std: spread(&all_valve, ss, dof, |c| c.zeta).max(0.0125),
+            std: spread(&all_valve, dof, corr, |c| c.zeta).max(0.0125),
         },
         Param {
             name: "valve_delay_ms",
             value: b.delay as f64 / SUB as f64 * period * 1e3,
-            std: spread(&all_valve, ss, dof, |c| {
+            std: spread(&all_valve, dof, corr, |c| {
                 c.delay as f64 / SUB as f64 * period * 1e3
             })
             .max(0.5 / SUB as f64 * period * 1e3),
@@ -444,7 +487,7 @@ pub fn identify_spoolless(
             // the low-frequency lag 2ζ/ω_v + d.
             name: "valve_lag_ms",
             value: lag_ms(&b, period),
-            std: spread(&all_valve, ss, dof, |c| lag_ms(c, period)).max(0.01),
+            std: spread(&all_valve, dof, corr, |c| lag_ms(c, period)).max(0.01),
         },
     ];
     super::push_flow_params(&mut params, &th, &sd, b.overlap);
@@ -487,9 +530,11 @@ pub fn identify_spoolless(
         }
         (rows, y)
     };
-    let skew = -pressure_skew_s / period;
+    // Recorded p(t) = true p(t + τ): read through the Gaussian delayed by τ.
+    let skew = pressure_skew_s / period;
     let (rows, y) = force_rows(skew);
     let (th, sd) = lstsq("motion", &rows, &y)?;
+    let sd: Vec<f64> = sd.iter().map(|x| x * corr.sqrt()).collect();
     super::push_force_params(&mut params, &th, &sd)?;
     super::push_derived(&mut params, known);
     Ok(Identified {
@@ -548,10 +593,20 @@ mod recovery_tests {
     /// counts and a 12-bit 250 bar ADC (plus Gaussian noise of `noise_bar` on each
     /// pressure), the command quantised by the 12-bit DAC.
     fn recording(truth: &Scenario, noise_bar: f64, seed: u64) -> Recording {
+        skewed_recording(truth, noise_bar, seed, 0)
+    }
+
+    /// [`recording`] with the pressures sampled `skew` tenths of a tick after (> 0) or
+    /// before (< 0) the position.
+    fn skewed_recording(truth: &Scenario, noise_bar: f64, seed: u64, skew: i64) -> Recording {
         let cmd = super::super::tests::excitation();
         let a = &truth.axes[0];
         let mut plant = a.plant(truth.supply(), 0.25);
-        let out = simulate(&mut plant, &cmd, truth.step_s(), 1e-3);
+        let fine = simulate(&mut plant, &cmd, truth.step_s(), 1e-4);
+        let at = |k: usize| fine[(k as i64 * 10 + skew).clamp(0, fine.len() as i64 - 1) as usize];
+        let out: Vec<_> = (0..fine.len().div_ceil(10))
+            .map(|k| (at(k), fine[k * 10]))
+            .collect();
         let u_at = |t: f64| {
             cmd.iter()
                 .take_while(|(tc, _)| *tc <= t + 1e-9)
@@ -578,16 +633,40 @@ mod recovery_tests {
             period_s: 1e-3,
             ..Default::default()
         };
-        for s in &out {
+        for (p, s) in &out {
             // The command of the tick (held), quantised by the DAC.
             r.u.push((u_at(s.t) * 2047.0).round() / 2047.0);
             r.x_m.push((s.x_mm * 1e3).round() * 1e-6);
             r.pa_pa
-                .push(adc.read_pa(s.pa_bar * 1e5 + noise_bar * 1e5 * gauss()));
+                .push(adc.read_pa(p.pa_bar * 1e5 + noise_bar * 1e5 * gauss()));
             r.pb_pa
-                .push(adc.read_pa(s.pb_bar * 1e5 + noise_bar * 1e5 * gauss()));
+                .push(adc.read_pa(p.pb_bar * 1e5 + noise_bar * 1e5 * gauss()));
         }
         r
+    }
+
+    #[test]
+    fn a_given_pressure_skew_is_taken_out_of_the_force_balance() {
+        let truth = off_nominal();
+        let t = &truth.axes[0];
+        let nominal = Scenario::default();
+        let known = nominal.axes[0].plant(nominal.supply(), 0.25);
+        // Pressures sampled 0.3 ms before the position.
+        let rec = skewed_recording(&truth, 0.0, 7, -3);
+        let visc = |skew_s: f64| {
+            let id = identify_spoolless(&known, std::slice::from_ref(&rec), skew_s).unwrap();
+            id.get("viscous_n_s_per_m").unwrap().value / t.cylinder.viscous_n_s_per_m - 1.0
+        };
+        let (ignored, taken) = (visc(0.0), visc(-0.3e-3));
+        let wrong_way = visc(0.3e-3);
+        println!(
+            "viscous with a 0.3 ms skew: ignored {:+.1} %, taken out {:+.1} %, doubled {:+.1} %",
+            100.0 * ignored,
+            100.0 * taken,
+            100.0 * wrong_way
+        );
+        assert!(taken.abs() < 0.05, "{taken}");
+        assert!(taken.abs() < ignored.abs() && ignored.abs() < wrong_way.abs());
     }
 
     /// The parent's off-nominal machine.
