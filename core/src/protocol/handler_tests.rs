@@ -108,10 +108,13 @@ impl Device<S, N> for Mock {
                 Ok(())
             }
             Motion::Home { .. } => Ok(()),
-            Motion::Jog { .. }
-            | Motion::MoveTo { .. }
-            | Motion::Approach { .. }
-            | Motion::Test { .. } => Err(Nak::with(NakCode::BadState, 0, 1)),
+            Motion::Test { .. } => {
+                self.running = true;
+                Ok(())
+            }
+            Motion::Jog { .. } | Motion::MoveTo { .. } | Motion::Approach { .. } => {
+                Err(Nak::with(NakCode::BadState, 0, 1))
+            }
         }
     }
     fn persisted_offset_um(&self, _axis: u8) -> Option<f32> {
@@ -1162,6 +1165,43 @@ fn link_watchdog_holds_after_silence_only_when_set() {
     r.ack(&Request::Start);
     assert!(!r.h.watch_link(&mut r.dev, u32::MAX - 10));
     assert!(r.h.watch_link(&mut r.dev, 95));
+}
+
+/// A TestMove of an unknown profile is refused naming why; an accepted one is watched by
+/// the link watchdog like a Start (a silent host holds the axes: the test ends).
+#[test]
+fn a_test_move_is_checked_and_watched_by_the_link_watchdog() {
+    use super::msg::{motion_reason, TestMoveMsg};
+    let mut r = loaded_rig();
+    let test = |profile: u8| Request::TestMove {
+        axis: 0,
+        test: TestMoveMsg {
+            profile,
+            amplitude_um: 500,
+            duration_ms: 1000,
+            dwell_ms: 100,
+            f_start_mhz: 0,
+            f_end_mhz: 0,
+        },
+    };
+    match r.req(&test(3)) {
+        Response::Nak { nak, .. } => {
+            assert_eq!(
+                (nak.code, nak.detail2),
+                (NakCode::Motion, motion_reason::TEST_SPEC)
+            )
+        }
+        x => panic!("{x:?}"),
+    }
+    r.set_param(ParamId::LinkTimeoutMs, 100.0);
+    r.ack(&test(0));
+    let t0 = 1_000_000;
+    assert!(
+        !r.h.watch_link(&mut r.dev, t0),
+        "the TestMove frame was seen"
+    );
+    assert!(r.h.watch_link(&mut r.dev, t0 + 101), "100 ms of silence");
+    assert_eq!(r.dev.holds, 1);
 }
 
 /// A set-position on an absolute axis is persisted (as its reference offset) by Save and

@@ -147,10 +147,15 @@ pub fn run(link: &mut Link, axis: u8, t: &TestArgs, seconds: Option<f64>) -> any
             f64::from(spec.duration_ms) * 1e-3
         ))
     })?;
-    link.expect_ack(&Request::TestMove {
+    if let Err(e) = link.expect_ack(&Request::TestMove {
         axis,
         test: TestMoveMsg::of(&spec),
-    })?;
+    }) {
+        // Refused: the capture armed for it must not fire on the next command (someone
+        // else's). A capture triggered now replaces it (the board keeps one capture).
+        let _ = arm(link, Trigger::Now, 0.0, 0.0);
+        return Err(e);
+    }
     eprintln!(
         "test running on slave {axis} ({:?}, ±{:.3} mm, {:.2} s) …",
         spec.profile,
