@@ -129,8 +129,6 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
     // fit of the recording (the nominal machine: within 10 %, the criterion, but
     // the viscous friction: 15 %).
     let rec = dir.path().join("step.csv");
-    // (A manual command from Idle waits out the jog's 300 ms lockout after a Stop.)
-    std::thread::sleep(std::time::Duration::from_millis(400));
     host_sim::cmd::motion::run(&host_sim::cmd::motion::Args {
         port: port.clone(),
         what: What::Test,

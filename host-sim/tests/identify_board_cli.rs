@@ -221,6 +221,11 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
         "valve {bw:.1} Hz, lag {lag:.3} ms (true 48 Hz, ζ 0.8 + one period: {:.3} ms)",
         1.6 / (std::f64::consts::TAU * 0.048) + 1.0
     );
+    let machine = std::fs::read_to_string(path("machine.toml")).expect("machine");
+    assert!(
+        machine.contains("[sim]\nperiod_us = 1000"),
+        "the board's period:\n{machine}"
+    );
     // `tune --machine`: gains for the identified machine by the tuning procedure, checked
     // on it, written with it; the shipped gains on the true machine for comparison.
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))

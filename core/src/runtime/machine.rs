@@ -310,7 +310,8 @@ pub struct Runtime<C, const S: usize, const P: usize> {
     /// when the slaves have arrived at the table's value at the live master).
     approach: Option<(Master, MotionLimits)>,
     /// Ticks left in which a Jog may not re-enter `Manual` from Idle: a host still
-    /// renewing a jog must not undo a Stop (or a fault) by its next renewal.
+    /// renewing a jog must not undo a Stop (or a fault) by its next renewal. (MoveTo,
+    /// Approach and Test are not renewals: not locked.)
     jog_lockout_ticks: u32,
 }
 

@@ -34,9 +34,10 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             return Err(CommandError::NoController);
         }
         let entering = self.state == State::Idle;
-        if entering && self.jog_lockout_ticks > 0 {
+        if entering && self.jog_lockout_ticks > 0 && matches!(cmd, Command::Jog { .. }) {
             // Within the deadman time after leaving Manual: a renewal of the jog that was
-            // stopped, not a new command.
+            // stopped, not a new command. (A move, an approach or a test is a command of
+            // its own, never a renewal: it may follow a Stop at once.)
             return Err(CommandError::Busy);
         }
         if entering {

@@ -300,6 +300,16 @@ fn a_stopped_jog_is_not_revived_by_its_next_renewal() {
     let out = r.step(&sample(0, [50, 0]), Some(jog(0, 1.0)));
     assert_eq!(out.reply, Some(Err(CommandError::Busy)));
     assert!(!out.enable);
+    // A move is a command of its own, not a renewal: allowed at once (then stopped).
+    let out = r.step(&sample(0, [50, 0]), Some(move_to(0, 1000)));
+    assert_eq!(out.reply, Some(Ok(())));
+    r.step(&sample(0, [50, 0]), Some(Command::Stop));
+    let out = r.step(&sample(0, [50, 0]), Some(jog(0, 1.0)));
+    assert_eq!(
+        out.reply,
+        Some(Err(CommandError::Busy)),
+        "the Stop locks jogs again"
+    );
     // After the deadman time a jog is a new command again.
     follow(&mut r, 0, 300);
     let out = r.step(&sample(0, [50, 0]), Some(jog(0, 1.0)));

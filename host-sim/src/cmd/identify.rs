@@ -271,8 +271,15 @@ pub fn read_capture(
     Ok(rec)
 }
 
-/// The machine file: the scenario's supply and axis geometry with the fitted values.
-fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &str) -> String {
+/// The machine file: the scenario's supply and axis geometry with the fitted values (and
+/// the board's control period, when fitted from its capture).
+fn machine_toml(
+    s: &Scenario,
+    axis: &str,
+    id: &Identified,
+    source: &str,
+    period_us: Option<u32>,
+) -> String {
     let v = |n: &str| id.get(n).map_or(0.0, |p| p.value);
     let line = |n: &str, key: &str| -> String {
         id.get(n).map_or(String::new(), |p| {
@@ -303,6 +310,12 @@ fn machine_toml(s: &Scenario, axis: &str, id: &Identified, source: &str) -> Stri
         )),
     );
     let _ = writeln!(o, "name = \"{}_identified\"\n", s.name());
+    if let Some(p) = period_us {
+        let _ = writeln!(
+            o,
+            "[sim]\nperiod_us = {p}   # the board's, from the capture\n"
+        );
+    }
     let _ = writeln!(
         o,
         "[supply]\nsupply_bar = {}\ntank_bar = {}\nclamp_factor = {}\n",
@@ -356,6 +369,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         .map(|p| p.display().to_string())
         .collect::<Vec<_>>()
         .join(", ");
+    let mut board_period_us = None;
     let id = if captures.iter().all(|&c| c) {
         anyhow::ensure!(
             args.command_csv.is_none(),
@@ -388,6 +402,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "--pressure-skew-ms {skew_ms}: must be within one period ({} ms)",
             1e3 * period
         );
+        // The machine file runs at the board's period (`tune` tunes for it).
+        board_period_us = Some((period * 1e6).round() as u32);
         identify_spoolless(&known, &recs, skew_ms * 1e-3)
     } else {
         anyhow::ensure!(
@@ -416,7 +432,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     }
     if let Some(out) = &args.out {
-        let text = machine_toml(&s, &a.name, &id, &names);
+        let text = machine_toml(&s, &a.name, &id, &names, board_period_us);
         // What is written must load as a scenario (its validation names a bad value).
         Scenario::parse(&text, out)
             .and_then(|m| m.validate())

@@ -14,7 +14,8 @@
 //! oscillate; the gain set is printed in the scenario's TOML either way — each key of
 //! `[tuning.axes.<name>]` is the board's setting `axis/<n>/<key>` (`param set`). The
 //! check runs the machine file's own table (the reference table unless it names one) at
-//! the machine file's period unless `--period-us` says otherwise: give the board's.
+//! the machine file's period (the board's, when `identify` wrote it from a capture)
+//! unless `--period-us` says otherwise.
 
 use crate::autotune::{tune, Margins};
 use crate::robust::{evaluate, Variant};
