@@ -373,6 +373,24 @@ pub fn identify_spoolless(
 ) -> Result<Identified, IdentifyError> {
     let tau = std::f64::consts::TAU;
     let period = recs.first().map_or(1e-3, |r| r.period_s);
+    for r in recs {
+        // One period for all (the filter is built once), above 0.
+        if !(r.period_s > 0.0 && r.period_s.is_finite())
+            || (r.period_s - period).abs() > 1e-3 * period
+        {
+            return Err(IdentifyError::Unphysical {
+                name: "period_s",
+                value: r.period_s,
+            });
+        }
+        let n = r.u.len();
+        if r.x_m.len() != n || r.pa_pa.len() != n || r.pb_pa.len() != n {
+            return Err(IdentifyError::Unphysical {
+                name: "recording_columns_of_unequal_length",
+                value: n as f64,
+            });
+        }
+    }
     let sigma_ticks = SMOOTH_S / period;
     let h: [Vec<f64>; 3] = [
         kernel(0, sigma_ticks),
@@ -566,6 +584,45 @@ mod tests {
         assert!(h1.iter().sum::<f64>().abs() < 1e-15);
         assert!(h2.iter().sum::<f64>().abs() * 0.1 / 1e-6 < 1e-6);
         assert_eq!(filter(&h0, &x)[0], None);
+    }
+
+    #[test]
+    fn a_malformed_recording_is_an_error_not_a_panic() {
+        let s = crate::scenario::Scenario::default();
+        let known = s.axes[0].plant(s.supply(), 0.25);
+        let r = Recording {
+            period_s: 0.0,
+            u: vec![0.0; 100],
+            x_m: vec![0.25; 100],
+            pa_pa: vec![80e5; 100],
+            pb_pa: vec![80e5; 100],
+            driven: Vec::new(),
+        };
+        assert!(matches!(
+            identify_spoolless(&known, std::slice::from_ref(&r), 0.0),
+            Err(IdentifyError::Unphysical {
+                name: "period_s",
+                ..
+            })
+        ));
+        let short = Recording {
+            period_s: 1e-3,
+            x_m: vec![0.25; 99],
+            ..r.clone()
+        };
+        assert!(identify_spoolless(&known, &[short], 0.0).is_err());
+        let still = Recording {
+            period_s: 1e-3,
+            ..r
+        };
+        assert!(
+            identify_spoolless(&known, &[still], 0.0).is_err(),
+            "nothing excited"
+        );
+        assert!(
+            identify_spoolless(&known, &[], 0.0).is_err(),
+            "no recording"
+        );
     }
 
     #[test]
