@@ -101,7 +101,7 @@ pub enum TestError {
     OutsideLimits,
     /// A step of the reference (`A`, PRBS `2A`) is not below the following-error limit.
     Step,
-    /// The chirp's peak speed `A·2π·f₁` is above the axis' top speed.
+    /// The chirp's peak speed `A·2π·max(f₀, f₁)` is above the axis' top speed.
     TooFast,
 }
 
