@@ -284,6 +284,18 @@ where
             .read(|rt| matches!(rt.state(), State::Idle | State::Fault))
             .unwrap_or(true)
     }
+    fn manual_at_rest(&self) -> bool {
+        self.glue
+            .read(|rt| {
+                rt.state() == State::Manual
+                    && rt
+                        .status()
+                        .manual
+                        .iter()
+                        .all(|m| *m == crate::runtime::ManualKind::Hold)
+            })
+            .unwrap_or(false)
+    }
     fn install_table(&mut self, table: &CamTable<S, N>) -> Result<(), Nak> {
         let fcfg = self.st.fcfg;
         self.st.pool.install(self.glue, &fcfg, table)?;

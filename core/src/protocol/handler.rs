@@ -117,6 +117,11 @@ pub trait Device<const S: usize, const N: usize> {
     fn at_safe_point(&self) -> bool;
     /// Every axis idle (valves at null, not following).
     fn all_idle(&self) -> bool;
+    /// In `Manual` with every slave holding (no jog, move, test or approach running):
+    /// nothing a lost host could leave running. Default: never.
+    fn manual_at_rest(&self) -> bool {
+        false
+    }
     /// Installs a copy of `table` (only called at a safe point). Errors:
     /// [`NakCode::Refused`] if the device cannot run it; what runs is then unchanged.
     /// By reference: a table is 12 KiB on the board, and no table is ever moved by value
@@ -347,7 +352,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
 
     /// The host-link watchdog; call every few ms (the firmware's link task: every
     /// wake-up, ≤ 10 ms) with a millisecond clock (wrapping). If
-    /// [`ParamId::LinkTimeoutMs`] is set and the axes follow after a Start from this link,
+    /// [`ParamId::LinkTimeoutMs`] is set and the axes follow after a Start (or an
+    /// Approach, or run a TestMove) from this link,
     /// no valid frame for that long holds them (`Motion::Hold`: the slaves hold the
     /// table position of the frozen master; valves stay powered and controlled) and
     /// sets [`super::msg::FLAG_LINK_LOST`] until the next Start. Returns whether it
@@ -362,7 +368,8 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         if w.timeout_ms == 0 || !w.host_started || now_ms.wrapping_sub(w.last_ms) < w.timeout_ms {
             return false;
         }
-        if dev.all_idle() {
+        if dev.all_idle() || dev.manual_at_rest() {
+            // Nothing left running for the watch (a test that ended holds in Manual).
             w.host_started = false;
             return false;
         }

@@ -43,6 +43,8 @@ pub(super) struct Mock {
     position: Option<PosUm>,
     /// A restored reference offset (`ParamId::SlaveOffsetUm`).
     offset: Option<f32>,
+    /// In Manual with every slave holding.
+    manual_rest: bool,
 }
 
 impl Device<S, N> for Mock {
@@ -74,6 +76,9 @@ impl Device<S, N> for Mock {
     }
     fn all_idle(&self) -> bool {
         !self.running
+    }
+    fn manual_at_rest(&self) -> bool {
+        self.manual_rest
     }
     fn install_table(&mut self, t: &CamTable<S, N>) -> Result<(), Nak> {
         if self.refuse {
@@ -1202,6 +1207,18 @@ fn a_test_move_is_checked_and_watched_by_the_link_watchdog() {
     );
     assert!(r.h.watch_link(&mut r.dev, t0 + 101), "100 ms of silence");
     assert_eq!(r.dev.holds, 1);
+    // A test that ended by itself leaves the slaves holding in Manual: the watch ends
+    // there, no Hold and no link-lost flag for a host that went away afterwards.
+    r.ack(&test(0));
+    r.dev.manual_rest = true;
+    let t1 = 2_000_000;
+    assert!(!r.h.watch_link(&mut r.dev, t1));
+    assert!(!r.h.watch_link(&mut r.dev, t1 + 500));
+    assert_eq!(r.dev.holds, 1);
+    match r.req(&Request::GetStatus) {
+        Response::Status(st) => assert_eq!(st.flags & super::msg::FLAG_LINK_LOST, 0),
+        x => panic!("{x:?}"),
+    }
 }
 
 /// A set-position on an absolute axis is persisted (as its reference offset) by Save and

@@ -34,10 +34,12 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             return Err(CommandError::NoController);
         }
         let entering = self.state == State::Idle;
-        if entering && self.jog_lockout_ticks > 0 && matches!(cmd, Command::Jog { .. }) {
+        let jog_renewal = matches!(cmd, Command::Jog { speed, .. } if speed.to_bits() != 0);
+        if self.jog_lockout_ticks > 0 && jog_renewal {
             // Within the deadman time after leaving Manual: a renewal of the jog that was
-            // stopped, not a new command. (A move, an approach or a test is a command of
-            // its own, never a renewal: it may follow a Stop at once.)
+            // stopped, not a new command — also once a move, an approach or a test (a
+            // command of its own, never a renewal: it may follow a Stop at once) has
+            // entered Manual again.
             return Err(CommandError::Busy);
         }
         if entering {

@@ -18,9 +18,9 @@
 //! After `duration` the reference returns to `c` (a step of at most `A`; a chirp's
 //! velocity feed-forward steps from up to `A·2π·f₁` to 0) and holds.
 //!
-//! **Refused before anything moves**: a step of the reference — `A` for step, `2A` for
-//! PRBS (−A → +A) — not below the axis' following-error limit `e_max` (the first step
-//! would trip it); `c ± (A + e_max)` outside the axis' limits (the reference stays within
+//! **Refused before anything moves**: a step of the reference — `A` for step and chirp
+//! (whose end, or a Hold, steps back to the centre by up to `A`), `2A` for PRBS (−A →
+//! +A) — not below the axis' following-error limit `e_max` (the step would trip it); `c ± (A + e_max)` outside the axis' limits (the reference stays within
 //! `c ± A`, and the axis cannot get further than `e_max` beyond it without the
 //! following-error fault: valves at null); a chirp whose peak speed `A·2π·max(f₀, f₁)`
 //! is above the axis' top speed. The default 1.8 s PRBS with 20 ms bits uses 90 of the
@@ -173,10 +173,10 @@ impl TestMove {
         let amplitude = PosUm::from_bits(amp_bits);
         let e_max = i64::from(max_error.to_bits()).saturating_abs();
         let (c, a) = (i64::from(center.to_bits()), i64::from(amp_bits));
+        // A chirp steps back to its centre (by up to A) when it ends or is held.
         let step = match spec.profile {
-            TestProfile::Step => a,
+            TestProfile::Step | TestProfile::Chirp => a,
             TestProfile::Prbs => a.saturating_mul(2),
-            TestProfile::Chirp => 0,
         };
         if step >= e_max {
             return Err(TestError::Step);
@@ -452,9 +452,15 @@ mod tests {
         s.amplitude_um = 2499;
         assert!(ok(&s, 100_000).is_ok());
         let mut s = spec(TestProfile::Chirp);
-        s.amplitude_um = 5000;
         s.f_end_mhz = 5000;
-        assert!(ok(&s, 100_000).is_ok(), "a chirp does not step");
+        s.amplitude_um = 5000;
+        assert_eq!(
+            ok(&s, 100_000),
+            Err(TestError::Step),
+            "its end steps back by A"
+        );
+        s.amplitude_um = 4999;
+        assert!(ok(&s, 100_000).is_ok());
         let mut s = spec(TestProfile::Chirp);
         s.f_end_mhz = 101_000; // above 1/(10T) at 1 ms
         assert_eq!(ok(&s, 100_000), Err(TestError::Spec));

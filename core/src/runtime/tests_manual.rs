@@ -303,6 +303,13 @@ fn a_stopped_jog_is_not_revived_by_its_next_renewal() {
     // A move is a command of its own, not a renewal: allowed at once (then stopped).
     let out = r.step(&sample(0, [50, 0]), Some(move_to(0, 1000)));
     assert_eq!(out.reply, Some(Ok(())));
+    // …and the still-renewing host's next jog cannot take the move over.
+    let out = r.step(&sample(0, [50, 0]), Some(jog(0, 1.0)));
+    assert_eq!(
+        out.reply,
+        Some(Err(CommandError::Busy)),
+        "not a revival via the move"
+    );
     r.step(&sample(0, [50, 0]), Some(Command::Stop));
     let out = r.step(&sample(0, [50, 0]), Some(jog(0, 1.0)));
     assert_eq!(
@@ -383,21 +390,26 @@ fn a_test_move_is_refused_outside_limits_too_fast_or_on_a_moving_slave() {
     let mut r = rt();
     let refused = |error| Some(Err(CommandError::Motion { axis: 0, error }));
     let at = [50_000, 30_000];
-    // A chirp of 49 mm about 50 mm, plus the following-error limit of 2 mm, leaves the
-    // range at 0.
-    let out = r.step(
-        &sample(0, at),
-        Some(test_move(0, TestProfile::Chirp, 49_000)),
+    // A chirp of 1 mm about 1.5 mm, plus the following-error limit of 2 mm, leaves the
+    // range at 0 (a runtime of its own: the slaves cannot jump).
+    let mut low = rt();
+    let out = low.step(
+        &sample(0, [1500, 30_000]),
+        Some(test_move(0, TestProfile::Chirp, 1000)),
     );
     assert_eq!(out.reply, refused(MotionError::OutsideLimits));
+    assert_eq!(low.state(), State::Idle, "nothing moved");
+    // A chirp ends (or holds) by a step back to its centre of up to A: A below e too.
+    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Chirp, 2000)));
+    assert_eq!(out.reply, refused(MotionError::TestStep));
     // A step of 2 mm (a PRBS of 1 mm: −1 → +1) would trip the 2 mm following-error limit.
     let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Step, 2000)));
     assert_eq!(out.reply, refused(MotionError::TestStep));
     let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Prbs, 1000)));
     assert_eq!(out.reply, refused(MotionError::TestStep));
     assert_eq!(r.state(), State::Idle, "nothing moved");
-    // A chirp of 5 mm to 20 Hz: 628 mm/s peak, above 200 mm/s.
-    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Chirp, 5000)));
+    // A chirp of 1.9 mm to 20 Hz: 239 mm/s peak, above 200 mm/s.
+    let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Chirp, 1900)));
     assert_eq!(out.reply, refused(MotionError::TooFast));
     let out = r.step(&sample(0, at), Some(test_move(0, TestProfile::Step, 0)));
     assert_eq!(out.reply, refused(MotionError::TestSpec));

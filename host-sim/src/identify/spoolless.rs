@@ -392,6 +392,13 @@ pub fn identify_spoolless(
         }
     }
     let sigma_ticks = SMOOTH_S / period;
+    // The shifted kernel is one sample wider than the others: a skew up to one period.
+    if !(pressure_skew_s.abs() <= period) {
+        return Err(IdentifyError::Unphysical {
+            name: "pressure_skew_s",
+            value: pressure_skew_s,
+        });
+    }
     let h: [Vec<f64>; 3] = [
         kernel(0, sigma_ticks),
         kernel(1, sigma_ticks),
