@@ -393,7 +393,7 @@ pub fn identify_spoolless(
     }
     let sigma_ticks = SMOOTH_S / period;
     // The shifted kernel is one sample wider than the others: a skew up to one period.
-    if !(pressure_skew_s.abs() <= period) {
+    if pressure_skew_s.is_nan() || pressure_skew_s.abs() > period {
         return Err(IdentifyError::Unphysical {
             name: "pressure_skew_s",
             value: pressure_skew_s,
