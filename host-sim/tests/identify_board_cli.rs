@@ -53,9 +53,10 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
     );
     assert!(e.contains("slave 0 is not referenced"), "{e}");
     reference_where_they_are(&s);
-    // The board's refusals: out of the axis' limits (the side press at 10 mm, ± 9 mm plus
-    // its 2 mm following-error limit), a step the following-error limit would trip on,
-    // too fast, impossible.
+    // The board's refusals: out of the axis' limits (the side press at 10 mm, its limits
+    // narrowed to 8 mm …: ± 1 mm plus its 2 mm following-error limit), a step the
+    // following-error limit would trip on, too fast, impossible.
+    ok(&s, &["param", "set", "axis/1/limits/min_um", "8000"]);
     let e = refused(
         &s,
         &[
@@ -66,7 +67,7 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
             "--profile",
             "chirp",
             "--amplitude-mm",
-            "9",
+            "1",
             "--f1-hz",
             "2",
             "--csv",
@@ -101,7 +102,7 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
             "--profile",
             "chirp",
             "--amplitude-mm",
-            "5",
+            "1.9",
             "--f1-hz",
             "20",
             "--csv",
