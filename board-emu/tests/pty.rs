@@ -151,7 +151,27 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
     let s0 = scenario();
     let a = &s0.axes[0];
     let known = a.plant(s0.supply(), 0.25);
-    let id = host_sim::identify::spoolless::identify_spoolless(&known, &[r], 0.0).expect("fit");
+    let fit = |skew_ms: f64| {
+        host_sim::identify::spoolless::identify_spoolless(
+            &known,
+            std::slice::from_ref(&r),
+            skew_ms * 1e-3,
+        )
+        .expect("fit")
+    };
+    // The viscous term's sensitivity to the pressures' timing (README, "Identification on
+    // the board"): the same recording read as if the pressures were 0.05 ms and 0.119 ms
+    // (the mean age of the firmware's averaged ADC scans) older than the position.
+    for skew_ms in [-0.05, -0.119] {
+        let v = fit(skew_ms)
+            .get("viscous_n_s_per_m")
+            .map_or(f64::NAN, |p| p.value);
+        eprintln!(
+            "identified on the real firmware with a pressure skew of {skew_ms} ms: viscous_n_s_per_m {v:.4e} ({:+.2} %)",
+            100.0 * (v / a.cylinder.viscous_n_s_per_m - 1.0)
+        );
+    }
+    let id = fit(0.0);
     for (name, truth) in [
         ("mass_kg", a.cylinder.mass_kg),
         ("bulk_modulus_pa", a.cylinder.bulk_modulus_pa),

@@ -278,27 +278,6 @@ pub fn identify(known: &HydraulicAxis, rec: &[Sample]) -> Result<Identified, Ide
     });
 
     // 2. Flow gain per direction and bulk modulus; overlap by a scan.
-    let tr = known.valve.dp_transition_pa;
-    let orifice = |s: &Sample, d: f64| -> [f64; 4] {
-        let open = s.spool.signum() * (s.spool.abs() - d).max(0.0);
-        // The plant's regularised signed root (a chamber above supply flows back).
-        let sq = |x: f64| crate::plant::valve::signed_sqrt(x, tr);
-        if open >= 0.0 {
-            [
-                open * sq(sup.supply_pa - s.pa_pa),
-                0.0,
-                -open * sq(s.pb_pa - sup.tank_pa),
-                0.0,
-            ]
-        } else {
-            [
-                0.0,
-                open * sq(s.pa_pa - sup.tank_pa),
-                0.0,
-                -open * sq(sup.supply_pa - s.pb_pa),
-            ]
-        }
-    };
     let flow_fit = |d: f64| -> Result<(Vec<f64>, Vec<f64>, f64), IdentifyError> {
         let (mut rows, mut y) = (Vec::new(), Vec::new());
         for &i in &idx {
@@ -306,26 +285,20 @@ pub fn identify(known: &HydraulicAxis, rec: &[Sample]) -> Result<Identified, Ide
             let (Some(pa), Some(pb)) = (dpa[i], dpb[i]) else {
                 continue;
             };
-            let (va, vb) = c.volumes(s.x_m);
-            let g = orifice(s, d);
-            // The valve's laminar leakage is a datasheet value (known): moved to y.
-            let cl = known.valve.leak_m3_per_s_pa;
-            let leak_a = cl * (sup.supply_pa - s.pa_pa) - cl * (s.pa_pa - sup.tank_pa);
-            let leak_b = cl * (sup.supply_pa - s.pb_pa) - cl * (s.pb_pa - sup.tank_pa);
-            rows.push(vec![g[0], g[1], -va * pa]);
-            y.push(aa * s.v_m_s - leak_a);
-            rows.push(vec![g[2], g[3], -vb * pb]);
-            y.push(-ab * s.v_m_s - leak_b);
+            let g = orifice_terms(known, s.spool, d, s.pa_pa, s.pb_pa);
+            push_continuity(
+                known,
+                &mut rows,
+                &mut y,
+                s.x_m,
+                s.v_m_s,
+                [s.pa_pa, s.pb_pa],
+                [pa, pb],
+                g,
+            );
         }
         let (th, sd) = lstsq("valve flow and oil", &rows, &y)?;
-        let ss: f64 = rows
-            .iter()
-            .zip(&y)
-            .map(|(r, y)| {
-                let e = y - r.iter().zip(&th).map(|(a, b)| a * b).sum::<f64>();
-                e * e
-            })
-            .sum();
+        let ss = residual_ss(&rows, &y, &th);
         Ok((th, sd, ss))
     };
     let mut best: Option<(f64, Vec<f64>, Vec<f64>, f64)> = None;
@@ -375,6 +348,63 @@ pub fn identify(known: &HydraulicAxis, rec: &[Sample]) -> Result<Identified, Ide
         used_samples: idx.len(),
         samples: rec.len(),
     })
+}
+
+/// The orifice terms `x̃_v·φ(Δp)` of the flow regression (module docs, law 2) for a spool
+/// at `spool` (normalised) with overlap `overlap`: `[g_A⁺, g_A⁻, g_B⁺, g_B⁻]`, the
+/// plant's regularised signed root (a chamber above supply flows back).
+fn orifice_terms(known: &HydraulicAxis, spool: f64, overlap: f64, pa: f64, pb: f64) -> [f64; 4] {
+    let sup = &known.supply;
+    let sq = |x: f64| crate::plant::valve::signed_sqrt(x, known.valve.dp_transition_pa);
+    let open = spool.signum() * (spool.abs() - overlap).max(0.0);
+    if open >= 0.0 {
+        [
+            open * sq(sup.supply_pa - pa),
+            0.0,
+            -open * sq(pb - sup.tank_pa),
+            0.0,
+        ]
+    } else {
+        [
+            0.0,
+            open * sq(pa - sup.tank_pa),
+            0.0,
+            -open * sq(sup.supply_pa - pb),
+        ]
+    }
+}
+
+/// The two continuity rows of one sample (module docs, law 2): regressors `[g_A⁺, g_A⁻,
+/// −V_A·ṗ_A]` and `[g_B⁺, g_B⁻, −V_B·ṗ_B]` against `A_A·v` and `−A_B·v`, the known laminar
+/// leakage moved to the right-hand side. `x` m, `v` m/s, `p` Pa, `dp` Pa/s, `g` from
+/// [`orifice_terms`].
+#[allow(clippy::too_many_arguments)]
+fn push_continuity(
+    known: &HydraulicAxis,
+    rows: &mut Vec<Vec<f64>>,
+    y: &mut Vec<f64>,
+    x: f64,
+    v: f64,
+    p: [f64; 2],
+    dp: [f64; 2],
+    g: [f64; 4],
+) {
+    let (c, sup) = (&known.cylinder, &known.supply);
+    let (va, vb) = c.volumes(x);
+    let cl = known.valve.leak_m3_per_s_pa;
+    let leak = |p: f64| cl * (sup.supply_pa - p) - cl * (p - sup.tank_pa);
+    rows.push(vec![g[0], g[1], -va * dp[0]]);
+    y.push(c.area_a_m2 * v - leak(p[0]));
+    rows.push(vec![g[2], g[3], -vb * dp[1]]);
+    y.push(-c.area_b_m2 * v - leak(p[1]));
+}
+
+/// The residual sum of squares of `y ≈ rows·θ`.
+fn residual_ss(rows: &[Vec<f64>], y: &[f64], th: &[f64]) -> f64 {
+    rows.iter()
+        .zip(y)
+        .map(|(r, y)| (y - r.iter().zip(th).map(|(a, b)| a * b).sum::<f64>()).powi(2))
+        .sum()
 }
 
 /// The flow-and-oil fit's parameters: the coefficients (K⁺, K⁻, 1/β) with their σ, and

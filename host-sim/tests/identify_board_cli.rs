@@ -37,94 +37,31 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
     let table = format!("{scenarios}/tangent_board.csv");
     ok(&s, &["upload", &table, "--activate"]);
 
+    // `motion test` on slave `axis` with `opts`, recorded to x.csv: the board's refusal.
+    let x_csv = path("x.csv");
+    let test_refused = |axis: &str, opts: &[&str]| {
+        let mut a = vec!["motion", "test", "--axis", axis];
+        a.extend_from_slice(opts);
+        a.extend(["--csv", x_csv.as_str()]);
+        refused(&s, &a)
+    };
     // Before referencing: refused, naming why.
-    let e = refused(
-        &s,
-        &[
-            "motion",
-            "test",
-            "--axis",
-            "0",
-            "--profile",
-            "step",
-            "--csv",
-            &path("x.csv"),
-        ],
-    );
+    let e = test_refused("0", &["--profile", "step"]);
     assert!(e.contains("slave 0 is not referenced"), "{e}");
     reference_where_they_are(&s);
     // The board's refusals: out of the axis' limits (the side press at 10 mm, its limits
     // narrowed to 8 mm …: ± 1 mm plus its 2 mm following-error limit), a step the
     // following-error limit would trip on, too fast, impossible.
     ok(&s, &["param", "set", "axis/1/limits/min_um", "8000"]);
-    let e = refused(
-        &s,
-        &[
-            "motion",
-            "test",
-            "--axis",
-            "1",
-            "--profile",
-            "chirp",
-            "--amplitude-mm",
-            "1",
-            "--f1-hz",
-            "2",
-            "--csv",
-            &path("x.csv"),
-        ],
-    );
+    let chirp = ["--profile", "chirp", "--amplitude-mm"];
+    let e = test_refused("1", &[&chirp[..], &["1", "--f1-hz", "2"]].concat());
     assert!(e.contains("outside its limits"), "{e}");
     // A step as large as the following-error limit (2 mm) would trip it at once.
-    let e = refused(
-        &s,
-        &[
-            "motion",
-            "test",
-            "--axis",
-            "0",
-            "--profile",
-            "step",
-            "--amplitude-mm",
-            "2",
-            "--csv",
-            &path("x.csv"),
-        ],
-    );
+    let e = test_refused("0", &["--profile", "step", "--amplitude-mm", "2"]);
     assert!(e.contains("following-error limit"), "{e}");
-    let e = refused(
-        &s,
-        &[
-            "motion",
-            "test",
-            "--axis",
-            "0",
-            "--profile",
-            "chirp",
-            "--amplitude-mm",
-            "1.9",
-            "--f1-hz",
-            "20",
-            "--csv",
-            &path("x.csv"),
-        ],
-    );
+    let e = test_refused("0", &[&chirp[..], &["1.9", "--f1-hz", "20"]].concat());
     assert!(e.contains("max_speed"), "{e}");
-    let e = refused(
-        &s,
-        &[
-            "motion",
-            "test",
-            "--axis",
-            "0",
-            "--profile",
-            "chirp",
-            "--f1-hz",
-            "400",
-            "--csv",
-            &path("x.csv"),
-        ],
-    );
+    let e = test_refused("0", &["--profile", "chirp", "--f1-hz", "400"]);
     assert!(e.contains("impossible"), "{e}");
     let e = refused(&s, &["motion", "test", "--axis", "0", "--profile", "step"]);
     assert!(e.contains("--csv"), "{e}");

@@ -125,9 +125,15 @@ pub struct TestMove {
     phase: u32,
     dphase0: u32,
     dphase1: u32,
-    /// Chirp: the period, s (for the feed-forward's rates).
-    period_s: f32,
+    /// Chirp, made once: the amplitude, µm; rad/s per phase increment per tick
+    /// (`2π / (2³²·T)`); the sweep's constant φ̈, rad/s².
+    amp_um: f32,
+    rad_s_per_dphase: f32,
+    wdot: f32,
 }
+
+/// One turn of the chirp's phase, 2³² (as `f32`).
+const TURN: f32 = 4_294_967_296.0;
 
 /// `x · num / den` in u64, saturating (0 for den = 0).
 fn mul_div_u(x: u64, num: u64, den: u64) -> u64 {
@@ -194,19 +200,25 @@ impl TestMove {
                 return Err(TestError::TooFast);
             }
         }
+        let rad_s_per_dphase = core::f32::consts::TAU / TURN / (period_us.max(1) as f32 * 1e-6);
+        let n32 = u32::try_from(n).map_err(|_| TestError::Spec)?;
         Ok(Self {
             profile: spec.profile,
             center,
             amplitude,
             k: 0,
-            n: u32::try_from(n).map_err(|_| TestError::Spec)?,
+            n: n32,
             dwell: u32::try_from(dwell).unwrap_or(u32::MAX),
             lfsr: 0x1FF,
             level: 0,
             phase: 0,
             dphase0: u32::try_from(d0).unwrap_or(0),
             dphase1: u32::try_from(d1).unwrap_or(0),
-            period_s: period_us as f32 * 1e-6,
+            amp_um: amplitude.to_num::<f32>(),
+            rad_s_per_dphase,
+            // (Δφ per tick changes by (d1 − d0)/n per tick: φ̈ = that / T in rad/s².)
+            wdot: (d1 as f32 - d0 as f32) / n32.max(1) as f32 * rad_s_per_dphase
+                / (period_us.max(1) as f32 * 1e-6),
         })
     }
 
@@ -283,15 +295,11 @@ impl TestMove {
                 .checked_div(i64::from(self.n))
                 .unwrap_or(0),
         );
-        let turn = 4_294_967_296.0f32;
-        let angle = self.phase as f32 / turn * core::f32::consts::TAU;
+        let angle = self.phase as f32 / TURN * core::f32::consts::TAU;
         let (s, c) = (libm::sinf(angle), libm::cosf(angle));
-        let t = self.period_s;
-        // φ̇ (rad/s) and φ̈ (rad/s²).
-        let w = d as f32 / turn * core::f32::consts::TAU / t;
-        let wdot = (d1.saturating_sub(d0)) as f32 / turn * core::f32::consts::TAU
-            / (t * t * self.n.max(1) as f32);
-        let a_um = self.amplitude.to_num::<f32>();
+        // φ̇ (rad/s); φ̈ is constant.
+        let w = d as f32 * self.rad_s_per_dphase;
+        let (wdot, a_um) = (self.wdot, self.amp_um);
         self.phase = self.phase.wrapping_add(u32::try_from(d).unwrap_or(0));
         // I24F8 bits of a value in µm (a float-to-integer `as` saturates; NaN gives 0);
         // the acceleration is `I32F0`, whole µm/s².
@@ -327,7 +335,9 @@ mod tests {
     /// The following-error limit, 5 mm.
     const E: PosUm = PosUm::from_bits(5000 << 8);
 
-    fn run(mut t: TestMove) -> std::vec::Vec<PosRef> {
+    /// The references of `s` about 100 mm at 1 ms, to the first tick after its end.
+    fn run(s: &TestSpec) -> std::vec::Vec<PosRef> {
+        let mut t = TestMove::new(s, um(100_000), RANGE, 200_000, E, 1000).expect("valid");
         let mut out = std::vec::Vec::new();
         while !t.done() {
             out.push(t.step());
@@ -338,16 +348,7 @@ mod tests {
 
     #[test]
     fn the_step_is_a_square_wave_through_the_centre_and_returns() {
-        let t = TestMove::new(
-            &spec(TestProfile::Step),
-            um(100_000),
-            RANGE,
-            200_000,
-            E,
-            1000,
-        )
-        .expect("valid");
-        let r = run(t);
+        let r = run(&spec(TestProfile::Step));
         assert_eq!(r.len(), 2001);
         let x = |i: usize| r[i].x_ref_um.to_num::<i32>();
         assert_eq!((x(0), x(249)), (101_000, 101_000));
@@ -362,7 +363,7 @@ mod tests {
         let mut s = spec(TestProfile::Prbs);
         s.dwell_ms = 4;
         s.duration_ms = 511 * 4;
-        let r = run(TestMove::new(&s, um(100_000), RANGE, 200_000, E, 1000).expect("valid"));
+        let r = run(&s);
         let x: std::vec::Vec<i32> = r.iter().map(|p| p.x_ref_um.to_num::<i32>()).collect();
         for (i, w) in x[..511 * 4].windows(2).enumerate() {
             if (i + 1) % 4 != 0 {
@@ -380,16 +381,7 @@ mod tests {
 
     #[test]
     fn the_chirp_sweeps_with_consistent_feed_forward() {
-        let t = TestMove::new(
-            &spec(TestProfile::Chirp),
-            um(100_000),
-            RANGE,
-            200_000,
-            E,
-            1000,
-        )
-        .expect("valid");
-        let r = run(t);
+        let r = run(&spec(TestProfile::Chirp));
         let x: std::vec::Vec<f64> = r.iter().map(|p| p.x_ref_um.to_num::<f64>()).collect();
         // The velocity feed-forward is the reference's derivative (central difference).
         for i in (1..1999).step_by(97) {

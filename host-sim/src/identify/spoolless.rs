@@ -48,7 +48,7 @@
 //! capture's position plus `offset` (`identify --position-offset-mm`, when the board's
 //! frame is not the cylinder's).
 
-use super::{lstsq, Identified, IdentifyError, Param};
+use super::{lstsq, orifice_terms, push_continuity, residual_ss, Identified, IdentifyError, Param};
 use crate::plant::HydraulicAxis;
 
 /// The smoothing filter's σ, s.
@@ -235,11 +235,6 @@ struct Prepared<'a> {
 impl Prepared<'_> {
     fn flow(&self, c: Valve) -> Result<FlowFit, IdentifyError> {
         let k = self.known;
-        let (cyl, sup) = (&k.cylinder, &k.supply);
-        let (aa, ab) = (cyl.area_a_m2, cyl.area_b_m2);
-        let tr = k.valve.dp_transition_pa;
-        let sq = |x: f64| crate::plant::valve::signed_sqrt(x, tr);
-        let cl = k.valve.leak_m3_per_s_pa;
         let (mut rows, mut y) = (Vec::new(), Vec::new());
         for ((r, f), idx) in self.recs.iter().zip(&self.filt).zip(&self.usable) {
             let u: Vec<f64> = (0..r.u.len())
@@ -254,14 +249,9 @@ impl Prepared<'_> {
                 vec![0.0; xv.len()],
             ];
             for (i, &s) in xv.iter().enumerate() {
-                let open = s.signum() * (s.abs() - c.overlap).max(0.0);
-                let (pa, pb) = (r.pa_pa[i], r.pb_pa[i]);
-                if open >= 0.0 {
-                    g[0][i] = open * sq(sup.supply_pa - pa);
-                    g[2][i] = -open * sq(pb - sup.tank_pa);
-                } else {
-                    g[1][i] = open * sq(pa - sup.tank_pa);
-                    g[3][i] = -open * sq(sup.supply_pa - pb);
+                let t = orifice_terms(k, s, c.overlap, r.pa_pa[i], r.pb_pa[i]);
+                for (col, v) in g.iter_mut().zip(t) {
+                    col[i] = v;
                 }
             }
             let gf: Vec<Vec<Option<f64>>> = g.iter().map(|c| filter(&self.h0, c)).collect();
@@ -276,24 +266,20 @@ impl Prepared<'_> {
                 else {
                     continue;
                 };
-                let (va, vb) = cyl.volumes(x);
-                let leak_a = cl * (sup.supply_pa - pa) - cl * (pa - sup.tank_pa);
-                let leak_b = cl * (sup.supply_pa - pb) - cl * (pb - sup.tank_pa);
-                rows.push(vec![g0, g1, -va * dpa]);
-                y.push(aa * v - leak_a);
-                rows.push(vec![g2, g3, -vb * dpb]);
-                y.push(-ab * v - leak_b);
+                push_continuity(
+                    k,
+                    &mut rows,
+                    &mut y,
+                    x,
+                    v,
+                    [pa, pb],
+                    [dpa, dpb],
+                    [g0, g1, g2, g3],
+                );
             }
         }
         let (th, sd) = lstsq("valve flow and oil", &rows, &y)?;
-        let ss: f64 = rows
-            .iter()
-            .zip(&y)
-            .map(|(r, y)| {
-                let e = y - r.iter().zip(&th).map(|(a, b)| a * b).sum::<f64>();
-                e * e
-            })
-            .sum();
+        let ss = residual_ss(&rows, &y, &th);
         let dof = rows.len().saturating_sub(3).max(1);
         Ok((th, sd, ss, dof))
     }

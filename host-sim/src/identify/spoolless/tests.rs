@@ -83,6 +83,7 @@ mod parts {
 mod recovery {
     use super::*;
     use crate::cmd::open_loop::simulate;
+    use crate::identify::tests::off_nominal;
     use crate::scenario::Scenario;
 
     /// The open-loop excitation of the parent's tests on `truth`, read through 1 µm
@@ -163,19 +164,6 @@ mod recovery {
         );
         assert!(taken.abs() < 0.05, "{taken}");
         assert!(taken.abs() < ignored.abs() && ignored.abs() < wrong_way.abs());
-    }
-
-    /// The parent's off-nominal machine.
-    fn off_nominal() -> Scenario {
-        let mut truth = Scenario::default();
-        let a = &mut truth.axes[0];
-        a.cylinder.mass_kg *= 1.6;
-        a.cylinder.bulk_modulus_pa *= 0.7;
-        a.valve.rated_flow_l_per_min *= 0.85;
-        a.cylinder.viscous_n_s_per_m *= 2.0;
-        a.cylinder.coulomb_n *= 1.5;
-        a.valve.bandwidth_hz *= 0.8;
-        truth
     }
 
     #[test]
