@@ -36,6 +36,7 @@
 //! master and its look-ahead are in the cursor's segment: that tick takes the fast path
 //! (one segment read, no end test — `Follower::tick_ff_fast`).
 
+use crate::axis::backoff::{self, BackoffCoeffs, BackoffState};
 use crate::axis::damping::{damped_cmd, damping_bits, DampingCoeffs, DampingState};
 use crate::axis::position::{paper_law_bits, positional_law_ff};
 use crate::axis::{
@@ -156,6 +157,8 @@ struct AxisRt {
     ff: FfPlan,
     /// The active damping's high-pass.
     damp: DampingState,
+    /// The gain backoff's detector and level (kept by a restart, reset by `configure`).
+    backoff: BackoffState,
 }
 
 /// The follower: validated coefficients, the table, and the loop state.
@@ -210,12 +213,14 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             fe_limit: 0,
             valve: crate::valve::ValveCoeffs::UNSET,
             damping: DampingCoeffs::OFF,
+            backoff: BackoffCoeffs::OFF,
         };
         const RT: AxisRt = AxisRt {
             st: PosState::RESET,
             fault: None,
             ff: FfPlan::ZEROED,
             damp: DampingState::RESET,
+            backoff: BackoffState::RESET,
         };
         Self {
             axes: [AXIS; S],
@@ -411,8 +416,15 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             rt.st.reset();
             rt.ff.invalidate();
             rt.damp = DampingState::RESET;
+            rt.backoff.restart();
         }
         self.ended = false;
+    }
+
+    /// The gain backoff's level of slave `i` ([`crate::axis::backoff`]: 0 = the set
+    /// gain; 0 for an axis without one).
+    pub fn backoff_level(&self, i: usize) -> u8 {
+        self.rt.get(i).map_or(0, |r| r.backoff.level())
     }
 
     /// Clears latched axis faults (the controller states start afresh).
@@ -421,6 +433,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             if rt.fault.take().is_some() {
                 rt.st.reset();
                 rt.damp = DampingState::RESET;
+                rt.backoff.restart();
             }
         }
     }
@@ -774,6 +787,15 @@ fn damping_term_on<const S: usize>(
     p.get(i).map_or(0, |p| damping_bits(&c.damping, st, p))
 }
 
+/// One tick of the gain backoff's detector on a following Feedforward axis' error
+/// ([`crate::axis::backoff`]; nothing when it is off).
+#[inline(always)]
+fn backoff_observe(c: &AxisCoeffs, st: &mut BackoffState, err: i32) {
+    if c.backoff.is_on() {
+        backoff::observe(&c.backoff, st, err);
+    }
+}
+
 /// [`axis_step`]'s body.
 #[inline(always)]
 fn axis_step_inline<const S: usize, const M: u8>(
@@ -821,8 +843,9 @@ fn axis_step_inline<const S: usize, const M: u8>(
                     // The look-ahead beyond an end of the table: no feed-forward.
                     None => 0,
                 };
-                let ff = ff.saturating_sub(damping_term(c, &mut rt.damp, p, i));
-                positional_law_ff(c, &mut rt.st, err, ff)
+                backoff_observe(c, &mut rt.backoff, err);
+                let d = rt.backoff.scale(damping_term(c, &mut rt.damp, p, i));
+                positional_law_ff(c, &mut rt.st, err, ff.saturating_sub(d), &rt.backoff)
             }
             (ControlMode::NextNode, false) => {
                 // The node at the far end of the segment in the direction of motion.
@@ -831,13 +854,22 @@ fn axis_step_inline<const S: usize, const M: u8>(
                 } else {
                     ctx.now.start_bits(i)
                 };
-                positional_law_ff(c, &mut rt.st, node.saturating_sub(x), 0)
+                positional_law_ff(
+                    c,
+                    &mut rt.st,
+                    node.saturating_sub(x),
+                    0,
+                    &BackoffState::RESET,
+                )
             }
             (ControlMode::Feedforward, true) => {
-                let d = damping_term(c, &mut rt.damp, p, i);
-                positional_law_ff(c, &mut rt.st, err, d.saturating_neg())
+                backoff_observe(c, &mut rt.backoff, err);
+                let d = rt.backoff.scale(damping_term(c, &mut rt.damp, p, i));
+                positional_law_ff(c, &mut rt.st, err, d.saturating_neg(), &rt.backoff)
             }
-            (ControlMode::NextNode, true) => positional_law_ff(c, &mut rt.st, err, 0),
+            (ControlMode::NextNode, true) => {
+                positional_law_ff(c, &mut rt.st, err, 0, &BackoffState::RESET)
+            }
         };
         // The laws clamp u to the valve's clamp: the output stage need not again.
         (u, c.valve.output_within_clamp(CmdLsb::from_bits(u)))

@@ -27,6 +27,9 @@ pub const PRESSURES: usize = 2 * SLAVES;
 pub const TABLE_NODES: usize = 256;
 /// Control period, µs (1 kHz; 100 µs = 10 kHz is the fastest the runtime accepts).
 pub const PERIOD_US: u32 = 1000;
+/// The gain backoff's band of the shipped tuning, µm (`axis::backoff`; the 1 ms
+/// feed-forward set of `host-sim/scenarios/tangent.toml` carries the same).
+pub const OSC_BAND_UM: f32 = 4.0;
 /// Rows of the board's capture ring (`crate::runtime::capture`): 2.048 s of every tick at
 /// [`PERIOD_US`], so 500 ms before a trigger and 1 500 ms after it fit with room (the
 /// firmware keeps them in the F407's 64 KiB CCM RAM: 32 B per row for [`SLAVES`] = 2,
@@ -108,6 +111,7 @@ pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {
             following_error_um: 5000.0,
             dp_gain_lsb_per_kn: 0.0,
             dp_corner_hz: 5.0,
+            osc_band_um: OSC_BAND_UM,
         },
         mode: ControlMode::Feedforward,
         valve: ValveCal {

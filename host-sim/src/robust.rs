@@ -150,6 +150,9 @@ pub struct Case {
     pub faults: Vec<String>,
     /// Excess reversals or a fault (see the module docs).
     pub oscillating: bool,
+    /// The deepest gain backoff level of any follower axis at the end (core
+    /// `axis::backoff`: the gain is 0.6^level of the set one; 0 without a backoff).
+    pub backoff_level: u8,
 }
 
 /// Runs every case of `variants` on scenario `s` (two at a time on a 2-core machine);
@@ -191,6 +194,7 @@ pub fn evaluate(
                 excess_reversals: excess,
                 oscillating: excess > 0 || !faults.is_empty(),
                 faults,
+                backoff_level: r.backoff_levels.iter().copied().max().unwrap_or(0),
             })
         })
         .collect()

@@ -5,6 +5,7 @@
 //! [`crate::units`] for a given control period T. The per-tick law
 //! ([`super::position`]) then never fails.
 
+use super::backoff::BackoffCoeffs;
 use super::damping::{DampingCoeffs, DampingError, PistonAreas};
 use crate::units::CmdLsb;
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
@@ -67,6 +68,13 @@ pub struct PositionGains {
     /// Active damping's high-pass corner, Hz (0.1 … 1000; default 5): below it the
     /// force is a load, not the oil column's oscillation, and is not fed back.
     pub dp_corner_hz: f32,
+    /// Gain backoff ([`super::backoff`]): the band, µm, the high-passed following error
+    /// must cross back and forth four times within 150 ms for the axis to take its
+    /// proportional gain down (to 0.36×, then 0.75× per further oscillation; 0 …
+    /// 10 000; 0 = off, the default). Acts on a
+    /// following Feedforward axis only (the baselines run as published; jog and test
+    /// moves keep the set gain).
+    pub osc_band_um: f32,
 }
 
 impl Default for PositionGains {
@@ -84,6 +92,7 @@ impl Default for PositionGains {
             following_error_um: 5000.0,
             dp_gain_lsb_per_kn: 0.0,
             dp_corner_hz: 5.0,
+            osc_band_um: 0.0,
         }
     }
 }
@@ -131,6 +140,8 @@ pub enum AxisConfigError {
     Valve(ValveCalError),
     /// The active damping's gain, corner or piston areas.
     Damping(DampingError),
+    /// `osc_band_um` (the gain backoff's band).
+    OscBand,
 }
 
 /// Validated fixed-point coefficients of one axis (see the format table in
@@ -165,6 +176,8 @@ pub struct AxisCoeffs {
     pub valve: ValveCoeffs,
     /// Active damping (ΔP feedback).
     pub damping: DampingCoeffs,
+    /// Gain backoff on a detected oscillation.
+    pub backoff: BackoffCoeffs,
 }
 
 fn check(x: f32, lo: f32, hi: f32, e: AxisConfigError) -> Result<f32, AxisConfigError> {
@@ -205,6 +218,7 @@ impl AxisConfig {
         if damping.is_on() && self.mode != ControlMode::Feedforward {
             return Err(E::Damping(DampingError::Law));
         }
+        let backoff = BackoffCoeffs::build(g.osc_band_um, period_us).map_err(|_| E::OscBand)?;
         let lead_ticks = 1.5 + lag / f64::from(period_us);
         // Below the master filter's extrapolation limit (2^14 ticks).
         if lead_ticks >= 16_384.0 {
@@ -232,6 +246,7 @@ impl AxisConfig {
             fe_limit: fit::<I24F8>(fe, E::FollowingError)?.to_bits(),
             valve,
             damping,
+            backoff,
         })
     }
 }

@@ -1,10 +1,12 @@
 //! Axis control laws: position (Feedforward, Paper, NextNode) and force (press).
 
+pub mod backoff;
 pub mod config;
 pub mod damping;
 pub mod position;
 pub mod press;
 
+pub use backoff::{BackoffCoeffs, BackoffState, BandError};
 pub use config::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PositionGains};
 pub use damping::{DampingCoeffs, DampingError, DampingState, PistonAreas};
 pub use position::{position_law, PosRef, PosState};

@@ -6,8 +6,11 @@
 //! e(k)  = x_ref(k) − x(k)                                   µm
 //! I(k)  = clamp(I(k−1) + Ki·T·e(k), ±I_max)   only if |e| ≤ m and the output is not
 //!                                              saturated in the direction of e
-//! u(k)  = Kp·e + I + (Kd/T)·(e(k) − e(k−1)) + kv±·v_ff + ka·a_ff          LSB
+//! u(k)  = s·(Kp·e + (Kd/T)·(e(k) − e(k−1))) + I + kv±·v_ff + ka·a_ff      LSB
 //! ```
+//!
+//! (s ≤ 1, the gain backoff's scale of a following Feedforward axis,
+//! [`super::backoff`]; 1 elsewhere.)
 //!
 //! **Paper** (SPEC §A eq. 6–9, incremental, integral separation):
 //!
@@ -20,6 +23,7 @@
 //! sum saturates. The command then goes through the valve output stage
 //! ([`crate::valve::ValveCoeffs::output`]).
 
+use super::backoff::BackoffState;
 use super::config::{AxisCoeffs, ControlMode};
 use crate::fixed_point::{clamp_sym, mul_shr, sat_i32};
 use crate::units::{AccUmPerS2, CmdLsb, DacCode, PosUm, VelUmPerS};
@@ -160,13 +164,20 @@ pub(crate) fn positional_law_bits(
     let ff32 = i64::from(v)
         .wrapping_mul(i64::from(kv))
         .wrapping_add(i64::from(a).wrapping_mul(i64::from(c.ka)));
-    positional_law_ff(c, st, e, sat_i32(ff32 >> 16))
+    positional_law_ff(c, st, e, sat_i32(ff32 >> 16), &BackoffState::RESET)
 }
 
 /// [`positional_law_bits`] with the feed-forward kv±·v + ka·a already worked out: `ff`,
-/// `I16F16` LSB (the follower's per-segment constants, see `follower::ff_plan`).
+/// `I16F16` LSB (the follower's per-segment constants, see `follower::ff_plan`), and the
+/// proportional and derivative terms scaled by the gain backoff's level `bo`.
 #[inline(always)]
-pub(crate) fn positional_law_ff(c: &AxisCoeffs, st: &mut PosState, e: i32, ff: i32) -> i32 {
+pub(crate) fn positional_law_ff(
+    c: &AxisCoeffs,
+    st: &mut PosState,
+    e: i32,
+    ff: i32,
+    bo: &BackoffState,
+) -> i32 {
     let (e1, _) = st.history(e);
     let clamp = c.valve.clamp_lsb().to_bits();
     // Validated gains are non-negative and below 2^31 (kp < 2^26), so each
@@ -177,7 +188,7 @@ pub(crate) fn positional_law_ff(c: &AxisCoeffs, st: &mut PosState, e: i32, ff: i
     let pd24 = i64::from(e)
         .wrapping_mul(i64::from(c.kp))
         .wrapping_add(i64::from(e.saturating_sub(e1)).wrapping_mul(i64::from(c.kd_tick)));
-    let base = sat_i32(pd24 >> 8).saturating_add(ff);
+    let base = bo.scale(sat_i32(pd24 >> 8)).saturating_add(ff);
     if e.saturating_abs() <= c.i_zone {
         let cand = clamp_sym(st.integ.saturating_add(integ_step(c, e)), c.i_limit);
         let u_try = base.saturating_add(cand);

@@ -102,6 +102,9 @@ pub enum ParamId {
     AreaAMm2 = 30,
     /// Piston area of chamber B (pressure input 2n + 1), mm².
     AreaBMm2 = 31,
+    /// Gain backoff band, µm (0 = off): the high-passed following error crossing it
+    /// back and forth four times in 150 ms takes the proportional gain down.
+    OscBandUm = 32,
 }
 
 /// Whether a parameter belongs to each slave or to the board.
@@ -222,6 +225,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
     p(P::DpCornerHz, A, "dp_corner_hz", "Hz", 0.1, 1000.0),
     p(P::AreaAMm2, A, "cylinder/area_a_mm2", "mm²", 0.0, 1e6),
     p(P::AreaBMm2, A, "cylinder/area_b_mm2", "mm²", 0.0, 1e6),
+    p(P::OscBandUm, A, "osc_band_um", "µm", 0.0, 10_000.0),
     p(P::ValveNullLsb, A, "valve/null_lsb", "LSB", -500.0, 500.0),
     p(
         P::ValveOverlapPosLsb,
@@ -305,7 +309,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 31;
+    pub const COUNT: usize = 32;
 
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
@@ -422,7 +426,7 @@ mod tests {
                 assert_eq!(id.info().id, id);
             }
         }
-        assert_eq!(all_paths(2).count(), 27 * 2 + 4);
+        assert_eq!(all_paths(2).count(), 28 * 2 + 4);
         for pp in all_paths(3) {
             let s = pp.to_string();
             let (axis, id) = parse_path(&s, 3).unwrap();
@@ -435,7 +439,7 @@ mod tests {
         let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
         paths.sort();
         paths.dedup();
-        assert_eq!(paths.len(), 58, "two parameters share a path");
+        assert_eq!(paths.len(), 60, "two parameters share a path");
     }
 
     #[test]
@@ -510,6 +514,7 @@ mod tests {
             P::DpCornerHz,
             P::AreaAMm2,
             P::AreaBMm2,
+            P::OscBandUm,
         ];
         for id in gains {
             let i = id.info();

@@ -73,8 +73,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             period_us
         );
         println!(
-            "{:<32} {:>10} {:>9} {:>7} {:>11}",
-            "machine", "max µm", "RMS µm", "peak u", "oscillates"
+            "{:<32} {:>10} {:>9} {:>7} {:>11} {:>8}",
+            "machine", "max µm", "RMS µm", "peak u", "oscillates", "backoff"
         );
         for c in &result {
             let osc = if c.oscillating {
@@ -83,8 +83,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 "no".into()
             };
             println!(
-                "{:<32} {:>10.1} {:>9.2} {:>7.3} {:>11}",
-                c.label, c.max_um, c.rms_um, c.peak_command, osc
+                "{:<32} {:>10.1} {:>9.2} {:>7.3} {:>11} {:>8}",
+                c.label, c.max_um, c.rms_um, c.peak_command, osc, c.backoff_level
             );
             for f in &c.faults {
                 println!("{:<32} FAULT {f}", "");

@@ -364,6 +364,7 @@ fn axis_error_key(e: AxisConfigError) -> &'static str {
         AxisConfigError::ValveLag => "valve_lag_us",
         AxisConfigError::FollowingError => "following_error_um",
         AxisConfigError::Period => "period_us",
+        AxisConfigError::OscBand => "osc_band_um",
         AxisConfigError::Valve(v) => valve_error_key(v),
         AxisConfigError::Damping(DampingError::Gain) => "dp_gain_lsb_per_kn",
         AxisConfigError::Damping(DampingError::Corner) => "dp_corner_hz",

@@ -63,6 +63,9 @@ pub trait FollowerDyn: Send {
     /// |target − position| of follower `j` at the last tick, µm (the value a
     /// following-error fault trips on).
     fn error_um(&self, j: usize) -> f64;
+
+    /// The gain backoff's level of follower `j` (core `axis::backoff`; 0 = the set gain).
+    fn backoff_level(&self, j: usize) -> u8;
 }
 
 struct Rt<const S: usize> {
@@ -131,6 +134,10 @@ impl<const S: usize> FollowerDyn for Rt<S> {
 
     fn error_um(&self, j: usize) -> f64 {
         self.error_um.get(j).copied().unwrap_or(0.0)
+    }
+
+    fn backoff_level(&self, j: usize) -> u8 {
+        self.rt.law().map_or(0, |l| l.backoff_level(j))
     }
 }
 

@@ -142,6 +142,9 @@ pub struct RunReport {
     pub faults: Vec<FaultEvent>,
     /// Per follower axis: velocity reversals against the table's own.
     pub oscillation: Vec<Oscillation>,
+    /// Per follower axis: the gain backoff's level at the end of the run (core
+    /// `axis::backoff`; 0 = the set gain throughout).
+    pub backoff_levels: Vec<u8>,
     /// Simulated time, s.
     pub sim_seconds: f64,
     /// Wall-clock time of the simulation, s.
@@ -514,6 +517,9 @@ pub fn run(
             ),
         })
         .collect();
+    let backoff_levels = (0..follower_cfgs.len())
+        .map(|j| follower.as_ref().map_or(0, |f| f.backoff_level(j)))
+        .collect();
     Ok(RunReport {
         scenario: s.name().to_string(),
         controller: spec.controller,
@@ -526,6 +532,7 @@ pub fn run(
         trace,
         faults,
         oscillation,
+        backoff_levels,
         error_skip_s: sc.sim.error_skip_s,
     })
 }

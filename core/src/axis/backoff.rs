@@ -1,0 +1,264 @@
+//! Gain backoff: the position loop lowers its own proportional gain when it sees itself
+//! oscillate.
+//!
+//! A gain set tuned for a 6 dB margin on the machine it was measured on shakes a machine
+//! whose oil column is softer (twice the moving mass on aerated oil halves the hydraulic
+//! frequency; README, "Robustness"). The oscillation shows in the following error long
+//! before a person sees it: a growing sine at the loop's crossover, riding on the slow
+//! tracking error. The detector high-passes the error and counts its half-cycles across
+//! a band:
+//!
+//! ```text
+//! y(k) = α·(y(k−1) + e(k) − e(k−1)),  α = 1 / (1 + 2π·f_hp·T)    µm, f_hp = 10 Hz
+//! a half-cycle: y crosses from above +b to below −b, or back        b = osc_band_um
+//! N = 4 half-cycles within W = 150 ms  →  level += 1  (at most 4)
+//! ```
+//!
+//! The first level scales the proportional and derivative terms and the active damping's
+//! term to 0.36 of the set gain (an oscillation means no margin is left: −9 dB leaves
+//! ≈ 3 dB on a loop that was just unstable), each next one by 0.75 more (0.27, 0.20,
+//! 0.15); the integrator gain and the feed-forward are kept, so a valve-flow error is
+//! still integrated out at the set rate. (Steps of 0.6 each were tried first: the
+//! oscillation outgrew the first cut and the detector went a level too deep, where the
+//! integrator's own ≈ 6 Hz mode appears — 44 µm on a soft corner.)
+//! After a backoff the band is raised to the peak |y| of the half-cycles that caused it
+//! and decays back towards b with τ = 0.5 s: an oscillation that the lower gain damps
+//! stays inside it and takes the gain no further; one that still grows crosses it and
+//! takes the next level. For the first 100 ms after a cut the band rides 1.25× above the
+//! oscillation (the valve and the oil column carry it on for a cycle or two) and nothing
+//! is counted. The level is kept through restarts, faults and new runs and returns to 0
+//! only when the axis is configured again (a changed gain starts from what was set);
+//! [`crate::follower::Follower::backoff_level`] reads it (`host-sim robust` prints it;
+//! the board's status message does not carry it yet). The integrator's state is
+//! untouched: the command does not jump.
+//!
+//! The slow tracking error of a table corner is a single swing, not four alternating
+//! crossings, and the 10 Hz high-pass takes most of it out. Measured with b = 4 µm on the
+//! robustness box (`host-sim robust host-sim/scenarios/tangent_damped.toml`, README
+//! "Robustness"): the nominal machine and 20 of the 24 others never trigger it, the four
+//! mass ×2 / bulk ×0.5 corners end at level 1 or 2, and no machine oscillates.
+//!
+//! Formats: e, y, b µm `I24F8` raw; α Q31; the level's scale `I16F16` (Q16, ≤ 1).
+
+use crate::fixed_point::mul_shr;
+
+/// The detector's high-pass corner, Hz.
+pub const HIGH_PASS_HZ: f64 = 10.0;
+/// Half-cycles across the band that make an oscillation.
+pub const HALF_CYCLES: u8 = 4;
+/// The window they must fall in, s.
+pub const WINDOW_S: f64 = 0.150;
+/// After a backoff, the time the raised band follows the oscillation up (the valve and
+/// the oil column carry it on for a cycle or two after the cut), s.
+pub const SETTLE_S: f64 = 0.100;
+/// The raised band's decay time constant after a backoff, s.
+pub const BAND_TAU_S: f64 = 0.5;
+/// The deepest level (0.15 of the set gain).
+pub const MAX_LEVEL: u8 = 4;
+/// The proportional scale at each level, Q16: 1, 0.36, then 0.75× per level.
+const SCALE_Q16: [i32; MAX_LEVEL as usize + 1] = [65_536, 23_593, 17_695, 13_271, 9_953];
+
+/// Why the backoff cannot be built (reported as the axis' `AxisConfigError::OscBand`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BandError;
+
+/// Validated coefficients. `OFF` (all zero): no detector, the law keeps its gains.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BackoffCoeffs {
+    /// b, µm, `I24F8` raw (0: off).
+    band: i32,
+    /// α of the high-pass, Q31.
+    alpha_q31: i32,
+    /// W in ticks (≥ 1).
+    window_ticks: u16,
+    /// [`SETTLE_S`] in ticks (≥ 1).
+    settle_ticks: u16,
+    /// The raised band decays by 2^-shift per tick (τ = 2^shift·T ≈ [`BAND_TAU_S`]).
+    decay_shift: u8,
+}
+
+impl BackoffCoeffs {
+    /// No backoff.
+    pub const OFF: Self = Self {
+        band: 0,
+        alpha_q31: 0,
+        window_ticks: 0,
+        settle_ticks: 0,
+        decay_shift: 0,
+    };
+
+    /// Builds the detector for band `band_um` (0 = off; 0 … 10 000 µm) at the control
+    /// period `period_us` (checked by the caller to be 50 µs … 1 s).
+    pub fn build(band_um: f32, period_us: u32) -> Result<Self, BandError> {
+        if !(band_um.is_finite() && (0.0..=10_000.0).contains(&band_um)) {
+            return Err(BandError);
+        }
+        if band_um == 0.0 {
+            return Ok(Self::OFF);
+        }
+        let t = f64::from(period_us) * 1e-6;
+        let alpha = 1.0 / (1.0 + 2.0 * core::f64::consts::PI * HIGH_PASS_HZ * t);
+        // Ticks: at 50 µs … 1 s, W and H are 1 … 4 000 ticks.
+        let ticks = |s: f64| libm::ceil(s / t).clamp(1.0, f64::from(u16::MAX)) as u16;
+        Ok(Self {
+            // ≤ 10 000 µm · 256: far inside an i32; a band below 1/256 µm is 1 LSB.
+            band: (libm::round(f64::from(band_um) * 256.0) as i32).max(1),
+            // 0 < α < 1: below 2^31 in Q31.
+            alpha_q31: (alpha * 2_147_483_648.0).min(2_147_483_647.0) as i32,
+            window_ticks: ticks(WINDOW_S),
+            settle_ticks: ticks(SETTLE_S),
+            // τ/T = 2^shift: 0 … 13 for 50 µs … 1 s.
+            decay_shift: libm::round(libm::log2(BAND_TAU_S / t)).clamp(0.0, 20.0) as u8,
+        })
+    }
+
+    /// Whether the detector runs.
+    #[inline(always)]
+    pub fn is_on(&self) -> bool {
+        self.band != 0
+    }
+}
+
+/// The detector's state and the level reached. All zero at reset (a `.bss` law buffer).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BackoffState {
+    /// e(k−1), µm `I24F8` raw.
+    e1: i32,
+    /// y(k−1), µm `I24F8` raw.
+    y: i32,
+    /// Ticks left in the counting window (0: none open).
+    window: u16,
+    /// The raised band after a backoff, µm `I24F8` raw (decays to `band`).
+    env: i32,
+    /// Peak |y| in the counting window, µm `I24F8` raw.
+    peak: i32,
+    /// Ticks left of the settling after a backoff.
+    settle: u16,
+    /// The side of the band y was last beyond: −1, +1, or 0 (none since the reset).
+    side: i8,
+    /// Half-cycles counted in the window.
+    half_cycles: u8,
+    /// Backoff level, 0 … [`MAX_LEVEL`].
+    level: u8,
+    /// Whether `e1` holds a sample.
+    primed: bool,
+}
+
+impl BackoffState {
+    /// The reset state (`Default` as a `const`).
+    pub const RESET: Self = Self {
+        e1: 0,
+        y: 0,
+        window: 0,
+        env: 0,
+        peak: 0,
+        settle: 0,
+        side: 0,
+        half_cycles: 0,
+        level: 0,
+        primed: false,
+    };
+
+    /// Forgets the detector's history, keeping the level (a restart, a cleared fault).
+    pub fn restart(&mut self) {
+        *self = Self {
+            level: self.level,
+            ..Self::RESET
+        };
+    }
+
+    /// The backoff level, 0 (the set gain) … [`MAX_LEVEL`].
+    pub fn level(&self) -> u8 {
+        self.level
+    }
+
+    /// The proportional scale, Q16 (65 536 = the set gain).
+    #[inline(always)]
+    pub fn scale_q16(&self) -> i32 {
+        SCALE_Q16
+            .get(usize::from(self.level))
+            .copied()
+            .unwrap_or(9_953)
+    }
+
+    /// `x` (a proportional, derivative or damping term, any Q format) at this level.
+    #[inline(always)]
+    pub fn scale(&self, x: i32) -> i32 {
+        if self.level == 0 {
+            x
+        } else {
+            mul_shr(x, self.scale_q16(), 16)
+        }
+    }
+}
+
+/// One tick of the detector on the following error `e` (µm, `I24F8` raw). Returns `true`
+/// on the tick it backs off one level.
+#[inline(always)]
+pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, e: i32) -> bool {
+    let de = if st.primed {
+        e.saturating_sub(st.e1)
+    } else {
+        0
+    };
+    st.e1 = e;
+    st.primed = true;
+    // Q8 · Q31 → Q39 >> 31: |α| < 1, so |y| ≤ |y + de| fits an i32.
+    st.y = (i64::from(st.y.saturating_add(de)).wrapping_mul(i64::from(c.alpha_q31)) >> 31) as i32;
+    if st.settle > 0 {
+        // Settling: the band rides 1.25× above the oscillation; nothing is counted.
+        st.settle = st.settle.saturating_sub(1);
+        let a = st.y.saturating_abs();
+        st.env = st.env.max(a.saturating_add(a >> 2));
+        st.side = 0;
+        return false;
+    }
+    if st.env > c.band {
+        st.env = st
+            .env
+            .saturating_sub(st.env.wrapping_shr(u32::from(c.decay_shift)).max(1));
+    }
+    let band = st.env.max(c.band);
+    let side = if st.y > band {
+        1
+    } else if st.y < band.wrapping_neg() {
+        -1
+    } else {
+        0
+    };
+    if st.window > 0 {
+        st.window = st.window.saturating_sub(1);
+        st.peak = st.peak.max(st.y.saturating_abs());
+        if st.window == 0 {
+            st.half_cycles = 0;
+        }
+    }
+    if side == 0 || side == st.side {
+        return false;
+    }
+    let crossed = st.side != 0;
+    st.side = side;
+    if !crossed {
+        return false;
+    }
+    if st.half_cycles == 0 {
+        st.window = c.window_ticks;
+        st.peak = st.y.saturating_abs();
+    }
+    st.half_cycles = st.half_cycles.saturating_add(1);
+    if st.half_cycles < HALF_CYCLES || st.level >= MAX_LEVEL {
+        return false;
+    }
+    st.level = st.level.saturating_add(1);
+    st.half_cycles = 0;
+    st.window = 0;
+    st.env = st.peak.saturating_add(st.peak >> 2);
+    st.settle = c.settle_ticks;
+    true
+}
+
+#[cfg(test)]
+mod tests;
