@@ -361,6 +361,14 @@ pub fn position_gains_with(
             ka_lsb_per_um_s2: 0.0,
             valve_lag_us: lag_us.round() as f32,
             following_error_um: 20_000.0,
+            // The gain backoff (core `axis::backoff`) on the feed-forward law, with the
+            // band measured on the robustness box at 1 ms (README, "Robustness"); not
+            // measured at longer periods, where it stays off.
+            osc_band_um: if ff && period_us <= 1000 {
+                hydra_core::profile::OSC_BAND_UM
+            } else {
+                0.0
+            },
             ..PositionGains::default()
         },
         ku,
@@ -612,6 +620,12 @@ mod tests {
         let table = s.load_table(None).unwrap();
         let mut shipped = soft.apply(&s);
         shipped.sim.duration_s = Some(8.0);
+        // The shipped gains alone: without the gain backoff, which would hold them.
+        for t in shipped.tuning.iter_mut() {
+            for x in t.axes.values_mut() {
+                x.osc_band_um = 0.0;
+            }
+        }
         let mut boxed = shipped.clone();
         for t in boxed.tuning.iter_mut() {
             if let Some(x) = t.axes.get_mut(&a.name) {

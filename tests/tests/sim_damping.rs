@@ -8,7 +8,13 @@ use std::path::Path;
 
 fn cases(file: &str) -> Vec<Case> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios");
-    let s = Scenario::load(&dir.join(file)).unwrap();
+    let mut s = Scenario::load(&dir.join(file)).unwrap();
+    // The damping alone: without the gain backoff (`sim_backoff.rs` tests the two together).
+    for t in s.tuning.iter_mut() {
+        for g in t.axes.values_mut() {
+            g.osc_band_um = 0.0;
+        }
+    }
     let table = s.load_table(None).unwrap();
     let n = Variant::nominal(&s);
     let machines = [n, Variant { mass: 2.0, ..n }, Variant { bulk: 0.5, ..n }];
