@@ -523,7 +523,9 @@ fn jog_move_deadman_and_approach_on_the_real_firmware() {
 /// with ΔP feedback of `dp_gain` LSB/kN on slave 0 (the board's profile areas, the
 /// chamber pressures the emulated ADC converts from the plant): the fault code latched
 /// (0: none) and the max / RMS error, µm.
-fn soft_machine_run(dp_gain: f32) -> (u16, f64, f64) {
+/// The soft machine's run: (fault code, max and RMS error µm, slave 0's backoff level
+/// as Status reports it).
+fn soft_machine_run(dp_gain: f32, osc_band_um: f32) -> (u16, f64, f64, u8) {
     use hydra_core::protocol::settings::ParamId;
     let mut scn = scenario();
     for a in &mut scn.axes {
@@ -544,37 +546,60 @@ fn soft_machine_run(dp_gain: f32) -> (u16, f64, f64) {
         value: dp_gain,
     };
     s.host.ack(&mut s.m, &set).expect("SetParam dp_gain");
+    let band = Request::SetParam {
+        axis: 0,
+        param: ParamId::OscBandUm as u8,
+        value: osc_band_um,
+    };
+    s.host.ack(&mut s.m, &band).expect("SetParam osc_band_um");
     s.reference_and_start().expect("start");
     s.m.run_for(scn.duration_s().expect("duration"))
         .expect("follow");
     let st = s.status().expect("status");
     assert_stack(&s);
     let e = s.plant.borrow().errors[0];
+    let backoff = st.axes.first().map_or(0, |a| a.backoff);
     eprintln!(
-        "bulk ×0.5, dp_gain {dp_gain} LSB/kN: fault {}, board {:.2} / {:.2} µm",
+        "bulk ×0.5, dp_gain {dp_gain} LSB/kN, osc_band {osc_band_um} µm: fault {}, board {:.2} / {:.2} µm, backoff level {backoff}",
         st.fault_code,
         e.max,
         e.rms()
     );
-    (st.fault_code, e.max, e.rms())
+    (st.fault_code, e.max, e.rms(), backoff)
 }
 
-/// Without the damping the soft machine shakes until the following-error limit trips;
+/// Without the damping (and without the gain backoff, which would hold it: the next
+/// test) the soft machine shakes until the following-error limit trips;
 /// with it (60 LSB/kN) the same firmware holds it within 30 µm — so the firmware hands
 /// the pressures to the law, and the law uses them. (The simulator, with a full period
 /// of computation delay where the board writes its valves within the tick, holds it at
 /// 20 LSB/kN; on the board 20 gives 179 µm and 60 is needed: README, "Active damping".)
 #[test]
 fn active_damping_set_over_the_link_holds_the_soft_machine_on_the_real_firmware() {
-    let (fault_off, max_off, _) = soft_machine_run(0.0);
+    let (fault_off, max_off, _, _) = soft_machine_run(0.0, 0.0);
     assert!(
         fault_off != 0 || max_off > 100.0,
         "undamped: fault {fault_off}, {max_off:.1} µm"
     );
-    let (fault_on, max_on, rms_on) = soft_machine_run(60.0);
+    let (fault_on, max_on, rms_on, _) = soft_machine_run(60.0, 0.0);
     assert_eq!(fault_on, 0, "no fault with the damping");
     assert!(
         max_on < 30.0 && rms_on < 5.0,
         "{max_on:.1} / {rms_on:.2} µm"
     );
+}
+
+/// The gain backoff as shipped (the board's profile: 4 µm) on the real firmware holds
+/// the soft machine that shakes into its following-error fault without it (previous
+/// test): no fault, the error far below that fault's 5 mm, and Status names the level
+/// the axis backed off to (measured: 12.0 / 1.22 µm).
+#[test]
+fn the_shipped_gain_backoff_holds_the_soft_machine_on_the_real_firmware() {
+    let (fault, max, rms, level) = soft_machine_run(0.0, hydra_core::profile::OSC_BAND_UM);
+    assert_eq!(
+        fault, 0,
+        "no fault with the backoff ({max:.1} / {rms:.2} µm)"
+    );
+    assert!(max < 30.0, "{max:.1} / {rms:.2} µm");
+    assert!(level >= 1, "Status reports the backoff: level {level}");
 }

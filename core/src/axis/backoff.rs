@@ -28,8 +28,8 @@
 //! oscillation (the valve and the oil column carry it on for a cycle or two) and nothing
 //! is counted. The level is kept through restarts, faults and new runs and returns to 0
 //! only when the axis is configured again (a changed gain starts from what was set);
-//! [`crate::follower::Follower::backoff_level`] reads it (`host-sim robust` prints it;
-//! the board's status message does not carry it yet). The integrator's state is
+//! [`crate::follower::Follower::backoff_level`] reads it (the board's Status carries it
+//! per axis; `host-sim status` and `host-sim robust` print it). The integrator's state is
 //! untouched: the command does not jump.
 //!
 //! The slow tracking error of a table corner is a single swing, not four alternating

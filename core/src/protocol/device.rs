@@ -407,6 +407,12 @@ where
         if let Some(st) = self.glue.read(|rt| *rt.status()) {
             fill_status::<S, P>(&st, |c| self.glue.cycles_to_ns(c), out);
         }
+        // The gain backoff's levels, from the law (not kept per tick in the status).
+        self.glue.read(|rt| {
+            for (i, a) in out.axes.iter_mut().enumerate() {
+                a.backoff = rt.law().map_or(0, |l| l.backoff_level(i));
+            }
+        });
     }
     fn fault_history(&self, out: &mut heapless::Vec<FaultEventMsg, FAULT_HISTORY_LEN>) {
         self.glue.read(|rt| {

@@ -57,6 +57,7 @@ fn status() -> StatusMsg {
         dac: -35,
         reference: 2,
         manual: 0,
+        backoff: 1,
     });
     s
 }

@@ -14,7 +14,7 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 /// Protocol version reported in `Info`.
-pub const PROTOCOL_VERSION: u8 = 6;
+pub const PROTOCOL_VERSION: u8 = 7;
 /// Most axes a `Status`/`Telemetry` message can describe.
 pub const MAX_AXES: usize = 8;
 /// "No table" in id fields.
@@ -746,6 +746,9 @@ pub struct AxisStatus {
     pub reference: u8,
     /// Manual motion (state Manual): 0 holding, 1 jogging, 2 moving by an S-curve.
     pub manual: u8,
+    /// The gain backoff's level (`axis::backoff`): 0 the set gain, 1 … 4 the
+    /// proportional gain at 0.36, 0.27, 0.20, 0.15 of it (an oscillation was seen).
+    pub backoff: u8,
 }
 
 impl From<MotionLimitsMsg> for crate::runtime::MotionLimits {
@@ -1136,6 +1139,7 @@ mod tests {
                 dac: -4,
                 reference: 2,
                 manual: 1,
+                backoff: 2,
             })
             .unwrap();
         let mut tm = Telemetry {

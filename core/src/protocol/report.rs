@@ -190,6 +190,7 @@ pub fn fill_status<const S: usize, const P: usize>(
                 RefState::Referenced => 2,
             },
             manual: m.code(),
+            backoff: 0,
         });
     }
 }

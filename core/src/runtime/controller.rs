@@ -95,6 +95,12 @@ pub trait Controller<const S: usize> {
     fn following_error_limit_um(&self, _axis: usize) -> Option<PosUm> {
         None
     }
+
+    /// The gain backoff's level of slave `axis` (`crate::axis::backoff`; 0 = the set
+    /// gain, or a law without one). Read for the status report, not by the tick.
+    fn backoff_level(&self, _axis: usize) -> u8 {
+        0
+    }
 }
 
 /// `Controller` for a pointer type `$p<C>` to a law `C`, forwarding every call.
@@ -132,6 +138,10 @@ macro_rules! forward_controller {
 
             fn following_error_limit_um(&self, axis: usize) -> Option<PosUm> {
                 (**self).following_error_limit_um(axis)
+            }
+
+            fn backoff_level(&self, axis: usize) -> u8 {
+                (**self).backoff_level(axis)
             }
         }
     };

@@ -71,6 +71,10 @@ impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
     fn following_error_limit_um(&self, axis: usize) -> Option<crate::units::PosUm> {
         Follower::following_error_limit_um(self, axis)
     }
+
+    fn backoff_level(&self, axis: usize) -> u8 {
+        Follower::backoff_level(self, axis)
+    }
 }
 
 #[cfg(test)]

@@ -92,6 +92,9 @@ pub struct AxisReport {
     /// In state manual: `hold`, `jog` (jogging or braking), `move` (an S-curve move) or
     /// `test` (an identification test move).
     pub manual: String,
+    /// The gain backoff's level (core `axis::backoff`): 0 the set gain; 1 … 4 the
+    /// proportional gain cut to 0.36, 0.27, 0.20, 0.15 of it after an oscillation.
+    pub backoff: u8,
 }
 
 /// The status in engineering units (the `--json` schema).
@@ -292,6 +295,7 @@ pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: 
                     _ => "hold",
                 }
                 .to_string(),
+                backoff: a.backoff,
             })
             .collect(),
         link: LinkReport {
@@ -489,7 +493,7 @@ pub fn text(r: &Report) -> String {
     for (i, a) in r.axes.iter().enumerate() {
         let _ = writeln!(
             o,
-            "axis {i}       pos {:.3} mm, target {:.3} mm, error {:.3} mm, dac {}, {}{}",
+            "axis {i}       pos {:.3} mm, target {:.3} mm, error {:.3} mm, dac {}, {}{}{}",
             a.pos_mm,
             a.target_mm,
             a.error_mm,
@@ -499,6 +503,12 @@ pub fn text(r: &Report) -> String {
                 format!(", {}", a.manual)
             } else {
                 String::new()
+            },
+            match a.backoff {
+                0 => String::new(),
+                l => format!(
+                    ", gain backed off to level {l} (an oscillation was seen: the set Kp is too high for this machine)"
+                ),
             }
         );
     }
@@ -558,6 +568,7 @@ mod tests {
             dac: 0,
             reference: 1,
             manual: 0,
+            backoff: 0,
         });
         let r = report_with(&s, &FaultsMsg::default(), 1000, 0.0);
         assert_eq!(r.fault_name.as_deref(), Some("following_error"));
