@@ -17,8 +17,11 @@
 //! The first level scales the proportional and derivative terms and the active damping's
 //! term to 0.36 of the set gain (an oscillation means no margin is left: −9 dB leaves
 //! ≈ 3 dB on a loop that was just unstable), each next one by 0.75 more (0.27, 0.20,
-//! 0.15); the integrator gain and the feed-forward are kept, so a valve-flow error is
-//! still integrated out at the set rate. (Steps of 0.6 each were tried first: the
+//! 0.15); the feed-forward is kept, and so is the integrator gain at the first level,
+//! so a valve-flow error is still integrated out at the set rate. From the second level
+//! on the integrator step is scaled too, to min(1, s/0.36) (0.75, 0.56, 0.42): the PI
+//! corner Ki/Kp never rises above 2.8× its set value (with Ki kept, the integrator's own
+//! ≈ 6 Hz mode shook two soft corners at levels 3 and 4 without damping; measured). (Steps of 0.6 each were tried first: the
 //! oscillation outgrew the first cut and the detector went a level too deep, where the
 //! integrator's own ≈ 6 Hz mode appears — 44 µm on a soft corner.)
 //! After a backoff the band is raised to the peak |y| of the half-cycles that caused it
@@ -57,6 +60,11 @@ pub const BAND_TAU_S: f64 = 0.5;
 pub const MAX_LEVEL: u8 = 4;
 /// The proportional scale at each level, Q16: 1, 0.36, then 0.75× per level.
 const SCALE_Q16: [i32; MAX_LEVEL as usize + 1] = [65_536, 23_593, 17_695, 13_271, 9_953];
+
+/// The integral gain's scale at each level, Q16: min(1, 2.78·s) — the PI corner Ki/Kp
+/// rises at most to 1/0.36 of its set value (deeper, the integrator's own slow mode
+/// appeared: measured ≈ 6 Hz on the soft corners at levels 3 and 4 with Ki kept).
+const KI_SCALE_Q16: [i32; MAX_LEVEL as usize + 1] = [65_536, 65_536, 49_152, 36_864, 27_648];
 
 /// Why the backoff cannot be built (reported as the axis' `AxisConfigError::OscBand`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -182,6 +190,20 @@ impl BackoffState {
             .get(usize::from(self.level))
             .copied()
             .unwrap_or(9_953)
+    }
+
+    /// `x` (an integrator step, any Q format) at this level: see `KI_SCALE_Q16`.
+    #[inline(always)]
+    pub fn scale_i(&self, x: i32) -> i32 {
+        if self.level < 2 {
+            x
+        } else {
+            let k = KI_SCALE_Q16
+                .get(usize::from(self.level))
+                .copied()
+                .unwrap_or(27_648);
+            mul_shr(x, k, 16)
+        }
     }
 
     /// `x` (a proportional, derivative or damping term, any Q format) at this level.

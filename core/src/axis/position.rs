@@ -4,12 +4,12 @@
 //!
 //! ```text
 //! e(k)  = x_ref(k) − x(k)                                   µm
-//! I(k)  = clamp(I(k−1) + Ki·T·e(k), ±I_max)   only if |e| ≤ m and the output is not
+//! I(k)  = clamp(I(k−1) + s_I·Ki·T·e(k), ±I_max)   only if |e| ≤ m and the output is not
 //!                                              saturated in the direction of e
 //! u(k)  = s·(Kp·e + (Kd/T)·(e(k) − e(k−1))) + I + kv±·v_ff + ka·a_ff      LSB
 //! ```
 //!
-//! (s ≤ 1, the gain backoff's scale of a following Feedforward axis,
+//! (s ≤ 1, s_I ≤ 1: the gain backoff's scales of a following Feedforward axis,
 //! [`super::backoff`]; 1 elsewhere.)
 //!
 //! **Paper** (SPEC §A eq. 6–9, incremental, integral separation):
@@ -190,7 +190,10 @@ pub(crate) fn positional_law_ff(
         .wrapping_add(i64::from(e.saturating_sub(e1)).wrapping_mul(i64::from(c.kd_tick)));
     let base = bo.scale(sat_i32(pd24 >> 8)).saturating_add(ff);
     if e.saturating_abs() <= c.i_zone {
-        let cand = clamp_sym(st.integ.saturating_add(integ_step(c, e)), c.i_limit);
+        let cand = clamp_sym(
+            st.integ.saturating_add(bo.scale_i(integ_step(c, e))),
+            c.i_limit,
+        );
         let u_try = base.saturating_add(cand);
         // Anti-windup: never integrate further into a saturated output.
         let winding =

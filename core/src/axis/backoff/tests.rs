@@ -61,6 +61,14 @@ fn a_growing_oscillation_backs_off_level_by_level() {
     for w in want {
         let s = f64::from(lv.scale(1 << 20)) / f64::from(full);
         assert!((s - w).abs() < 1e-3, "level {}: {s} vs {w}", lv.level);
+        // The integrator: kept while the PI corner rises ≤ 1/0.36, then min(1, s/0.36).
+        let si = f64::from(lv.scale_i(1 << 20)) / f64::from(full);
+        let wi = (w / 0.36).min(1.0);
+        assert!(
+            (si - wi).abs() < 2e-3,
+            "level {}: Ki {si} vs {wi}",
+            lv.level
+        );
         lv.level += 1;
     }
 }
