@@ -38,7 +38,7 @@
 
 use crate::axis::backoff::{self, BackoffCoeffs, BackoffState};
 use crate::axis::damping::{damped_cmd, damping_bits, DampingCoeffs, DampingState};
-use crate::axis::position::{paper_law_bits, positional_law_ff};
+use crate::axis::position::{paper_law_bits, positional_law_ff, positional_law_ff_backoff};
 use crate::axis::{
     position_law, AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosRef, PosState,
 };
@@ -787,13 +787,23 @@ fn damping_term_on<const S: usize>(
     p.get(i).map_or(0, |p| damping_bits(&c.damping, st, p))
 }
 
-/// One tick of the gain backoff's detector on a following Feedforward axis' error
-/// ([`crate::axis::backoff`]; nothing when it is off).
-#[inline(always)]
-fn backoff_observe(c: &AxisCoeffs, st: &mut BackoffState, err: i32) {
-    if c.backoff.is_on() {
-        backoff::observe(&c.backoff, st, err);
-    }
+/// The Feedforward law of an axis with the gain backoff ([`crate::axis::backoff`]): its
+/// detector on the error, then the law (feed-forward `ff`, `I16F16` LSB, less the active
+/// damping's term) with the proportional, derivative and damping terms and the
+/// integrator step at the level's scales. Out of line: an axis without the backoff pays
+/// one test.
+#[inline(never)]
+fn ff_law_backoff<const S: usize>(
+    c: &AxisCoeffs,
+    rt: &mut AxisRt,
+    err: i32,
+    ff: i32,
+    p: &[[PressureBar; 2]; S],
+    i: usize,
+) -> i32 {
+    backoff::observe(&c.backoff, &mut rt.backoff, err);
+    let d = rt.backoff.scale(damping_term(c, &mut rt.damp, p, i));
+    positional_law_ff_backoff(c, &mut rt.st, err, ff.saturating_sub(d), &rt.backoff)
 }
 
 /// [`axis_step`]'s body.
@@ -843,9 +853,12 @@ fn axis_step_inline<const S: usize, const M: u8>(
                     // The look-ahead beyond an end of the table: no feed-forward.
                     None => 0,
                 };
-                backoff_observe(c, &mut rt.backoff, err);
-                let d = rt.backoff.scale(damping_term(c, &mut rt.damp, p, i));
-                positional_law_ff(c, &mut rt.st, err, ff.saturating_sub(d), &rt.backoff)
+                if c.backoff.is_on() {
+                    ff_law_backoff(c, rt, err, ff, p, i)
+                } else {
+                    let ff = ff.saturating_sub(damping_term(c, &mut rt.damp, p, i));
+                    positional_law_ff(c, &mut rt.st, err, ff)
+                }
             }
             (ControlMode::NextNode, false) => {
                 // The node at the far end of the segment in the direction of motion.
@@ -854,22 +867,17 @@ fn axis_step_inline<const S: usize, const M: u8>(
                 } else {
                     ctx.now.start_bits(i)
                 };
-                positional_law_ff(
-                    c,
-                    &mut rt.st,
-                    node.saturating_sub(x),
-                    0,
-                    &BackoffState::RESET,
-                )
+                positional_law_ff(c, &mut rt.st, node.saturating_sub(x), 0)
             }
             (ControlMode::Feedforward, true) => {
-                backoff_observe(c, &mut rt.backoff, err);
-                let d = rt.backoff.scale(damping_term(c, &mut rt.damp, p, i));
-                positional_law_ff(c, &mut rt.st, err, d.saturating_neg(), &rt.backoff)
+                if c.backoff.is_on() {
+                    ff_law_backoff(c, rt, err, 0, p, i)
+                } else {
+                    let d = damping_term(c, &mut rt.damp, p, i);
+                    positional_law_ff(c, &mut rt.st, err, d.saturating_neg())
+                }
             }
-            (ControlMode::NextNode, true) => {
-                positional_law_ff(c, &mut rt.st, err, 0, &BackoffState::RESET)
-            }
+            (ControlMode::NextNode, true) => positional_law_ff(c, &mut rt.st, err, 0),
         };
         // The laws clamp u to the valve's clamp: the output stage need not again.
         (u, c.valve.output_within_clamp(CmdLsb::from_bits(u)))

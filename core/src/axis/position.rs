@@ -164,14 +164,33 @@ pub(crate) fn positional_law_bits(
     let ff32 = i64::from(v)
         .wrapping_mul(i64::from(kv))
         .wrapping_add(i64::from(a).wrapping_mul(i64::from(c.ka)));
-    positional_law_ff(c, st, e, sat_i32(ff32 >> 16), &BackoffState::RESET)
+    positional_law_ff(c, st, e, sat_i32(ff32 >> 16))
 }
 
 /// [`positional_law_bits`] with the feed-forward kv±·v + ka·a already worked out: `ff`,
-/// `I16F16` LSB (the follower's per-segment constants, see `follower::ff_plan`), and the
-/// proportional and derivative terms scaled by the gain backoff's level `bo`.
+/// `I16F16` LSB (the follower's per-segment constants, see `follower::ff_plan`).
 #[inline(always)]
-pub(crate) fn positional_law_ff(
+pub(crate) fn positional_law_ff(c: &AxisCoeffs, st: &mut PosState, e: i32, ff: i32) -> i32 {
+    positional_law_with::<false>(c, st, e, ff, &BackoffState::RESET)
+}
+
+/// [`positional_law_ff`] with the proportional and derivative terms and the integrator
+/// step scaled at the gain backoff's level `bo` ([`super::backoff`]).
+#[inline(always)]
+pub(crate) fn positional_law_ff_backoff(
+    c: &AxisCoeffs,
+    st: &mut PosState,
+    e: i32,
+    ff: i32,
+    bo: &BackoffState,
+) -> i32 {
+    positional_law_with::<true>(c, st, e, ff, bo)
+}
+
+/// The positional law's body; `B`: whether the backoff's scales apply (decided at
+/// compile time, so the law without it has no trace of it).
+#[inline(always)]
+fn positional_law_with<const B: bool>(
     c: &AxisCoeffs,
     st: &mut PosState,
     e: i32,
@@ -188,12 +207,12 @@ pub(crate) fn positional_law_ff(
     let pd24 = i64::from(e)
         .wrapping_mul(i64::from(c.kp))
         .wrapping_add(i64::from(e.saturating_sub(e1)).wrapping_mul(i64::from(c.kd_tick)));
-    let base = bo.scale(sat_i32(pd24 >> 8)).saturating_add(ff);
+    let pd = sat_i32(pd24 >> 8);
+    let base = if B { bo.scale(pd) } else { pd }.saturating_add(ff);
     if e.saturating_abs() <= c.i_zone {
-        let cand = clamp_sym(
-            st.integ.saturating_add(bo.scale_i(integ_step(c, e))),
-            c.i_limit,
-        );
+        let step = integ_step(c, e);
+        let step = if B { bo.scale_i(step) } else { step };
+        let cand = clamp_sym(st.integ.saturating_add(step), c.i_limit);
         let u_try = base.saturating_add(cand);
         // Anti-windup: never integrate further into a saturated output.
         let winding =
