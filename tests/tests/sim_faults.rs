@@ -19,13 +19,13 @@ fn spec(period_us: u32) -> RunSpec {
     }
 }
 
-/// The reference machine with its oil's bulk modulus × 0.4 (aerated oil): the shipped
-/// gains make it oscillate.
 /// The shipped 1 ms feed-forward set (`tangent.toml`) with the gain backoff off: the
 /// fault path needs a machine the loop cannot hold (with the backoff it holds this one,
 /// `sim_backoff.rs`).
 const SHIPPED_WITHOUT_BACKOFF: &str = "[[tuning]]\ncontroller = \"feedforward\"\nperiod_us = 1000\nmaster_filter_hz = 8\n[tuning.axes.tangent]\nkp_lsb_per_um = 1.1\nki_lsb_per_um_s = 18\ni_zone_um = 10000\ni_limit_lsb = 630\nkv_pos_lsb_per_um_s = 0.01389\nkv_neg_lsb_per_um_s = 0.01683\nvalve_lag_us = 4244\nfollowing_error_um = 20000\nosc_band_um = 0\n";
 
+/// The reference machine with its oil's bulk modulus × 0.4 (aerated oil): the shipped
+/// gains without the backoff make it oscillate.
 fn soft_oil() -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("soft.toml");

@@ -21,16 +21,23 @@
 //! so a valve-flow error is still integrated out at the set rate. From the second level
 //! on the integrator step is scaled too, to min(1, s/0.36) (0.75, 0.56, 0.42): the PI
 //! corner Ki/Kp never rises above 2.8× its set value (with Ki kept, the integrator's own
-//! ≈ 6 Hz mode shook two soft corners at levels 3 and 4 without damping; measured). (Steps of 0.6 each were tried first: the
-//! oscillation outgrew the first cut and the detector went a level too deep, where the
-//! integrator's own ≈ 6 Hz mode appears — 44 µm on a soft corner.)
+//! ≈ 6 Hz mode shook two soft corners at levels 3 and 4 without damping; measured).
+//! (Steps of 0.6 each were tried first: the oscillation outgrew the first cut and the
+//! detector went a level too deep — 44 µm on a soft corner.)
+//!
+//! Counting: the first excursion beyond the band sets its side; each later crossing to
+//! the other side counts, and the window opens at the first counted one — so four counted
+//! crossings span three half-periods within 150 ms (oscillations from ≈ 10 Hz up).
 //! After a backoff the band is raised to the peak |y| of the half-cycles that caused it
 //! and decays back towards b with τ = 0.5 s: an oscillation that the lower gain damps
 //! stays inside it and takes the gain no further; one that still grows crosses it and
 //! takes the next level. For the first 100 ms after a cut the band rides 1.25× above the
 //! oscillation (the valve and the oil column carry it on for a cycle or two) and nothing
-//! is counted. The level is kept through restarts, faults and new runs and returns to 0
-//! only when the axis is configured again (a changed gain starts from what was set);
+//! is counted. The level is kept through restarts, cleared faults and new runs and
+//! returns to 0 when the law is configured again: in the simulator a new
+//! configuration; on a board every rebuild of the law — a table installed or any setting
+//! changed (`protocol::device`) — so a new job starts from the set gain and backs off
+//! again within a fraction of a second if it must;
 //! [`crate::follower::Follower::backoff_level`] reads it (the board's Status carries it
 //! per axis; `host-sim status` and `host-sim robust` print it). The integrator's state is
 //! untouched: the command does not jump.
@@ -38,8 +45,9 @@
 //! The slow tracking error of a table corner is a single swing, not four alternating
 //! crossings, and the 10 Hz high-pass takes most of it out. Measured with b = 4 µm on the
 //! robustness box (`host-sim robust host-sim/scenarios/tangent_damped.toml`, README
-//! "Robustness"): the nominal machine and 20 of the 24 others never trigger it, the four
-//! mass ×2 / bulk ×0.5 corners end at level 1 or 2, and no machine oscillates.
+//! "Robustness"): the nominal machine and 19 of the 24 others never trigger it, the four
+//! mass ×2 / bulk ×0.5 corners end at levels 1, 1, 1 and 3, the stiff-oil mass ×2 corner
+//! whose 43 Hz ringing crosses the band at 1, and no machine oscillates.
 //!
 //! Formats: e, y, b µm `I24F8` raw; α Q31; the level's scale `I16F16` (Q16, ≤ 1).
 
@@ -108,7 +116,7 @@ impl BackoffCoeffs {
         }
         let t = f64::from(period_us) * 1e-6;
         let alpha = 1.0 / (1.0 + 2.0 * core::f64::consts::PI * HIGH_PASS_HZ * t);
-        // Ticks: at 50 µs … 1 s, W and H are 1 … 4 000 ticks.
+        // Ticks: at 50 µs … 1 s, the window and the settling are 1 … 3 000 ticks.
         let ticks = |s: f64| libm::ceil(s / t).clamp(1.0, f64::from(u16::MAX)) as u16;
         Ok(Self {
             // ≤ 10 000 µm · 256: far inside an i32; a band below 1/256 µm is 1 LSB.
@@ -117,7 +125,8 @@ impl BackoffCoeffs {
             alpha_q31: (alpha * 2_147_483_648.0).min(2_147_483_647.0) as i32,
             window_ticks: ticks(WINDOW_S),
             settle_ticks: ticks(SETTLE_S),
-            // τ/T = 2^shift: 0 … 13 for 50 µs … 1 s.
+            // τ/T = 2^shift, rounded: 0 … 13 for 50 µs … 1 s (τ within 0.71 … 1.41 of
+            // 0.5 s at periods whose τ/T is not a power of two).
             decay_shift: libm::round(libm::log2(BAND_TAU_S / t)).clamp(0.0, 20.0) as u8,
         })
     }

@@ -70,8 +70,9 @@ pub struct PositionGains {
     pub dp_corner_hz: f32,
     /// Gain backoff ([`super::backoff`]): the band, µm, the high-passed following error
     /// must cross back and forth four times within 150 ms for the axis to take its
-    /// proportional gain down (to 0.36×, then 0.75× per further oscillation; 0 …
-    /// 10 000; 0 = off, the default). Acts on a
+    /// proportional gain down (to 0.36×, then 0.75× per further oscillation; from the
+    /// second level the integral gain too, to min(1, s/0.36); 0 … 10 000; 0 = off, the
+    /// default). Acts on a
     /// following Feedforward axis only (the baselines run as published; jog and test
     /// moves keep the set gain).
     pub osc_band_um: f32,

@@ -673,3 +673,61 @@ fn clearing_a_fault_restarts_the_damping() {
     };
     assert_eq!(run(60.0), run(0.0));
 }
+
+/// The gain backoff inside the follower: a master at rest (target 20 mm) and a slave
+/// position shaking about it at 25 Hz, growing from 2 to 40 µm (what a soft machine
+/// does). A Feedforward axis with the band backs off, and its proportional term is cut
+/// (the command's swing at the same error is smaller than with the band off); the level
+/// survives `restart` and `clear_faults` and is gone after `configure`. Paper and
+/// NextNode axes with the same band never back off and command exactly as without it.
+#[test]
+fn the_gain_backoff_acts_on_feedforward_keeps_its_level_and_leaves_the_baselines() {
+    let nodes = sine_nodes();
+    let shake = |k: u32| {
+        let t = f64::from(k) * 1e-3;
+        20_000.0 + (2.0 + 95.0 * t) * (2.0 * core::f64::consts::PI * 25.0 * t).sin()
+    };
+    let run = |mode: ControlMode, band: f32| {
+        let mut a = ff_axis();
+        a.mode = mode;
+        a.gains.osc_band_um = band;
+        let cfg = FollowerConfig {
+            axes: [a],
+            ..FollowerConfig::default()
+        };
+        let mut f = Follower::new(&cfg, table1(&nodes)).unwrap();
+        let cmds: Vec<f64> = (0..400)
+            .map(|k| f.tick(&inputs(0.0, shake(k))).cmd_lsb[0].to_num::<f64>())
+            .collect();
+        (f, cfg, cmds)
+    };
+    let (mut f, cfg, on) = run(ControlMode::Feedforward, 4.0);
+    let (g, _, off) = run(ControlMode::Feedforward, 0.0);
+    assert!(f.backoff_level(0) >= 1, "backed off");
+    assert_eq!(g.backoff_level(0), 0, "off: never");
+    // The last 100 ms: the same error, a smaller proportional swing once backed off.
+    let swing = |c: &[f64]| c[300..].iter().fold(0.0f64, |m, &u| m.max(u.abs()));
+    assert!(
+        swing(&on) < 0.7 * swing(&off),
+        "{} vs {}",
+        swing(&on),
+        swing(&off)
+    );
+    let level = f.backoff_level(0);
+    f.restart();
+    assert_eq!(f.backoff_level(0), level, "a restart keeps the level");
+    f.clear_faults();
+    assert_eq!(f.backoff_level(0), level, "clearing faults keeps it");
+    f.configure(&cfg).unwrap();
+    assert_eq!(
+        f.backoff_level(0),
+        0,
+        "a new configuration starts from the set gain"
+    );
+    for mode in [ControlMode::Paper, ControlMode::NextNode] {
+        let (f, _, with) = run(mode, 4.0);
+        let (_, _, without) = run(mode, 0.0);
+        assert_eq!(f.backoff_level(0), 0, "{mode:?}");
+        assert_eq!(with, without, "{mode:?}: the baselines run as published");
+    }
+}

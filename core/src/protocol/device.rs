@@ -404,15 +404,21 @@ where
         Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {
-        if let Some(st) = self.glue.read(|rt| *rt.status()) {
-            fill_status::<S, P>(&st, |c| self.glue.cycles_to_ns(c), out);
-        }
-        // The gain backoff's levels, from the law (not kept per tick in the status).
-        self.glue.read(|rt| {
-            for (i, a) in out.axes.iter_mut().enumerate() {
-                a.backoff = rt.law().map_or(0, |l| l.backoff_level(i));
+        // The gain backoff's levels come from the law (not kept per tick in the status),
+        // read in the same critical section as the status: one tick's picture.
+        let read = self.glue.read(|rt| {
+            let mut levels = [0u8; S];
+            for (i, l) in levels.iter_mut().enumerate() {
+                *l = rt.law().map_or(0, |law| law.backoff_level(i));
             }
+            (*rt.status(), levels)
         });
+        if let Some((st, levels)) = read {
+            fill_status::<S, P>(&st, |c| self.glue.cycles_to_ns(c), out);
+            for (a, l) in out.axes.iter_mut().zip(levels) {
+                a.backoff = l;
+            }
+        }
     }
     fn fault_history(&self, out: &mut heapless::Vec<FaultEventMsg, FAULT_HISTORY_LEN>) {
         self.glue.read(|rt| {

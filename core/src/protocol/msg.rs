@@ -747,7 +747,8 @@ pub struct AxisStatus {
     /// Manual motion (state Manual): 0 holding, 1 jogging, 2 moving by an S-curve.
     pub manual: u8,
     /// The gain backoff's level (`axis::backoff`): 0 the set gain, 1 … 4 the
-    /// proportional gain at 0.36, 0.27, 0.20, 0.15 of it (an oscillation was seen).
+    /// proportional gain at 0.36, 0.27, 0.20, 0.15 of it and the integral gain at 1,
+    /// 0.75, 0.56, 0.42 (an oscillation was seen).
     pub backoff: u8,
 }
 

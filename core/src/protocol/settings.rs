@@ -103,7 +103,8 @@ pub enum ParamId {
     /// Piston area of chamber B (pressure input 2n + 1), mm².
     AreaBMm2 = 31,
     /// Gain backoff band, µm (0 = off): the high-passed following error crossing it
-    /// back and forth four times in 150 ms takes the proportional gain down.
+    /// back and forth four times in 150 ms takes the proportional gain (from the second
+    /// time also the integral gain) down.
     OscBandUm = 32,
 }
 

@@ -137,9 +137,9 @@ fn off_never_acts_and_a_restart_keeps_the_level() {
     let mut st = BackoffState::RESET;
     let osc = |t: f64| 100.0 * (2.0 * core::f64::consts::PI * 25.0 * t).sin();
     let off = BackoffCoeffs::build(0.0, 1000).unwrap();
-    // The caller runs the detector only when it is on; called anyway, the band 0 …
-    // still must not panic. The law never calls it then.
-    let _ = run(&off, &mut st, 10, osc);
+    // The law never runs the detector when it is off; called anyway it must not act.
+    assert_eq!(run(&off, &mut st, 1000, osc), Vec::<usize>::new());
+    assert_eq!(st.level(), 0);
     let c = BackoffCoeffs::build(4.0, 1000).unwrap();
     let mut st = BackoffState::RESET;
     assert_eq!(run(&c, &mut st, 100, osc).len(), 1);
