@@ -427,6 +427,24 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         self.rt.get(i).map_or(0, |r| r.backoff.level())
     }
 
+    /// Takes over `old`'s gain backoff levels for every slave whose coefficients are the
+    /// same in both (a law rebuilt for a new table or another axis' setting keeps what
+    /// this axis learned; a changed gain starts from the set value). The detectors'
+    /// histories start afresh.
+    pub fn carry_backoff_from(&mut self, old: &Self) {
+        for ((rt, c), (o_rt, o_c)) in self
+            .rt
+            .iter_mut()
+            .zip(self.axes.iter())
+            .zip(old.rt.iter().zip(old.axes.iter()))
+        {
+            if c == o_c {
+                rt.backoff = o_rt.backoff;
+                rt.backoff.restart();
+            }
+        }
+    }
+
     /// Clears latched axis faults (the controller states start afresh).
     pub fn clear_faults(&mut self) {
         for rt in &mut self.rt {

@@ -33,11 +33,12 @@
 //! stays inside it and takes the gain no further; one that still grows crosses it and
 //! takes the next level. For the first 100 ms after a cut the band rides 1.25× above the
 //! oscillation (the valve and the oil column carry it on for a cycle or two) and nothing
-//! is counted. The level is kept through restarts, cleared faults and new runs and
-//! returns to 0 when the law is configured again: in the simulator a new
-//! configuration; on a board every rebuild of the law — a table installed or any setting
-//! changed (`protocol::device`) — so a new job starts from the set gain and backs off
-//! again within a fraction of a second if it must;
+//! is counted. The level is kept through restarts, cleared faults and new runs, and
+//! through a rebuild of the law that keeps the axis' coefficients (on a board: a new
+//! table, a board-wide or another axis' setting —
+//! [`crate::follower::Follower::carry_backoff_from`] in `protocol::device`); it returns
+//! to 0 when the axis' own coefficients change (a gain set: the engineer's new value
+//! starts as set);
 //! [`crate::follower::Follower::backoff_level`] reads it (the board's Status carries it
 //! per axis; `host-sim status` and `host-sim robust` print it). The integrator's state is
 //! untouched: the command does not jump.

@@ -210,6 +210,11 @@ impl<L> LawPool<L> {
                 if !rt.at_safe_point() {
                     return None;
                 }
+                // The backoff levels the running law learned, for the axes whose
+                // coefficients the new one keeps.
+                if let (Some(running), Some(n)) = (rt.law(), new.as_mut()) {
+                    n.carry_backoff_from(running);
+                }
                 // At a safe point (checked in this call): `install` cannot refuse.
                 let old = rt.install(new.take()?).ok()?;
                 G::publish_nulls(&nulls);
@@ -597,6 +602,60 @@ mod tests {
         assert!(rt.law().is_some_and(|l| l.is_ready()));
         assert_eq!(rt.absolute_offset_um(0), Some(PosUm::from_num(2500)));
         assert_eq!(st.active.len(), 3);
+    }
+
+    /// The gain backoff's level survives a law rebuild that keeps the axis'
+    /// coefficients (a new table, a board-wide setting) and is gone after one that
+    /// changes them (a gain): what the axis learned about the machine is kept until the
+    /// engineer changes the axis.
+    #[test]
+    fn a_rebuilt_law_keeps_the_backoff_level_unless_the_axis_changed() {
+        use crate::follower::FollowerInputs;
+        use crate::units::PressureBar;
+        let mut st = device();
+        let mut g = Direct { rt: None };
+        let (rt, _) = st.start::<0>(coeffs(), BootCause::Normal);
+        g.rt = Some(rt);
+        let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
+            st: &mut st,
+            glue: &mut g,
+        };
+        d.set_param(0, ParamId::KpLsbPerUm, 0.5).unwrap();
+        d.set_param(0, ParamId::OscBandUm, 4.0).unwrap();
+        d.install_table(&table(100_000)).unwrap();
+        // The running law sees its slave shake at 25 Hz, growing from 2 to 40 µm.
+        let level = |d: &BoardDevice<'_, _, _, Direct, 1, 8, 0>| {
+            d.glue
+                .rt
+                .as_ref()
+                .and_then(|r| r.law())
+                .map_or(0, |l| l.backoff_level(0))
+        };
+        if let Some(law) = d.glue.rt.as_mut().and_then(|r| r.law_mut()) {
+            for k in 0..400u32 {
+                let t = f64::from(k) * 1e-3;
+                let x =
+                    100_000.0 + (2.0 + 95.0 * t) * (2.0 * core::f64::consts::PI * 25.0 * t).sin();
+                Follower::tick(
+                    &mut **law,
+                    &FollowerInputs {
+                        master: Master::ZERO,
+                        pos_um: [PosUm::from_num(x)],
+                        pressure_bar: [[PressureBar::ZERO; 2]; 1],
+                    },
+                );
+            }
+        }
+        let learned = level(&d);
+        assert!(learned >= 1, "backed off");
+        // A new table and a board-wide setting rebuild the law; the axis is the same.
+        d.install_table(&table(120_000)).unwrap();
+        assert_eq!(level(&d), learned, "a new table keeps it");
+        d.set_param(0, ParamId::MasterFilterHz, 6.0).unwrap();
+        assert_eq!(level(&d), learned, "a board-wide setting keeps it");
+        // A gain of the axis: the set value again.
+        d.set_param(0, ParamId::KpLsbPerUm, 0.4).unwrap();
+        assert_eq!(level(&d), 0, "a changed gain starts from the set value");
     }
 
     #[test]
