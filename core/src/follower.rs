@@ -38,7 +38,7 @@
 
 use crate::axis::backoff::{self, BackoffCoeffs, BackoffState};
 use crate::axis::damping::{damped_cmd, damping_bits, DampingCoeffs, DampingState};
-use crate::axis::position::{paper_law_bits, positional_law_ff, positional_law_ff_backoff};
+use crate::axis::position::{paper_law_bits, positional_law_ff, positional_law_with};
 use crate::axis::{
     position_law, AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosRef, PosState,
 };
@@ -819,9 +819,29 @@ fn ff_law_backoff<const S: usize>(
     p: &[[PressureBar; 2]; S],
     i: usize,
 ) -> i32 {
-    backoff::observe(&c.backoff, &mut rt.backoff, err);
+    backoff::observe(&c.backoff, &mut rt.backoff, rt.st.error_change(err));
     let d = rt.backoff.scale(damping_term(c, &mut rt.damp, p, i));
-    positional_law_ff_backoff(c, &mut rt.st, err, ff.saturating_sub(d), &rt.backoff)
+    positional_law_with::<true>(c, &mut rt.st, err, ff.saturating_sub(d), &rt.backoff)
+}
+
+/// The Feedforward law of a following axis with feed-forward `ff` (`I16F16` LSB; 0 once
+/// the table has ended): with the gain backoff out of line, else less the active
+/// damping's term ([`damping_term`]).
+#[inline(always)]
+fn ff_law<const S: usize>(
+    c: &AxisCoeffs,
+    rt: &mut AxisRt,
+    err: i32,
+    ff: i32,
+    p: &[[PressureBar; 2]; S],
+    i: usize,
+) -> i32 {
+    if c.backoff.is_on() {
+        ff_law_backoff(c, rt, err, ff, p, i)
+    } else {
+        let ff = ff.saturating_sub(damping_term(c, &mut rt.damp, p, i));
+        positional_law_ff(c, &mut rt.st, err, ff)
+    }
 }
 
 /// [`axis_step`]'s body.
@@ -871,12 +891,7 @@ fn axis_step_inline<const S: usize, const M: u8>(
                     // The look-ahead beyond an end of the table: no feed-forward.
                     None => 0,
                 };
-                if c.backoff.is_on() {
-                    ff_law_backoff(c, rt, err, ff, p, i)
-                } else {
-                    let ff = ff.saturating_sub(damping_term(c, &mut rt.damp, p, i));
-                    positional_law_ff(c, &mut rt.st, err, ff)
-                }
+                ff_law(c, rt, err, ff, p, i)
             }
             (ControlMode::NextNode, false) => {
                 // The node at the far end of the segment in the direction of motion.
@@ -887,14 +902,8 @@ fn axis_step_inline<const S: usize, const M: u8>(
                 };
                 positional_law_ff(c, &mut rt.st, node.saturating_sub(x), 0)
             }
-            (ControlMode::Feedforward, true) => {
-                if c.backoff.is_on() {
-                    ff_law_backoff(c, rt, err, 0, p, i)
-                } else {
-                    let d = damping_term(c, &mut rt.damp, p, i);
-                    positional_law_ff(c, &mut rt.st, err, d.saturating_neg())
-                }
-            }
+            // Ended: no feed-forward (0 − d is d negated, saturating alike).
+            (ControlMode::Feedforward, true) => ff_law(c, rt, err, 0, p, i),
             (ControlMode::NextNode, true) => positional_law_ff(c, &mut rt.st, err, 0),
         };
         // The laws clamp u to the valve's clamp: the output stage need not again.

@@ -2,8 +2,9 @@
 //! latched fault is reported (JSON `faults`, exit code 3) and the valves go to null, and
 //! oscillation is counted against the table's own reversals.
 
+use host_sim::autotune::to_toml;
 use host_sim::cmd::run::{run as run_cmd, to_json, Args, FaultLatched};
-use host_sim::scenario::{Controller, Scenario};
+use host_sim::scenario::{reference_tuning, Controller, Scenario};
 use host_sim::sim::{run, RunSpec};
 use std::path::{Path, PathBuf};
 
@@ -19,10 +20,21 @@ fn spec(period_us: u32) -> RunSpec {
     }
 }
 
-/// The shipped 1 ms feed-forward set (`tangent.toml`) with the gain backoff off: the
-/// fault path needs a machine the loop cannot hold (with the backoff it holds this one,
-/// `sim_backoff.rs`).
-const SHIPPED_WITHOUT_BACKOFF: &str = "[[tuning]]\ncontroller = \"feedforward\"\nperiod_us = 1000\nmaster_filter_hz = 8\n[tuning.axes.tangent]\nkp_lsb_per_um = 1.1\nki_lsb_per_um_s = 18\ni_zone_um = 10000\ni_limit_lsb = 630\nkv_pos_lsb_per_um_s = 0.01389\nkv_neg_lsb_per_um_s = 0.01683\nvalve_lag_us = 4244\nfollowing_error_um = 20000\nosc_band_um = 0\n";
+/// The shipped 1 ms feed-forward set (`tangent.toml`, as host-sim compiles it in) with
+/// the gain backoff off, as `[[tuning]]` TOML: the fault path needs a machine the loop
+/// cannot hold (with the backoff it holds this one, `sim_backoff.rs`).
+fn shipped_without_backoff() -> String {
+    let mut t = reference_tuning()
+        .into_iter()
+        .find(|t| t.controller == Controller::Feedforward && t.period_us == 1000)
+        .expect("the shipped 1 ms feed-forward set");
+    for g in t.axes.values_mut() {
+        g.osc_band_um = 0.0;
+    }
+    // This machine has the tangent axis alone.
+    t.press.clear();
+    to_toml(&t)
+}
 
 /// The reference machine with its oil's bulk modulus × 0.4 (aerated oil): the shipped
 /// gains without the backoff make it oscillate.
@@ -35,7 +47,7 @@ fn soft_oil() -> (tempfile::TempDir, PathBuf) {
         format!(
             "name = \"soft_oil\"\n[table]\nfile = \"{}\"\n[[axis]]\nname = \"tangent\"\nrole = \"follower\"\n[axis.cylinder]\nbulk_modulus_pa = 0.56e9\n{}",
             table.display(),
-            SHIPPED_WITHOUT_BACKOFF
+            shipped_without_backoff()
         ),
     )
     .unwrap();

@@ -23,7 +23,7 @@
 //! corner Ki/Kp never rises above 2.8× its set value (with Ki kept, the integrator's own
 //! ≈ 6 Hz mode shook two soft corners at levels 3 and 4 without damping; measured).
 //! (Steps of 0.6 each were tried first: the oscillation outgrew the first cut and the
-//! detector went a level too deep — 44 µm on a soft corner.)
+//! detector went a level too deep on the soft corners.)
 //!
 //! Counting: the first excursion beyond the band sets its side; each later crossing to
 //! the other side counts, and the window opens at the first counted one — so four counted
@@ -143,8 +143,6 @@ impl BackoffCoeffs {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BackoffState {
-    /// e(k−1), µm `I24F8` raw.
-    e1: i32,
     /// y(k−1), µm `I24F8` raw.
     y: i32,
     /// Ticks left in the counting window (0: none open).
@@ -161,14 +159,11 @@ pub struct BackoffState {
     half_cycles: u8,
     /// Backoff level, 0 … [`MAX_LEVEL`].
     level: u8,
-    /// Whether `e1` holds a sample.
-    primed: bool,
 }
 
 impl BackoffState {
     /// The reset state (`Default` as a `const`).
     pub const RESET: Self = Self {
-        e1: 0,
         y: 0,
         window: 0,
         env: 0,
@@ -177,7 +172,6 @@ impl BackoffState {
         side: 0,
         half_cycles: 0,
         level: 0,
-        primed: false,
     };
 
     /// Forgets the detector's history, keeping the level (a restart, a cleared fault).
@@ -227,17 +221,12 @@ impl BackoffState {
     }
 }
 
-/// One tick of the detector on the following error `e` (µm, `I24F8` raw). Returns `true`
-/// on the tick it backs off one level.
+/// One tick of the detector on the following error's change since the last tick,
+/// `de` = e(k) − e(k−1) (µm, `I24F8` raw; 0 on the first tick — the position law's own
+/// history gives it, [`super::PosState::error_change`]). Returns `true` on the tick it
+/// backs off one level.
 #[inline(always)]
-pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, e: i32) -> bool {
-    let de = if st.primed {
-        e.saturating_sub(st.e1)
-    } else {
-        0
-    };
-    st.e1 = e;
-    st.primed = true;
+pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
     // Q8 · Q31 → Q39 >> 31: |α| < 1, so |y| ≤ |y + de| fits an i32.
     st.y = (i64::from(st.y.saturating_add(de)).wrapping_mul(i64::from(c.alpha_q31)) >> 31) as i32;
     if st.settle > 0 {

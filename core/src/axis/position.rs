@@ -95,6 +95,14 @@ impl PosState {
         }
     }
 
+    /// e − e(k−1), µm `I24F8` raw: the error's change since the last tick (0 on the first
+    /// after a reset), before `e` enters the history.
+    #[inline(always)]
+    pub fn error_change(&self, e: i32) -> i32 {
+        let (e1, _) = self.history(e);
+        e.saturating_sub(e1)
+    }
+
     /// Shifts `e` into the history.
     #[inline(always)]
     fn push(&mut self, e: i32, e1: i32) {
@@ -174,23 +182,11 @@ pub(crate) fn positional_law_ff(c: &AxisCoeffs, st: &mut PosState, e: i32, ff: i
     positional_law_with::<false>(c, st, e, ff, &BackoffState::RESET)
 }
 
-/// [`positional_law_ff`] with the proportional and derivative terms and the integrator
-/// step scaled at the gain backoff's level `bo` ([`super::backoff`]).
+/// [`positional_law_ff`]'s body; with `B` the proportional and derivative terms and the
+/// integrator step are scaled at the gain backoff's level `bo` ([`super::backoff`]) —
+/// decided at compile time, so the law without it has no trace of it.
 #[inline(always)]
-pub(crate) fn positional_law_ff_backoff(
-    c: &AxisCoeffs,
-    st: &mut PosState,
-    e: i32,
-    ff: i32,
-    bo: &BackoffState,
-) -> i32 {
-    positional_law_with::<true>(c, st, e, ff, bo)
-}
-
-/// The positional law's body; `B`: whether the backoff's scales apply (decided at
-/// compile time, so the law without it has no trace of it).
-#[inline(always)]
-fn positional_law_with<const B: bool>(
+pub(crate) fn positional_law_with<const B: bool>(
     c: &AxisCoeffs,
     st: &mut PosState,
     e: i32,

@@ -578,6 +578,13 @@ mod tests {
         RuntimeConfig::<1>::default().build().unwrap()
     }
 
+    /// A device whose runtime runs (no table yet), and the glue that holds it.
+    fn running() -> (LawDevice<Law, Box<CamTable<1, 8>>, 1, 8>, Direct) {
+        let mut st = device();
+        let (rt, _) = st.start::<0>(coeffs(), BootCause::Normal);
+        (st, Direct { rt: Some(rt) })
+    }
+
     #[test]
     fn boot_builds_the_law_before_the_runtime_exists_then_hands_it_over() {
         let mut st = device();
@@ -612,10 +619,7 @@ mod tests {
     fn a_rebuilt_law_keeps_the_backoff_level_unless_the_axis_changed() {
         use crate::follower::FollowerInputs;
         use crate::units::PressureBar;
-        let mut st = device();
-        let mut g = Direct { rt: None };
-        let (rt, _) = st.start::<0>(coeffs(), BootCause::Normal);
-        g.rt = Some(rt);
+        let (mut st, mut g) = running();
         let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
             st: &mut st,
             glue: &mut g,
@@ -660,10 +664,7 @@ mod tests {
 
     #[test]
     fn a_running_law_is_swapped_only_at_a_safe_point_and_rebuilt_by_set_param() {
-        let mut st = device();
-        let mut g = Direct { rt: None };
-        let (rt, _) = st.start::<0>(coeffs(), BootCause::Normal);
-        g.rt = Some(rt);
+        let (mut st, mut g) = running();
         let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
             st: &mut st,
             glue: &mut g,
