@@ -63,8 +63,10 @@ fn damped_shipped_gains_with_the_backoff_hold_every_machine_of_the_box() {
 }
 
 /// The shipped gains alone, no damping: no machine of the box oscillates (measured:
-/// worst 48.4 µm, the mass ×2 / bulk ×0.5 / flow ×1.2 / 180 bar corner at level 4; every
-/// other ≤ 23.9 µm), and the nominal machine keeps its gain and its figure.
+/// worst 30.8 µm, the mass ×2 / bulk ×0.5 / flow ×1.2 / 180 bar corner at level 4 — its
+/// start-up ringing and the table's stop at the lowest gain; 48.4 µm before an
+/// oscillation still growing after a cut took the next level at once; every other ≤ 23.9
+/// µm), and the nominal machine keeps its gain and its figure.
 #[test]
 fn the_shipped_gains_with_the_backoff_leave_no_machine_of_the_box_oscillating() {
     let s = scenario("tangent_alone.toml");
@@ -72,7 +74,7 @@ fn the_shipped_gains_with_the_backoff_leave_no_machine_of_the_box_oscillating() 
     let all = show(&c);
     assert!(c[0].backoff_level == 0 && c[0].max_um <= 5.0, "{all}");
     for k in &c {
-        assert!(!k.oscillating && k.max_um < 60.0, "{}:\n{all}", k.label);
+        assert!(!k.oscillating && k.max_um < 36.0, "{}:\n{all}", k.label);
     }
     let over = c.iter().filter(|k| k.max_um > 30.0).count();
     assert!(over <= 1, "{all}");

@@ -31,7 +31,8 @@
 //! Trace columns (`--csv`): `t_s`, `master_deg` (true), `master_estimate_deg` (the
 //! follower's filtered estimate at its last sample), per follower `<axis>_target_mm`
 //! (table at the true master), `_x_mm`, `_error_um`, `_u` (applied valve command),
-//! `_controller_target_mm` (the follower's X(θ_f(k))); per force axis `_x_mm`, `_force_n`,
+//! `_controller_target_mm` (the follower's X(θ_f(k))), `_backoff_level` (the gain
+//! backoff's level, core `axis::backoff`; 0 = the set gain); per force axis `_x_mm`, `_force_n`,
 //! `_force_ref_n`, `_u`.
 
 pub mod control;
@@ -300,7 +301,14 @@ pub fn run(
         for a in &sc.axes {
             match a.role {
                 Role::Follower => {
-                    for c in ["target_mm", "x_mm", "error_um", "u", "controller_target_mm"] {
+                    for c in [
+                        "target_mm",
+                        "x_mm",
+                        "error_um",
+                        "u",
+                        "controller_target_mm",
+                        "backoff_level",
+                    ] {
                         cols.push(format!("{}_{c}", a.name));
                     }
                 }
@@ -435,6 +443,9 @@ pub fn run(
                                 e_um,
                                 u_now[i],
                                 ctrl_target[fj].to_num::<f64>() * 1e-3,
+                                follower
+                                    .as_ref()
+                                    .map_or(0.0, |f| f64::from(f.backoff_level(fj))),
                             ]);
                         }
                         fj += 1;
