@@ -12,6 +12,7 @@ pub mod die;
 pub mod fair;
 pub mod identify;
 pub mod machine;
+pub mod margins;
 pub mod plant;
 pub mod plot;
 pub mod robust;

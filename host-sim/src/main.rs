@@ -22,6 +22,9 @@ enum Command {
     /// Fit an axis' valve, oil, mass and friction to the board's capture of a test move
     /// (`motion test`) or an open-loop recording; write the machine file.
     Identify(cmd::identify::Args),
+    /// A follower loop's gain and phase margins, measured on the simulated machine by a
+    /// sinusoidal probe at its valve.
+    Margins(cmd::margins::Args),
     /// Gains for a machine file (`identify --out`) by the tuning procedure, checked on it.
     Tune(cmd::tune::Args),
     /// Drive the plant with a recorded valve command.
@@ -76,6 +79,7 @@ fn dispatch() -> anyhow::Result<()> {
         Some(Command::Robust(a)) => cmd::robust::run(&a),
         Some(Command::Fair(a)) => cmd::fair::run(&a),
         Some(Command::Identify(a)) => cmd::identify::run(&a),
+        Some(Command::Margins(a)) => cmd::margins::run(&a),
         Some(Command::Tune(a)) => cmd::tune::run(&a),
         Some(Command::OpenLoop(a)) => cmd::open_loop::run(&a),
         Some(Command::Scurve(a)) => cmd::scurve::run(&a),

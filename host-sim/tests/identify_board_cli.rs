@@ -189,6 +189,16 @@ fn the_board_identifies_an_off_nominal_machine_from_its_own_test_moves() {
     );
     assert_eq!(t["check"]["oscillating"], false);
     assert!(max < 30.0, "{max} µm");
+    // The margins the new gains leave, measured on the machine by the valve probe: the
+    // rule's K_u/2 (6 dB on a P loop) less what the PI's lag takes.
+    let m = &t["margins"][0];
+    let (gm, pm) = (
+        m["gain_margin_db"].as_f64().expect("gain margin"),
+        m["phase_margin_deg"].as_f64().expect("phase margin"),
+    );
+    println!("tuned: gain margin {gm:.1} dB, phase margin {pm:.1}°");
+    assert_eq!(m["axis"], "tangent");
+    assert!(gm > 3.0 && pm > 30.0, "{m}");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args([
             "tune",

@@ -5,6 +5,7 @@ pub mod contour_estimate;
 pub mod fair;
 pub mod identify;
 pub mod manual;
+pub mod margins;
 pub mod motion;
 pub mod open_loop;
 pub mod param;

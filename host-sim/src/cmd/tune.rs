@@ -5,7 +5,8 @@
 //! ultimate gain of a P step test on *that* machine, Kp = K_u/2 — a 6 dB gain margin —,
 //! the PI corner a quarter of the crossover, the feed-forward from *its* valve's
 //! full-opening speeds), then checked: the machine follows its table with the new gains
-//! (max / RMS error and whether it oscillates, as `robust` judges it).
+//! (max / RMS error and whether it oscillates, as `robust` judges it), and the gain and
+//! phase margins it leaves are measured on it (`crate::margins`, a probe at the valve).
 //!
 //! `--margins box` asks the 6 dB on every machine of the robustness box around the
 //! machine file instead (robust against what identification missed, at the price of
@@ -98,6 +99,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let c = check
         .first()
         .ok_or_else(|| anyhow::anyhow!("the check ran no case"))?;
+    // The margins the gains leave on the machine, measured (a loop that oscillates has
+    // none: the check has said so).
+    let margins = if c.oscillating {
+        Vec::new()
+    } else {
+        ku.iter()
+            .map(|(axis, _)| crate::margins::measure(&s, &table, controller, period_us, Some(axis)))
+            .collect::<Result<Vec<_>, _>>()
+            .context("measuring the tuned loop's margins")?
+    };
     if args.json {
         println!(
             "{}",
@@ -108,6 +119,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 "ultimate_gain": ku.iter().map(|(a, k)| serde_json::json!({"axis": a, "k_u": k})).collect::<Vec<_>>(),
                 "gains": text,
                 "check": {"max_um": c.max_um, "rms_um": c.rms_um, "oscillating": c.oscillating, "faults": c.faults},
+                "margins": margins,
             })
         );
     } else {
@@ -133,6 +145,13 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 "no oscillation".into()
             }
         );
+        for m in &margins {
+            println!(
+                "# {}: {} (`host-sim margins` — the loop broken at the valve)",
+                m.axis,
+                super::margins::summary(m)
+            );
+        }
     }
     anyhow::ensure!(
         !c.oscillating,

@@ -36,6 +36,7 @@
 //! `_force_ref_n`, `_u`.
 
 pub mod control;
+pub mod probe;
 
 use crate::camfile::{interpolate, CamCsv};
 use crate::plant::{dac_to_unit, HydraulicAxis, MasterProfile, PressureAdc};
@@ -158,6 +159,8 @@ pub struct RunReport {
     pub trace: Option<Trace>,
     /// Errors are measured from this time on, s (`sim.error_skip_s`).
     pub error_skip_s: f64,
+    /// With a valve probe ([`run_probed`]): the loop's response L at its frequency.
+    pub loop_response: Option<nalgebra::Complex<f64>>,
 }
 
 impl RunReport {
@@ -233,6 +236,18 @@ pub fn run(
     s: &Scenario,
     table: &CamCsv,
     spec: &RunSpec,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RunReport, ScenarioError> {
+    run_probed(s, table, spec, None, progress)
+}
+
+/// [`run`] with a sinusoidal probe added to one follower's valve command
+/// ([`probe`]); the report's `loop_response` is the loop's L at the probe's frequency.
+pub fn run_probed(
+    s: &Scenario,
+    table: &CamCsv,
+    spec: &RunSpec,
+    probe: Option<&probe::Probe>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<RunReport, ScenarioError> {
     let wall = Instant::now();
@@ -339,6 +354,7 @@ pub fn run(
     let mut peak = vec![0.0f64; n_axes];
     let mut cursors = vec![0usize; nf];
     let mut step: u64 = 0;
+    let mut bins = probe::ProbeBins::default();
     let progress_every = (n_periods / 100).max(1);
 
     let varying = Varying::new(&sc, &plants);
@@ -362,6 +378,13 @@ pub fn run(
             for (j, &i) in follower_idx.iter().enumerate() {
                 // Not controlling: the valves are unpowered and their spools centre.
                 u_next[i] = if o.enable { dac_to_unit(dac[j]) } else { 0.0 };
+            }
+            if let Some(p) = probe {
+                if let Some(&i) = follower_idx.get(p.follower) {
+                    let u_ctrl = u_next[i];
+                    u_next[i] = (u_ctrl + p.disturbance(t_k)).clamp(-1.0, 1.0);
+                    bins.add(p, t_k, u_ctrl, u_next[i]);
+                }
             }
             if start_refused.is_none() {
                 start_refused = o.start_refused;
@@ -545,6 +568,7 @@ pub fn run(
         oscillation,
         backoff_levels,
         error_skip_s: sc.sim.error_skip_s,
+        loop_response: probe.and_then(|_| bins.loop_response()),
     })
 }
 

@@ -1,0 +1,98 @@
+//! `host-sim margins [SCENARIO] [--controller C] [--period-us N] [--axis NAME] [--json]`:
+//! a follower's loop gain and phase margins, measured on the simulated machine by a
+//! valve probe (crate::margins).
+
+use crate::margins::{measure, LoopMargins};
+use crate::scenario::{Controller, Scenario};
+use std::path::PathBuf;
+
+/// Arguments of `host-sim margins`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scenario or machine file (default: host-sim/scenarios/tangent_alone.toml).
+    pub scenario: Option<PathBuf>,
+    /// Follower law (default: the scenario's `sim.controller`).
+    #[arg(long, value_enum)]
+    pub controller: Option<Controller>,
+    /// Control period, µs (default: the scenario's `sim.period_us`).
+    #[arg(long, value_name = "N")]
+    pub period_us: Option<u32>,
+    /// The follower axis (default: the first).
+    #[arg(long, value_name = "NAME")]
+    pub axis: Option<String>,
+    /// Print one JSON object (the margins and every point of the response).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `host-sim margins`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let path = args
+        .scenario
+        .clone()
+        .unwrap_or_else(|| super::shipped_scenario("tangent_alone.toml"));
+    let s = Scenario::load(&path)?;
+    let table = s.load_table(None)?;
+    let controller = args.controller.unwrap_or(s.sim.controller);
+    let period_us = args.period_us.unwrap_or(s.sim.period_us);
+    let m = measure(&s, &table, controller, period_us, args.axis.as_deref())?;
+    if args.json {
+        let o = serde_json::json!({
+            "scenario": s.name(),
+            "controller": controller.name(),
+            "period_us": period_us,
+            "margins": m,
+        });
+        println!("{o}");
+    } else {
+        println!(
+            "{} — {} at {} µs, axis {}: the loop broken at the valve command, a {} % probe",
+            s.name(),
+            controller.name(),
+            period_us,
+            m.axis,
+            crate::margins::PROBE_AMPLITUDE * 100.0
+        );
+        println!(
+            "{:>9} {:>9} {:>10} {:>9}",
+            "f Hz", "|L| dB", "∠L °", "|1+L|"
+        );
+        for p in &m.points {
+            println!(
+                "{:>9.2} {:>9.2} {:>10.1} {:>9.3}",
+                p.freq_hz, p.mag_db, p.phase_deg, p.distance_to_minus_one
+            );
+        }
+        println!("{}", summary(&m));
+    }
+    Ok(())
+}
+
+/// One line: the margins and where they are.
+pub fn summary(m: &LoopMargins) -> String {
+    let pm = match (m.phase_margin_deg, m.gain_crossover_hz) {
+        (Some(pm), Some(f)) => format!("phase margin {pm:.1}° at {f:.1} Hz"),
+        _ => "no gain crossover in the measured range".to_string(),
+    };
+    let gm = match (m.gain_margin_db, m.phase_crossover_hz) {
+        (Some(gm), Some(f)) => format!("gain margin {gm:.1} dB at {f:.1} Hz"),
+        _ => "no phase crossover above it in the measured range".to_string(),
+    };
+    let peak = m
+        .points
+        .iter()
+        .skip_while(|p| Some(p.freq_hz) <= m.gain_crossover_hz)
+        .max_by(|a, b| a.mag_db.total_cmp(&b.mag_db));
+    let resonance = match peak {
+        Some(p) if p.mag_db > 0.0 => format!(
+            "; |L| rises again to {:+.1} dB at {:.1} Hz (∠L {:.0}°)",
+            p.mag_db, p.freq_hz, p.phase_deg
+        ),
+        _ => String::new(),
+    };
+    format!(
+        "{pm}, {gm}, modulus margin min|1+L| {:.2} (M_s {:.1} dB){resonance}",
+        m.modulus_margin,
+        -20.0 * m.modulus_margin.log10()
+    )
+}
