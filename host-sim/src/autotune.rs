@@ -23,7 +23,10 @@
 //!    robustness box (`crate::robust`: nominal, 16 corners, 8 face centres) and `K_u` is
 //!    the smallest — on the reference machine the softest oil column, mass ×2 with bulk
 //!    modulus ×0.5, at 0.49 LSB/µm against 2.22 nominal (1 ms).
-//! 2. `Kp = K_u / 2` — a gain margin of 2 (6 dB).
+//! 2. `Kp = K_u / 2` — a gain margin of 2 (6 dB) on the P loop. With `--margins
+//!    measured` (`Margins::Measured`) Kp (Ki with it, step 3) is then lowered until the
+//!    whole loop — PI, feed-forward, damping, valve, oil — *measures* gain margin ≥ 6 dB
+//!    and phase margin ≥ 45° on the machine (`crate::margins`: a probe at the valve).
 //! 3. `Ki = Kp·ω_c/4`, `ω_c = Kp·K_vel` the crossover of the P loop around the
 //!    integrating plant, `K_vel` the valve's velocity gain (µm/s per LSB: the slower,
 //!    retracting full-opening speed / 2047): the PI corner a quarter of the crossover.
@@ -298,7 +301,7 @@ pub fn master_filter_hz(period_us: u32) -> f64 {
     filter_limit_hz(period_us).min(8.0)
 }
 
-/// Which machine the rule's gain margin of 2 (6 dB) holds on.
+/// Which machine the rule's gain margin of 2 (6 dB) holds on, and how it is judged.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Margins {
     /// The scenario's own machine (the shipped reference sets).
@@ -306,6 +309,99 @@ pub enum Margins {
     Nominal,
     /// Every machine of the robustness box ([`box_ultimate_gain`]).
     Box,
+    /// The scenario's own machine, then Kp (and Ki with it) lowered until the loop
+    /// measures gain margin ≥ 6 dB and phase margin ≥ 45° ([`meet_measured_margins`]).
+    Measured,
+}
+
+impl Margins {
+    /// The value's name on the command line.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Nominal => "nominal",
+            Self::Box => "box",
+            Self::Measured => "measured",
+        }
+    }
+
+    /// What `K_u` is the minimum over, for the printed comment.
+    pub fn ku_note(&self) -> &'static str {
+        match self {
+            Self::Nominal => "",
+            Self::Box => ", smallest over the robustness box",
+            Self::Measured => ", then lowered to measured margins ≥ 6 dB / 45°",
+        }
+    }
+}
+
+/// The gain margin [`Margins::Measured`] asks for, dB.
+pub const MIN_GAIN_MARGIN_DB: f64 = 6.0;
+/// The phase margin [`Margins::Measured`] asks for, degrees.
+pub const MIN_PHASE_MARGIN_DEG: f64 = 45.0;
+
+/// Lowers follower `axis`' Kp in `t` (Ki following as Kp², step 3's PI corner) until
+/// the loop, measured on `s` by the valve probe ([`crate::margins`]), has gain margin
+/// ≥ [`MIN_GAIN_MARGIN_DB`] and phase margin ≥ [`MIN_PHASE_MARGIN_DEG`]: each round Kp
+/// falls by the gain margin's shortfall plus 0.3 dB (× 0.85 for a phase margin short, ×
+/// 0.5 when the loop oscillates), at most 8 rounds. Returns the margins met.
+pub fn meet_measured_margins(
+    s: &Scenario,
+    t: &mut Tuning,
+    axis: &AxisCfg,
+) -> Result<crate::margins::LoopMargins, ScenarioError> {
+    use crate::margins::{measure, MarginError};
+    let table = s.load_table(None)?;
+    let kvel = velocity_gain(axis, s);
+    for _ in 0..8 {
+        let mut sc = s.clone();
+        sc.tuning
+            .retain(|x| !(x.controller == t.controller && x.period_us == t.period_us));
+        sc.tuning.push(t.clone());
+        let factor = match measure(&sc, &table, t.controller, t.period_us, Some(&axis.name)) {
+            Ok(m) => {
+                let (gm, pm) = (
+                    m.gain_margin_db.unwrap_or(f64::INFINITY),
+                    m.phase_margin_deg.unwrap_or(180.0),
+                );
+                if gm >= MIN_GAIN_MARGIN_DB && pm >= MIN_PHASE_MARGIN_DEG {
+                    return Ok(m);
+                }
+                let g = if gm < MIN_GAIN_MARGIN_DB {
+                    10f64.powf((gm - MIN_GAIN_MARGIN_DB - 0.3) / 20.0)
+                } else {
+                    1.0
+                };
+                g * if pm < MIN_PHASE_MARGIN_DEG { 0.85 } else { 1.0 }
+            }
+            Err(MarginError::Unstable { .. }) => 0.5,
+            Err(MarginError::Scenario(e)) => return Err(e),
+            Err(e) => {
+                return Err(ScenarioError::Invalid {
+                    key: "tuning".into(),
+                    value: axis.name.clone(),
+                    reason: e.to_string(),
+                })
+            }
+        };
+        let g = t
+            .axes
+            .get_mut(&axis.name)
+            .ok_or_else(|| ScenarioError::Invalid {
+                key: "tuning".into(),
+                value: axis.name.clone(),
+                reason: "no gain set for the axis".into(),
+            })?;
+        let kp = round2(f64::from(g.kp_lsb_per_um) * factor);
+        g.kp_lsb_per_um = kp as f32;
+        g.ki_lsb_per_um_s = round2(kp * kp * kvel / 4.0) as f32;
+    }
+    Err(ScenarioError::Invalid {
+        key: "tuning".into(),
+        value: axis.name.clone(),
+        reason: format!(
+            "no Kp within 8 rounds gave gain margin ≥ {MIN_GAIN_MARGIN_DB} dB and phase margin ≥ {MIN_PHASE_MARGIN_DEG}°"
+        ),
+    })
 }
 
 /// Position gains of one follower axis by the rule (the shipped sets: [`Margins::Nominal`]).
@@ -327,7 +423,9 @@ pub fn position_gains_with(
     margins: Margins,
 ) -> Result<(PositionGains, f64), ScenarioError> {
     let ku = match margins {
-        Margins::Nominal => ultimate_gain(s, axis, controller.mode(), period_us)?,
+        Margins::Nominal | Margins::Measured => {
+            ultimate_gain(s, axis, controller.mode(), period_us)?
+        }
         Margins::Box => box_ultimate_gain(s, axis, controller.mode(), period_us)?.0,
     };
     let kp = round2(ku / 2.0);
@@ -532,6 +630,11 @@ pub fn tune(
             }
         }
     }
+    if margins == Margins::Measured {
+        for a in s.axes.iter().filter(|a| a.role == Role::Follower) {
+            meet_measured_margins(s, &mut t, a)?;
+        }
+    }
     Ok((t, ku))
 }
 
@@ -654,5 +757,34 @@ mod tests {
         assert_eq!(num(4244.0), "4244");
         assert_eq!(num(0.0), "0");
         assert_eq!(num(round2(0.000371234)), "0.00037");
+    }
+
+    /// `--margins measured`: the shipped 1 ms feed-forward set (K_u/2) measures a
+    /// 5.3 dB gain margin with its PI and feed-forward (README "Robustness"); the rule
+    /// lowers Kp until the probe measures ≥ 6 dB and ≥ 45°, and no further than one
+    /// round past it.
+    #[test]
+    fn measured_margins_lower_the_shipped_gain_until_they_hold() {
+        let s = Scenario::default();
+        let a = &s.axes[0];
+        let mut t = crate::scenario::reference_tuning()
+            .into_iter()
+            .find(|t| t.controller == Controller::Feedforward && t.period_us == 1000)
+            .unwrap();
+        let kp0 = t.axes[&a.name].kp_lsb_per_um;
+        let m = meet_measured_margins(&s, &mut t, a).unwrap();
+        let g = &t.axes[&a.name];
+        let (gm, pm) = (m.gain_margin_db.unwrap(), m.phase_margin_deg.unwrap());
+        assert!(
+            gm >= MIN_GAIN_MARGIN_DB && pm >= MIN_PHASE_MARGIN_DEG,
+            "{m:#?}"
+        );
+        assert!(
+            g.kp_lsb_per_um < kp0 && g.kp_lsb_per_um > 0.8 * kp0,
+            "{g:?}"
+        );
+        // Ki follows Kp² (the PI corner a quarter of the crossover).
+        let ki = round2(f64::from(g.kp_lsb_per_um).powi(2) * velocity_gain(a, &s) / 4.0);
+        assert_eq!(g.ki_lsb_per_um_s, ki as f32);
     }
 }

@@ -42,9 +42,10 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["json", "csv", "plot"])]
     pub tune: bool,
     /// With `--tune`: the machine(s) the gain margin of 6 dB must hold on — `nominal`
-    /// (the scenario's machine, the shipped sets) or `box` (every machine of the
+    /// (the scenario's machine, the shipped sets), `box` (every machine of the
     /// robustness box of `host-sim robust`: mass ×0.5–2, bulk modulus ×0.5–1.5, valve
-    /// flow ±20 %, supply 120–180 bar).
+    /// flow ±20 %, supply 120–180 bar) or `measured` (the scenario's machine, Kp then
+    /// lowered until the whole loop measures ≥ 6 dB and ≥ 45°, `host-sim margins`).
     #[arg(long, value_enum, default_value = "nominal", requires = "tune")]
     pub margins: crate::autotune::Margins,
 }
@@ -237,10 +238,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         };
         for c in controllers {
             let (t, ku) = crate::autotune::tune(&s, c, period_us, args.margins)?;
-            let over = match args.margins {
-                crate::autotune::Margins::Nominal => "",
-                crate::autotune::Margins::Box => ", smallest over the robustness box",
-            };
+            let over = args.margins.ku_note();
             for (axis, k) in ku {
                 println!(
                     "# {axis}: ultimate gain K_u = {k:.4} ({} @ {period_us} µs{over})",

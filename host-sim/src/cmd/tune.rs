@@ -10,7 +10,9 @@
 //!
 //! `--margins box` asks the 6 dB on every machine of the robustness box around the
 //! machine file instead (robust against what identification missed, at the price of
-//! the nominal figure). `--out` writes the machine file with the new `[[tuning]]`
+//! the nominal figure); `--margins measured` lowers Kp until the whole loop measures
+//! gain margin ≥ 6 dB and phase margin ≥ 45° on the machine (`autotune::
+//! meet_measured_margins`). `--out` writes the machine file with the new `[[tuning]]`
 //! appended (what `run`, `robust` and the next `tune` read), only when the check did not
 //! oscillate; the gain set is printed in the scenario's TOML either way — each key of
 //! `[tuning.axes.<name>]` is the board's setting `axis/<n>/<key>` (`param set`). The
@@ -36,8 +38,10 @@ pub struct Args {
     /// Follower law [feedforward: the board's].
     #[arg(long, value_enum)]
     pub controller: Option<Controller>,
-    /// Where the 6 dB gain margin must hold: the machine itself, or every machine of the
-    /// robustness box around it.
+    /// Where the 6 dB gain margin must hold: the machine itself (`nominal`: on the P
+    /// step test), every machine of the robustness box around it (`box`), or the machine
+    /// itself measured with the whole loop, gain margin ≥ 6 dB and phase margin ≥ 45°
+    /// (`measured`: Kp lowered until the probe of `host-sim margins` says so).
     #[arg(long, value_enum, default_value = "nominal")]
     pub margins: Margins,
     /// Write the machine file with the new gain set appended here.
@@ -127,10 +131,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             println!(
                 "# {axis}: ultimate gain K_u = {k:.4} ({} @ {period_us} µs{})",
                 controller.name(),
-                match args.margins {
-                    Margins::Nominal => "",
-                    Margins::Box => ", smallest over the robustness box",
-                }
+                args.margins.ku_note()
             );
         }
         println!("{text}");
@@ -161,10 +162,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         let mut body = format!(
             "{original}\n# Tuned by `host-sim tune --margins {}` ({} @ {period_us} µs).\n{text}",
-            match args.margins {
-                Margins::Nominal => "nominal",
-                Margins::Box => "box",
-            },
+            args.margins.name(),
             controller.name()
         );
         if !body.ends_with('\n') {
