@@ -34,8 +34,8 @@
 //! takes the next level. For the first 100 ms after a cut the band rides 1.25× above the
 //! oscillation (the valve and the oil column carry it on for a cycle or two) and nothing
 //! is counted; an oscillation that rises in that settling's second half above every peak
-//! before it still grows at the new gain and takes the next level as the settling ends
-//! — without it, an oscillation the first cuts did not stop grew for a further 150–250
+//! before it, on both sides (a tracking transient rises on one), still grows at the new
+//! gain and takes the next level as the settling ends — without it, an oscillation the first cuts did not stop grew for a further 150–250
 //! ms per level to ≈ 150 µm, and the lightly damped oil column rang on from there for
 //! a second (the undamped mass ×2 / bulk ×0.5 / flow ×1.2 / 180 bar corner: 48.4 → 30.8
 //! µm). The level is kept through restarts, cleared faults and new runs, and
@@ -53,7 +53,7 @@
 //! robustness box (`host-sim robust host-sim/scenarios/tangent_damped.toml`, README
 //! "Robustness"): the nominal machine and 19 of the 24 others never trigger it, the four
 //! mass ×2 / bulk ×0.5 corners end at levels 1, 1, 1 and 3, the stiff-oil mass ×2 corner
-//! whose 43 Hz ringing crosses the band at 2, and no machine oscillates.
+//! whose 43 Hz ringing crosses the band at 1, and no machine oscillates.
 //!
 //! Formats: e, y, b µm `I24F8` raw; α Q31; the level's scale `I16F16` (Q16, ≤ 1).
 
@@ -235,26 +235,35 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
     // Q8 · Q31 → Q39 >> 31: |α| < 1, so |y| ≤ |y + de| fits an i32.
     st.y = (i64::from(st.y.saturating_add(de)).wrapping_mul(i64::from(c.alpha_q31)) >> 31) as i32;
     if st.settle > 0 {
-        // Settling: the band rides 1.25× above the oscillation; nothing is counted. An
-        // oscillation that rises in the settling's second half above its peak so far
-        // (the one that caused the cut, and the first half's carry-over) still grows at
-        // this gain (`half_cycles` marks it): the next level when the settling ends.
+        // Settling: the band rides 1.25× above the oscillation; nothing is counted. The
+        // first half's carry-over raises the bar; an oscillation beyond every peak before
+        // it on both sides in the second half still grows at this gain (`half_cycles`
+        // marks it): the next level when the settling ends. A tracking transient (one
+        // side) is not growth.
         st.settle = st.settle.saturating_sub(1);
         let a = st.y.saturating_abs();
         st.env = st.env.max(a.saturating_add(a >> 2));
-        st.side = 0;
-        if a > st.peak {
-            st.peak = a;
-            if st.settle < c.settle_ticks >> 1 {
+        if st.settle >= c.settle_ticks >> 1 {
+            st.peak = st.peak.max(a);
+        } else if a > st.peak {
+            let side = if st.y > 0 { 1 } else { -1 };
+            if st.side != 0 && st.side != side {
                 st.half_cycles = 1;
             }
+            st.side = side;
         }
         if st.settle > 0 {
             return false;
         }
+        st.side = 0;
         let grew = st.half_cycles != 0;
         st.half_cycles = 0;
-        return grew && st.level < MAX_LEVEL && cut(c, st);
+        if !grew || st.level >= MAX_LEVEL {
+            return false;
+        }
+        // The new band above the grown oscillation (the ride holds 1.25× its peak).
+        st.peak = st.peak.max(st.env.saturating_sub(st.env / 5));
+        return cut(c, st);
     }
     if st.env > c.band {
         st.env = st
@@ -301,6 +310,7 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
 fn cut(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
     st.level = st.level.saturating_add(1);
     st.half_cycles = 0;
+    st.side = 0;
     st.window = 0;
     st.env = st.peak.saturating_add(st.peak >> 2);
     st.settle = c.settle_ticks;

@@ -107,19 +107,32 @@ fn a_decaying_oscillation_after_a_backoff_takes_no_further_level() {
         assert_eq!(hits, [202], "τ {tau} s");
         assert_eq!(st.level(), 1);
     }
-    // The same oscillation still rising 60 ms after the cut grows at this gain: the next
-    // level as the settling ends.
+    // The same oscillation still rising through the settling grows at this gain: the
+    // next level as the settling ends.
     let mut st = BackoffState::RESET;
     let late = |t: f64| {
-        let a = if t < 0.262 {
+        let a = if t < 0.302 {
             (1.0 + 10.0 * t).powi(2)
         } else {
-            13.0 * (-(t - 0.262) / 0.1).exp()
+            16.3 * (-(t - 0.302) / 0.1).exp()
         };
         a * (w * t).sin()
     };
     let hits = run(&c, &mut st, 3000, late);
     assert_eq!(hits, [202, 302]);
+    // A tracking transient in the settling's second half — one-sided, 3× the
+    // oscillation's peak — is not growth.
+    let mut st = BackoffState::RESET;
+    let swing = |t: f64| {
+        let bump = if t > 0.26 {
+            30.0 * (1.0 - (-(t - 0.26) / 0.01).exp())
+        } else {
+            0.0
+        };
+        shape(t, 0.1) + bump
+    };
+    let hits = run(&c, &mut st, 3000, swing);
+    assert_eq!(hits, [202]);
 }
 
 /// What a following axis shows when nothing oscillates: a table corner's slow swing of
