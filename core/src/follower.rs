@@ -162,32 +162,37 @@ struct AxisRt {
 }
 
 /// The follower: validated coefficients, the table, and the loop state.
+///
+/// `repr(C)`, in this order: the tick's per-call state and the axes' coefficients and
+/// runtime first, the table (kilobytes) last, so every field the tick reads lies within
+/// the Cortex-M4's 12-bit load offset of the struct (measured: `follower_ff_1axis`).
 #[derive(Clone, Debug)]
+#[repr(C)]
 pub struct Follower<const S: usize, const N: usize> {
-    axes: [AxisCoeffs; S],
-    mf: MasterFilterCoeffs,
     filter: MasterFilter,
-    pred: Predictor,
-    table: CamTable<S, N>,
+    mf: MasterFilterCoeffs,
     cur_now: usize,
     cur_pred: usize,
     cur_ff: usize,
+    /// The lead of the first Feedforward axis (its lookup is taken before the axis loop).
+    ff_lead0: Option<i32>,
     /// Whether any axis runs the Paper law (only then is the prediction looked up).
     any_paper: bool,
     /// Whether every axis runs one law (the tick then takes that law's specialised path).
     modes: Modes,
-    /// The lead of the first Feedforward axis (its lookup is taken before the axis loop).
-    ff_lead0: Option<i32>,
     /// Whether the Feedforward axes have different leads (only then does the axis loop
     /// check for another lookup).
     ff_leads_differ: bool,
-    rt: [AxisRt; S],
     ended: bool,
     /// Which end `ended` latched at (true: the last node): fixed while ended, so a master
     /// estimate ringing through zero speed after the end cannot swap the held position.
     end_high: bool,
     /// Whether [`Follower::configure`] succeeded once (see [`Follower::is_ready`]).
     configured: bool,
+    axes: [AxisCoeffs; S],
+    rt: [AxisRt; S],
+    pred: Predictor,
+    table: CamTable<S, N>,
 }
 
 impl<const S: usize, const N: usize> Follower<S, N> {
