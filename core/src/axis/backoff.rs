@@ -83,7 +83,13 @@ const KI_SCALE_Q16: [i32; MAX_LEVEL as usize + 1] = [65_536, 65_536, 49_152, 36_
 /// Why the backoff cannot be built (reported as the axis' `AxisConfigError::OscBand`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct BandError;
+pub enum BandError {
+    /// The band is not finite or outside 0 … 10 000 µm.
+    Range,
+    /// A band on an axis whose law is not `Feedforward`: the paper's law and the
+    /// traditional one are the baselines and run as published (as the active damping).
+    Law,
+}
 
 /// Validated coefficients. `OFF` (all zero): no detector, the law keeps its gains.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -115,7 +121,7 @@ impl BackoffCoeffs {
     /// period `period_us` (checked by the caller to be 50 µs … 1 s).
     pub fn build(band_um: f32, period_us: u32) -> Result<Self, BandError> {
         if !(band_um.is_finite() && (0.0..=10_000.0).contains(&band_um)) {
-            return Err(BandError);
+            return Err(BandError::Range);
         }
         if band_um == 0.0 {
             return Ok(Self::OFF);

@@ -5,7 +5,7 @@
 //! [`crate::units`] for a given control period T. The per-tick law
 //! ([`super::position`]) then never fails.
 
-use super::backoff::BackoffCoeffs;
+use super::backoff::{BackoffCoeffs, BandError};
 use super::damping::{DampingCoeffs, DampingError, PistonAreas};
 use crate::units::CmdLsb;
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
@@ -72,9 +72,9 @@ pub struct PositionGains {
     /// must cross back and forth four times within 150 ms for the axis to take its
     /// proportional gain down (to 0.36×, then 0.75× per further oscillation; from the
     /// second level the integral gain too, to min(1, s/0.36); 0 … 10 000; 0 = off, the
-    /// default). Acts on a
-    /// following Feedforward axis only (the baselines run as published; jog and test
-    /// moves keep the set gain).
+    /// default). Feedforward axes only — a band on a Paper or NextNode axis is refused
+    /// (`AxisConfigError::OscBand(BandError::Law)`: the baselines run as published); it
+    /// acts while following (jog and test moves keep the set gain).
     pub osc_band_um: f32,
 }
 
@@ -141,8 +141,8 @@ pub enum AxisConfigError {
     Valve(ValveCalError),
     /// The active damping's gain, corner or piston areas.
     Damping(DampingError),
-    /// `osc_band_um` (the gain backoff's band).
-    OscBand,
+    /// `osc_band_um` (the gain backoff's band): out of range, or on a baseline law.
+    OscBand(BandError),
 }
 
 /// Validated fixed-point coefficients of one axis (see the format table in
@@ -219,7 +219,10 @@ impl AxisConfig {
         if damping.is_on() && self.mode != ControlMode::Feedforward {
             return Err(E::Damping(DampingError::Law));
         }
-        let backoff = BackoffCoeffs::build(g.osc_band_um, period_us).map_err(|_| E::OscBand)?;
+        let backoff = BackoffCoeffs::build(g.osc_band_um, period_us).map_err(E::OscBand)?;
+        if backoff.is_on() && self.mode != ControlMode::Feedforward {
+            return Err(E::OscBand(BandError::Law));
+        }
         let lead_ticks = 1.5 + lag / f64::from(period_us);
         // Below the master filter's extrapolation limit (2^14 ticks).
         if lead_ticks >= 16_384.0 {
@@ -353,6 +356,27 @@ mod tests {
         assert_eq!(
             damped(ControlMode::Paper).build(1000),
             Err(AxisConfigError::Damping(DampingError::Law))
+        );
+        // The gain backoff: a band in range, Feedforward only (the baselines as published).
+        let banded = |mode, band| AxisConfig {
+            mode,
+            gains: PositionGains {
+                osc_band_um: band,
+                ..PositionGains::default()
+            },
+            ..AxisConfig::default()
+        };
+        assert!(banded(ControlMode::Feedforward, 4.0).build(1000).is_ok());
+        assert!(banded(ControlMode::Paper, 0.0).build(1000).is_ok());
+        for mode in [ControlMode::Paper, ControlMode::NextNode] {
+            assert_eq!(
+                banded(mode, 4.0).build(1000),
+                Err(AxisConfigError::OscBand(BandError::Law))
+            );
+        }
+        assert_eq!(
+            banded(ControlMode::Feedforward, -1.0).build(1000),
+            Err(AxisConfigError::OscBand(BandError::Range))
         );
         // Kd/T out of I16F16 at 50 µs: 10 / 5e-5 = 2e5
         let mut c = AxisConfig::default();

@@ -242,7 +242,7 @@ fn axis_error_param(e: AxisConfigError) -> ParamId {
         AxisConfigError::Valve(V::OverlapZone) => ParamId::ValveOverlapZoneLsb,
         AxisConfigError::Valve(V::Gain) => ParamId::ValveGainPos,
         AxisConfigError::Valve(V::Clamp) => ParamId::ValveClampLsb,
-        AxisConfigError::OscBand => ParamId::OscBandUm,
+        AxisConfigError::OscBand(_) => ParamId::OscBandUm,
         AxisConfigError::Damping(D::Gain) => ParamId::DpGainLsbPerKn,
         AxisConfigError::Damping(D::Corner) => ParamId::DpCornerHz,
         AxisConfigError::Damping(D::Area) => ParamId::AreaAMm2,

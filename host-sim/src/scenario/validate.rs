@@ -4,7 +4,7 @@
 
 use super::gains::{axis_config, press_config};
 use super::{invalid, AxisCfg, Role, Scenario, ScenarioError, Tuning};
-use hydra_core::axis::{AxisConfigError, DampingError, PressConfigError};
+use hydra_core::axis::{AxisConfigError, BandError, DampingError, PressConfigError};
 use hydra_core::master::MasterFilterConfig;
 use hydra_core::valve::ValveCalError;
 use std::f64::consts::PI;
@@ -364,7 +364,10 @@ fn axis_error_key(e: AxisConfigError) -> &'static str {
         AxisConfigError::ValveLag => "valve_lag_us",
         AxisConfigError::FollowingError => "following_error_um",
         AxisConfigError::Period => "period_us",
-        AxisConfigError::OscBand => "osc_band_um",
+        AxisConfigError::OscBand(BandError::Range) => "osc_band_um",
+        AxisConfigError::OscBand(BandError::Law) => {
+            "osc_band_um (gain backoff: controller feedforward only)"
+        }
         AxisConfigError::Valve(v) => valve_error_key(v),
         AxisConfigError::Damping(DampingError::Gain) => "dp_gain_lsb_per_kn",
         AxisConfigError::Damping(DampingError::Corner) => "dp_corner_hz",
