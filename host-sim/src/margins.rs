@@ -152,6 +152,14 @@ pub fn measure(
             if let Some(fault) = r.faults.first() {
                 return Err(unstable(fault.name.to_string()));
             }
+            // Reversing more often than the table (as `robust` judges it): the probe's
+            // 2 % leaves a stable loop's velocity far from zero on the moving table.
+            if let Some(o) = r.oscillation.get(follower).filter(|o| o.excess() > 0) {
+                return Err(unstable(format!(
+                    "{} velocity reversals against the table's {}",
+                    o.reversals, o.table_reversals
+                )));
+            }
             let l = r
                 .loop_response
                 .ok_or_else(|| unstable("no response".into()))?;
