@@ -33,9 +33,10 @@
 //! stays inside it and takes the gain no further; one that still grows crosses it and
 //! takes the next level. For the first 100 ms after a cut the band rides 1.25× above the
 //! oscillation (the valve and the oil column carry it on for a cycle or two) and nothing
-//! is counted; an oscillation that rises in that settling's second half above every peak
-//! before it, on both sides (a tracking transient rises on one), still grows at the new
-//! gain and takes the next level as the settling ends — without it, an oscillation the first cuts did not stop grew for a further 150–250
+//! is counted; an oscillation whose half-cycles in that settling's second half each
+//! outgrow the last (and every peak before) still grows at the new gain and takes the
+//! next level as the settling ends (at periods above 33 ms, fewer than four ticks of
+//! settling, this test has no second half and does not act) — without it, an oscillation the first cuts did not stop grew for a further 150–250
 //! ms per level to ≈ 150 µm, and the lightly damped oil column rang on from there for
 //! a second (the undamped mass ×2 / bulk ×0.5 / flow ×1.2 / 180 bar corner: 48.4 → 30.8
 //! µm). The level is kept through restarts, cleared faults and new runs, and
@@ -242,10 +243,12 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
     st.y = (i64::from(st.y.saturating_add(de)).wrapping_mul(i64::from(c.alpha_q31)) >> 31) as i32;
     if st.settle > 0 {
         // Settling: the band rides 1.25× above the oscillation; nothing is counted. The
-        // first half's carry-over raises the bar; an oscillation beyond every peak before
-        // it on both sides in the second half still grows at this gain (`half_cycles`
-        // marks it): the next level when the settling ends. A tracking transient (one
-        // side) is not growth.
+        // first half's carry-over raises the bar (`peak`). In the second half an
+        // excursion beyond the bar raises it to its own peak; one beyond that on the
+        // other side — a half-cycle larger than the last — still grows at this gain
+        // (`half_cycles` marks it): the next level when the settling ends. A tracking
+        // transient rises on one side, and the high-pass's overshoot of a decaying jump
+        // is smaller than the jump: neither is growth.
         st.settle = st.settle.saturating_sub(1);
         let a = st.y.saturating_abs();
         st.env = st.env.max(a.saturating_add(a >> 2));
@@ -257,6 +260,7 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
                 st.half_cycles = 1;
             }
             st.side = side;
+            st.peak = a;
         }
         if st.settle > 0 {
             return false;
@@ -267,8 +271,7 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
         if !grew || st.level >= MAX_LEVEL {
             return false;
         }
-        // The new band above the grown oscillation (the ride holds 1.25× its peak).
-        st.peak = st.peak.max(st.env.saturating_sub(st.env / 5));
+        // The new band above the grown oscillation (`peak`: its last half-cycle).
         return cut(c, st);
     }
     if st.env > c.band {

@@ -137,6 +137,21 @@ fn a_decaying_oscillation_after_a_backoff_takes_no_further_level() {
     };
     let hits = run(&c, &mut st, 3000, swing);
     assert_eq!(hits, [202]);
+    // Nor is a jump of 60 µm that decays within 20 … 40 ms (the 10 Hz high-pass
+    // overshoots it to the other side, smaller than the jump).
+    for tau in [0.02, 0.03, 0.04] {
+        let mut st = BackoffState::RESET;
+        let jump = |t: f64| {
+            let j = if t > 0.26 {
+                60.0 * (-(t - 0.26) / tau).exp()
+            } else {
+                0.0
+            };
+            shape(t, 0.1) + j
+        };
+        let hits = run(&c, &mut st, 3000, jump);
+        assert_eq!(hits, [202], "τ {tau} s");
+    }
 }
 
 /// What a following axis shows when nothing oscillates: a table corner's slow swing of
