@@ -352,6 +352,7 @@ pub fn meet_measured_margins(
     use crate::margins::{measure, MarginError};
     let table = s.load_table(None)?;
     let kvel = velocity_gain(axis, s);
+    let mut last = String::from("not measured");
     for _ in 0..8 {
         let mut sc = s.clone();
         sc.tuning
@@ -359,6 +360,7 @@ pub fn meet_measured_margins(
         sc.tuning.push(t.clone());
         let factor = match measure(&sc, &table, t.controller, t.period_us, Some(&axis.name)) {
             Ok(m) => {
+                // No crossover in the measured range (up to 0.4/T): no limit found there.
                 let (gm, pm) = (
                     m.gain_margin_db.unwrap_or(f64::INFINITY),
                     m.phase_margin_deg.unwrap_or(180.0),
@@ -366,6 +368,7 @@ pub fn meet_measured_margins(
                 if gm >= MIN_GAIN_MARGIN_DB && pm >= MIN_PHASE_MARGIN_DEG {
                     return Ok(m);
                 }
+                last = format!("gain margin {gm:.1} dB, phase margin {pm:.1}°");
                 let g = if gm < MIN_GAIN_MARGIN_DB {
                     10f64.powf((gm - MIN_GAIN_MARGIN_DB - 0.3) / 20.0)
                 } else {
@@ -373,7 +376,10 @@ pub fn meet_measured_margins(
                 };
                 g * if pm < MIN_PHASE_MARGIN_DEG { 0.85 } else { 1.0 }
             }
-            Err(MarginError::Unstable { .. }) => 0.5,
+            Err(e @ MarginError::Unstable { .. }) => {
+                last = e.to_string();
+                0.5
+            }
             Err(MarginError::Scenario(e)) => return Err(e),
             Err(e) => {
                 return Err(ScenarioError::Invalid {
@@ -391,7 +397,17 @@ pub fn meet_measured_margins(
                 value: axis.name.clone(),
                 reason: "no gain set for the axis".into(),
             })?;
-        let kp = round2(f64::from(g.kp_lsb_per_um) * factor);
+        // Two significant digits: a step the rounding would undo is one unit of the
+        // last digit instead (NaN margins count as short: × 0.85).
+        let kp0 = f64::from(g.kp_lsb_per_um);
+        let factor = if factor.is_finite() { factor } else { 0.85 };
+        let mut kp = round2(kp0 * factor);
+        if kp >= kp0 {
+            kp = round2(kp0 - 10f64.powf(kp0.log10().floor() - 1.0));
+        }
+        if !(kp > 0.0 && kp < kp0) {
+            break;
+        }
         g.kp_lsb_per_um = kp as f32;
         g.ki_lsb_per_um_s = round2(kp * kp * kvel / 4.0) as f32;
     }
@@ -399,7 +415,7 @@ pub fn meet_measured_margins(
         key: "tuning".into(),
         value: axis.name.clone(),
         reason: format!(
-            "no Kp within 8 rounds gave gain margin ≥ {MIN_GAIN_MARGIN_DB} dB and phase margin ≥ {MIN_PHASE_MARGIN_DEG}°"
+            "no Kp within 8 rounds gave gain margin ≥ {MIN_GAIN_MARGIN_DB} dB and phase margin ≥ {MIN_PHASE_MARGIN_DEG}° (last: {last})"
         ),
     })
 }

@@ -62,20 +62,45 @@ fn the_shipped_set_measured_against_the_ultimate_gain() {
     assert!(m.gain_crossover_hz.unwrap() < m.phase_crossover_hz.unwrap());
 }
 
-/// The shipped gains shake the softest machine (mass ×2, bulk ×0.5): refused, named.
+/// The shipped gains shake the softest machine (mass ×2, bulk ×0.5: a fault) and aerated
+/// oil (bulk ×0.5 alone: no fault, but hundreds of velocity reversals): both refused,
+/// named; so are an unknown axis and a travel too short for the sweep.
 #[test]
 fn an_oscillating_loop_is_refused() {
     let s = Scenario::default();
-    let soft = crate::robust::Variant {
-        mass: 2.0,
-        bulk: 0.5,
-        ..crate::robust::Variant::nominal(&s)
+    let table = s.load_table(None).unwrap();
+    for (mass, bulk, why) in [(2.0, 0.5, "without the probe"), (1.0, 0.5, "reversals")] {
+        let soft = crate::robust::Variant {
+            mass,
+            bulk,
+            ..crate::robust::Variant::nominal(&s)
+        }
+        .apply(&s);
+        let e = measure(&soft, &table, Controller::Feedforward, 1000, None).unwrap_err();
+        assert!(matches!(e, MarginError::Unstable { .. }), "{e}");
+        assert!(
+            e.to_string().contains("tangent") && e.to_string().contains(why),
+            "{e}"
+        );
     }
-    .apply(&s);
-    let table = soft.load_table(None).unwrap();
-    let e = measure(&soft, &table, Controller::Feedforward, 1000, None).unwrap_err();
-    assert!(matches!(e, MarginError::Unstable { .. }), "{e}");
-    assert!(e.to_string().contains("tangent"), "{e}");
     let e = measure(&s, &table, Controller::Feedforward, 1000, Some("nope")).unwrap_err();
     assert!(matches!(e, MarginError::NoAxis(_)), "{e}");
+    let mut short = s.clone();
+    short.master.end_deg = short.master.start_deg + 9.0;
+    let e = measure(&short, &table, Controller::Feedforward, 1000, None).unwrap_err();
+    assert!(matches!(e, MarginError::TooShort { .. }), "{e}");
+}
+
+/// Non-finite points are dropped, not propagated into the margins.
+#[test]
+fn non_finite_points_are_dropped() {
+    let mut resp: Vec<_> = grid(1000)
+        .into_iter()
+        .map(|f| (f, Complex::from_polar(10.0 / f, -2.0 - f / 50.0)))
+        .collect();
+    let clean = margins_of("x", &resp);
+    resp.insert(5, (7.0, Complex::new(f64::NAN, 0.0)));
+    let m = margins_of("x", &resp);
+    assert_eq!(m.phase_margin_deg, clean.phase_margin_deg);
+    assert_eq!(m.points.len(), clean.points.len());
 }

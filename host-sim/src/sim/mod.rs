@@ -379,7 +379,7 @@ pub fn run_probed(
                 // Not controlling: the valves are unpowered and their spools centre.
                 u_next[i] = if o.enable { dac_to_unit(dac[j]) } else { 0.0 };
             }
-            if let Some(p) = probe {
+            if let Some(p) = probe.filter(|_| o.enable) {
                 if let Some(&i) = follower_idx.get(p.follower) {
                     let u_ctrl = u_next[i];
                     u_next[i] = (u_ctrl + p.disturbance(t_k)).clamp(-1.0, 1.0);
