@@ -36,10 +36,10 @@
 //! is counted; an oscillation whose half-cycles in that settling's second half each
 //! outgrow the last (and every peak before) still grows at the new gain and takes the
 //! next level as the settling ends (at periods above 33 ms, fewer than four ticks of
-//! settling, this test has no second half and does not act) — without it, an oscillation the first cuts did not stop grew for a further 150–250
-//! ms per level to ≈ 150 µm, and the lightly damped oil column rang on from there for
-//! a second (the undamped mass ×2 / bulk ×0.5 / flow ×1.2 / 180 bar corner: 48.4 → 30.8
-//! µm). The level is kept through restarts, cleared faults and new runs, and
+//! settling, this test has no second half and does not act). Without it an oscillation
+//! the first cuts did not stop grew for a further 150–250 ms per level to ≈ 150 µm, and
+//! the lightly damped oil column rang on from there for a second (the undamped mass ×2
+//! / bulk ×0.5 / flow ×1.2 / 180 bar corner: 48.4 → 30.8 µm). The level is kept through restarts, cleared faults and new runs, and
 //! through a rebuild of the law that keeps the axis' coefficients (on a board: a new
 //! table, a board-wide or another axis' setting —
 //! [`crate::follower::Follower::carry_backoff_from`] in `protocol::device`); it returns

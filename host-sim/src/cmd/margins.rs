@@ -78,11 +78,13 @@ pub fn summary(m: &LoopMargins) -> String {
         (Some(gm), Some(f)) => format!("gain margin {gm:.1} dB at {f:.1} Hz"),
         _ => "no phase crossover above it in the measured range".to_string(),
     };
-    let peak = m
-        .points
-        .iter()
-        .skip_while(|p| Some(p.freq_hz) <= m.gain_crossover_hz)
-        .max_by(|a, b| a.mag_db.total_cmp(&b.mag_db));
+    // Above the first gain crossover, |L| back above 1 (the oil column's peak).
+    let peak = m.gain_crossover_hz.and_then(|fc| {
+        m.points
+            .iter()
+            .filter(|p| p.freq_hz > fc)
+            .max_by(|a, b| a.mag_db.total_cmp(&b.mag_db))
+    });
     let resonance = match peak {
         Some(p) if p.mag_db > 0.0 => format!(
             "; |L| rises again to {:+.1} dB at {:.1} Hz (∠L {:.0}°)",
