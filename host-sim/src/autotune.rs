@@ -399,13 +399,14 @@ pub fn meet_measured_margins(
             })?;
         // Two significant digits: a step the rounding would undo is one unit of the
         // last digit instead (NaN margins count as short: × 0.85).
-        let kp0 = f64::from(g.kp_lsb_per_um);
+        // (Compared as stored: the f32 of 1.1 is above the f64 1.1.)
+        let kp0 = round2(f64::from(g.kp_lsb_per_um));
         let factor = if factor.is_finite() { factor } else { 0.85 };
         let mut kp = round2(kp0 * factor);
         if kp >= kp0 {
             kp = round2(kp0 - 10f64.powf(kp0.log10().floor() - 1.0));
         }
-        if !(kp > 0.0 && kp < kp0) {
+        if !(kp > 0.0 && (kp as f32) < g.kp_lsb_per_um) {
             break;
         }
         g.kp_lsb_per_um = kp as f32;

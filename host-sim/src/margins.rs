@@ -21,7 +21,8 @@
 //! backoff is off for the measurement (it would take the probe for an oscillation): the
 //! margins are the set gains'. A loop that oscillates on the machine has no margin to
 //! measure: a loop that, without the probe, latches a fault or reverses more often than
-//! its table, or latches a fault with it, is refused. Non-finite points are dropped.
+//! its table, or latches a fault with it, is refused; so is a run without a finite
+//! response (`NoResponse`). `margins_of` drops non-finite points.
 //! The probe's amplitude is 2 % of the valve's opening — large against the sensors'
 //! quantisation, small against the valve's and the oil's nonlinearity.
 
@@ -89,8 +90,14 @@ pub enum MarginError {
         /// A fault's name or the reversals counted, and in which run.
         why: String,
     },
+    /// No finite response at a frequency (the valves were never enabled in that run).
+    #[error("the probe at {freq_hz:.1} Hz met no response: the loop did not control the valve")]
+    NoResponse {
+        /// The probe's frequency.
+        freq_hz: f64,
+    },
     /// The table's travel at speed is shorter than the measurement.
-    #[error("the master is at speed until {at_speed_s:.1} s, the measurement needs it until {needed_s:.1} s: a longer travel or a faster period")]
+    #[error("the master is at speed until {at_speed_s:.1} s, the measurement needs it until {needed_s:.1} s: a longer travel or a slower master")]
     TooShort {
         /// The end of the longest probe's run, s.
         needed_s: f64,
@@ -142,7 +149,7 @@ pub fn measure(
     // At speed: from 0.5 s after the start ramp to the start of the stop ramp.
     let m = &sc.master;
     let start_s = m.start_s + m.ramp_s + 0.5;
-    let stop_s = m.start_s + (m.end_deg - m.start_deg).abs() / m.speed_deg_per_s;
+    let stop_s = sc.master_profile()?.stop_time_s() - m.ramp_s;
     let probes: Vec<Probe> = grid(period_us)
         .into_iter()
         .map(|f| Probe {
@@ -196,7 +203,7 @@ pub fn measure(
             }
             match r.loop_response {
                 Some(l) if l.re.is_finite() && l.im.is_finite() => Ok((f, l)),
-                _ => Err(unstable(format!("no response to the probe at {f:.1} Hz"))),
+                _ => Err(MarginError::NoResponse { freq_hz: f }),
             }
         })
         .collect::<Result<Vec<_>, MarginError>>()?;

@@ -432,6 +432,8 @@ proptest! {
         let mut prev_slaves = [0i32; 2];
         let mut prev_master = 0i32;
         let mut first = true;
+        // An accepted Approach not yet ended: the only way Manual ends in Following.
+        let mut approach = false;
         for e in evs {
             master = master.wrapping_add(e.master_step);
             // Slaves sit on the target (ratio 1) plus a deviation.
@@ -482,10 +484,19 @@ proptest! {
             // The law's end of table may move Following → Holding in the tick of a refusal.
             let law_moved = before == State::Following
                 && after == State::Holding(HoldReason::EndOfTable);
-            // The end of an approach starts following on its own, in any tick — also in
-            // one whose command is refused (a Start refused Busy while the approach ends:
-            // found by this test, nineteenth session).
-            let approach_ended = before == State::Manual && after == State::Following;
+            // The end of an accepted approach starts following on its own, in any tick —
+            // also in one whose command is refused (a Start refused Busy while the
+            // approach ends: found by this test, nineteenth session).
+            let approach_ended = approach && before == State::Manual && after == State::Following;
+            if matches!(e.cmd, Some(Command::Approach { .. })) && out.reply == Some(Ok(())) {
+                approach = true;
+            } else if after != State::Manual
+                || (matches!(e.cmd, Some(Command::Hold | Command::Stop))
+                    && out.reply == Some(Ok(())))
+            {
+                // Left Manual, or an accepted Hold or Stop (the approach ends).
+                approach = false;
+            }
             if let Some(Err(_)) = out.reply {
                 prop_assert!(after == before || after == State::Fault || law_moved
                     || approach_ended,
