@@ -12,12 +12,12 @@
 //! ```
 //!
 //! A lightly damped oil column can lift |L| above 1 again near its own frequency with
-//! the phase already past −180° (a phase-stabilised resonance: the reference machine's
-//! shipped set reaches +5.7 dB at the grid's 53.7 Hz — a sharp peak, whose height
-//! depends on where the grid and the table's operating point sample it). The classic margins at the first
+//! the phase already past −180° (a phase-stabilised resonance on the reference
+//! machine's shipped set, README "Robustness"). The classic margins at the first
 //! crossings do not see how close that loop passes to −1; the modulus margin does, and
-//! the points show it. Between grid points |L| (dB) and ∠L are interpolated linearly in
-//! log f. The gain
+//! the points show it. Around the grid point closest to −1 the sweep adds [`REFINE`]
+//! frequencies across its two intervals (a sharp peak falls between grid points).
+//! Between points |L| (dB) and ∠L are interpolated linearly in log f. The gain
 //! backoff is off for the measurement (it would take the probe for an oscillation): the
 //! margins are the set gains'. A loop that oscillates on the machine has no margin to
 //! measure: a loop that, without the probe, latches a fault or reverses more often than
@@ -34,8 +34,10 @@ use rayon::prelude::*;
 
 /// The probe's amplitude, valve units (1 = full opening).
 pub const PROBE_AMPLITUDE: f64 = 0.02;
-/// Frequencies measured.
+/// Frequencies of the logarithmic grid.
 pub const POINTS: usize = 64;
+/// Frequencies added across the two grid intervals around the point closest to −1.
+pub const REFINE: usize = 8;
 /// The highest frequency, Hz (below 0.4 of the sampling rate at long periods).
 pub const MAX_FREQ_HZ: f64 = 150.0;
 
@@ -150,17 +152,15 @@ pub fn measure(
     let m = &sc.master;
     let start_s = m.start_s + m.ramp_s + 0.5;
     let stop_s = sc.master_profile()?.stop_time_s() - m.ramp_s;
-    let probes: Vec<Probe> = grid(period_us)
-        .into_iter()
-        .map(|f| Probe {
-            follower,
-            amplitude: PROBE_AMPLITUDE,
-            freq_hz: f,
-            start_s,
-            settle_s: (3.0 / f).max(0.3),
-            window_s: (8.0 / f).max(1.0),
-        })
-        .collect();
+    let probe_at = |f: f64| Probe {
+        follower,
+        amplitude: PROBE_AMPLITUDE,
+        freq_hz: f,
+        start_s,
+        settle_s: (3.0 / f).max(0.3),
+        window_s: (8.0 / f).max(1.0),
+    };
+    let probes: Vec<Probe> = grid(period_us).into_iter().map(probe_at).collect();
     let end_s = probes.iter().map(Probe::end_s).fold(0.0, f64::max);
     if end_s > stop_s || !stop_s.is_finite() {
         return Err(MarginError::TooShort {
@@ -188,25 +188,47 @@ pub fn measure(
             o.reversals, o.table_reversals
         )));
     }
-    let responses = probes
-        .into_par_iter()
-        .map(|probe| {
-            let f = probe.freq_hz;
-            let mut run_sc = sc.clone();
-            run_sc.sim.duration_s = Some(probe.end_s() + 0.01);
-            let r = run_probed(&run_sc, table, &spec, Some(&probe), &mut |_| {})?;
-            if let Some(fault) = r.faults.first() {
-                return Err(unstable(format!(
-                    "{} with the probe at {f:.1} Hz",
-                    fault.name
-                )));
-            }
-            match r.loop_response {
-                Some(l) if l.re.is_finite() && l.im.is_finite() => Ok((f, l)),
-                _ => Err(MarginError::NoResponse { freq_hz: f }),
-            }
-        })
-        .collect::<Result<Vec<_>, MarginError>>()?;
+    let sweep = |probes: Vec<Probe>| {
+        probes
+            .into_par_iter()
+            .map(|probe| {
+                let f = probe.freq_hz;
+                let mut run_sc = sc.clone();
+                run_sc.sim.duration_s = Some(probe.end_s() + 0.01);
+                let r = run_probed(&run_sc, table, &spec, Some(&probe), &mut |_| {})?;
+                if let Some(fault) = r.faults.first() {
+                    return Err(unstable(format!(
+                        "{} with the probe at {f:.1} Hz",
+                        fault.name
+                    )));
+                }
+                match r.loop_response {
+                    Some(l) if l.re.is_finite() && l.im.is_finite() => Ok((f, l)),
+                    _ => Err(MarginError::NoResponse { freq_hz: f }),
+                }
+            })
+            .collect::<Result<Vec<_>, MarginError>>()
+    };
+    let mut responses = sweep(probes)?;
+    // Where the loop passes −1 closest (a sharp oil-column peak falls between grid
+    // points): REFINE more frequencies across the neighbouring intervals.
+    let closest = responses
+        .iter()
+        .enumerate()
+        .min_by(|a, b| (a.1 .1 + 1.0).norm().total_cmp(&(b.1 .1 + 1.0).norm()))
+        .map(|(i, _)| i);
+    if let Some(i) = closest {
+        let lo = responses[i.saturating_sub(1)].0;
+        let hi = responses[(i + 1).min(responses.len() - 1)].0;
+        let r = (hi / lo).powf(1.0 / (REFINE + 1) as f64);
+        let extra: Vec<Probe> = (1..=REFINE)
+            .map(|k| lo * r.powi(k as i32))
+            .filter(|f| (f / responses[i].0 - 1.0).abs() > 1e-6)
+            .map(probe_at)
+            .collect();
+        responses.extend(sweep(extra)?);
+        responses.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
     Ok(margins_of(name, &responses))
 }
 

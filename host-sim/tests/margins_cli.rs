@@ -20,7 +20,10 @@ fn margins_of_the_shipped_set_and_refusals() {
     assert_eq!(m["axis"], "tangent");
     assert_eq!(v["period_us"], 1000);
     let points = m["points"].as_array().expect("points");
-    assert_eq!(points.len(), host_sim::margins::POINTS);
+    assert_eq!(
+        points.len(),
+        host_sim::margins::POINTS + host_sim::margins::REFINE
+    );
     let gm = m["gain_margin_db"].as_f64().expect("gain margin");
     let pm = m["phase_margin_deg"].as_f64().expect("phase margin");
     let fc = m["gain_crossover_hz"].as_f64().expect("crossover");
