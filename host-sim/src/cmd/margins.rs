@@ -3,20 +3,13 @@
 //! valve probe (crate::margins).
 
 use crate::margins::{measure, LoopMargins};
-use crate::scenario::{Controller, Scenario};
-use std::path::PathBuf;
 
 /// Arguments of `host-sim margins`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scenario or machine file (default: host-sim/scenarios/tangent_alone.toml).
-    pub scenario: Option<PathBuf>,
-    /// Follower law (default: the scenario's `sim.controller`).
-    #[arg(long, value_enum)]
-    pub controller: Option<Controller>,
-    /// Control period, µs (default: the scenario's `sim.period_us`).
-    #[arg(long, value_name = "N")]
-    pub period_us: Option<u32>,
+    /// The scenario, law and period.
+    #[command(flatten)]
+    pub target: super::SimTarget,
     /// The follower axis (default: the first).
     #[arg(long, value_name = "NAME")]
     pub axis: Option<String>,
@@ -27,14 +20,12 @@ pub struct Args {
 
 /// Runs `host-sim margins`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let path = args
-        .scenario
-        .clone()
-        .unwrap_or_else(|| super::shipped_scenario("tangent_alone.toml"));
-    let s = Scenario::load(&path)?;
-    let table = s.load_table(None)?;
-    let controller = args.controller.unwrap_or(s.sim.controller);
-    let period_us = args.period_us.unwrap_or(s.sim.period_us);
+    let super::Loaded {
+        s,
+        table,
+        controller,
+        period_us,
+    } = args.target.load()?;
     let m = measure(&s, &table, controller, period_us, args.axis.as_deref())?;
     if args.json {
         let o = serde_json::json!({

@@ -38,3 +38,48 @@ pub(crate) fn shipped_scenario(file: &str) -> std::path::PathBuf {
             .join(file)
     })
 }
+
+/// The scenario, law and period of a command that simulates one scenario on the
+/// robustness box or with a probe (`robust`, `margins`); default the tangent axis alone.
+#[derive(Debug, clap::Args)]
+pub struct SimTarget {
+    /// Scenario or machine file (default: host-sim/scenarios/tangent_alone.toml, the
+    /// tangent axis alone).
+    pub scenario: Option<std::path::PathBuf>,
+    /// Follower law (default: the scenario's `sim.controller`).
+    #[arg(long, value_enum)]
+    pub controller: Option<crate::scenario::Controller>,
+    /// Control period, µs (default: the scenario's `sim.period_us`).
+    #[arg(long, value_name = "N")]
+    pub period_us: Option<u32>,
+}
+
+/// A [`SimTarget`] loaded: the scenario, its table, the law and the period.
+pub struct Loaded {
+    /// The scenario.
+    pub s: crate::scenario::Scenario,
+    /// Its cam table.
+    pub table: crate::camfile::CamCsv,
+    /// The follower law.
+    pub controller: crate::scenario::Controller,
+    /// The control period, µs.
+    pub period_us: u32,
+}
+
+impl SimTarget {
+    /// Loads the scenario (or the shipped `tangent_alone.toml`) and its table.
+    pub fn load(&self) -> anyhow::Result<Loaded> {
+        let path = self
+            .scenario
+            .clone()
+            .unwrap_or_else(|| shipped_scenario("tangent_alone.toml"));
+        let s = crate::scenario::Scenario::load(&path)?;
+        let table = s.load_table(None)?;
+        Ok(Loaded {
+            controller: self.controller.unwrap_or(s.sim.controller),
+            period_us: self.period_us.unwrap_or(s.sim.period_us),
+            table,
+            s,
+        })
+    }
+}

@@ -2,21 +2,13 @@
 //! machine off nominal in every corner, max / RMS error and whether it oscillates.
 
 use crate::robust::{cases, evaluate, Case};
-use crate::scenario::{Controller, Scenario};
-use std::path::PathBuf;
 
 /// Arguments of `host-sim robust`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scenario file (default: host-sim/scenarios/tangent_alone.toml, the tangent axis
-    /// alone).
-    pub scenario: Option<PathBuf>,
-    /// Follower law (default: the scenario's `sim.controller`).
-    #[arg(long, value_enum)]
-    pub controller: Option<Controller>,
-    /// Control period, µs (default: the scenario's `sim.period_us`).
-    #[arg(long, value_name = "N")]
-    pub period_us: Option<u32>,
+    /// The scenario, law and period.
+    #[command(flatten)]
+    pub target: super::SimTarget,
     /// Print one JSON object (`cases`: label, factors, max_um, rms_um, oscillating, …).
     #[arg(long)]
     pub json: bool,
@@ -33,14 +25,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "--require-max-um must be a positive number of µm, not {m}"
         );
     }
-    let path = args
-        .scenario
-        .clone()
-        .unwrap_or_else(|| super::shipped_scenario("tangent_alone.toml"));
-    let s = Scenario::load(&path)?;
-    let table = s.load_table(None)?;
-    let controller = args.controller.unwrap_or(s.sim.controller);
-    let period_us = args.period_us.unwrap_or(s.sim.period_us);
+    let super::Loaded {
+        s,
+        table,
+        controller,
+        period_us,
+    } = args.target.load()?;
     let variants = cases(&s);
     let bar = indicatif::ProgressBar::new(variants.len() as u64);
     if let Ok(style) = indicatif::ProgressStyle::with_template(
