@@ -38,6 +38,7 @@
 
 use crate::axis::backoff::{self, BackoffCoeffs, BackoffState};
 use crate::axis::damping::{damped_cmd, damping_bits, DampingCoeffs, DampingState};
+use crate::axis::ff_trim::{FfTrimCoeffs, FfTrimState};
 use crate::axis::position::{paper_law_bits, positional_law_ff, positional_law_with};
 use crate::axis::{
     position_law, AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PosRef, PosState,
@@ -159,6 +160,8 @@ struct AxisRt {
     damp: DampingState,
     /// The gain backoff's detector and level (kept by a restart, reset by `configure`).
     backoff: BackoffState,
+    /// The feed-forward trims learned (kept by a restart, reset by `configure`).
+    trim: FfTrimState,
 }
 
 /// The follower: validated coefficients, the table, and the loop state.
@@ -219,6 +222,8 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             valve: crate::valve::ValveCoeffs::UNSET,
             damping: DampingCoeffs::OFF,
             backoff: BackoffCoeffs::OFF,
+            ff_trim: FfTrimCoeffs::OFF,
+            extras: false,
         };
         const RT: AxisRt = AxisRt {
             st: PosState::RESET,
@@ -226,6 +231,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             ff: FfPlan::ZEROED,
             damp: DampingState::RESET,
             backoff: BackoffState::RESET,
+            trim: FfTrimState::RESET,
         };
         Self {
             axes: [AXIS; S],
@@ -432,11 +438,19 @@ impl<const S: usize, const N: usize> Follower<S, N> {
         self.rt.get(i).map_or(0, |r| r.backoff.level())
     }
 
-    /// Takes over `old`'s gain backoff levels for every slave whose coefficients are the
-    /// same in both (a law rebuilt for a new table or another axis' setting keeps what
-    /// this axis learned; a changed gain starts from the set value). The detectors'
-    /// histories start afresh.
-    pub fn carry_backoff_from(&mut self, old: &Self) {
+    /// The feed-forward trim's ratios of slave `i`, `[negative, positive]` feed-forward,
+    /// Q16 (65 536 = the calibrated gain; [`crate::axis::ff_trim`]).
+    pub fn ff_trim_q16(&self, i: usize) -> [i32; 2] {
+        self.rt
+            .get(i)
+            .map_or([65_536; 2], |r| [r.trim.ratio_q16(false), r.trim.ratio_q16(true)])
+    }
+
+    /// Takes over `old`'s gain backoff levels and feed-forward trims for every slave
+    /// whose coefficients are the same in both (a law rebuilt for a new table or another
+    /// axis' setting keeps what this axis learned; a changed setting of the axis starts
+    /// from the set values). The detectors' histories start afresh.
+    pub fn carry_learned_from(&mut self, old: &Self) {
         for ((rt, c), (o_rt, o_c)) in self
             .rt
             .iter_mut()
@@ -446,6 +460,7 @@ impl<const S: usize, const N: usize> Follower<S, N> {
             if c == o_c {
                 rt.backoff = o_rt.backoff;
                 rt.backoff.restart();
+                rt.trim = o_rt.trim;
             }
         }
     }
@@ -810,13 +825,14 @@ fn damping_term_on<const S: usize>(
     p.get(i).map_or(0, |p| damping_bits(&c.damping, st, p))
 }
 
-/// The Feedforward law of an axis with the gain backoff ([`crate::axis::backoff`]): its
-/// detector on the error, then the law (feed-forward `ff`, `I16F16` LSB, less the active
-/// damping's term) with the proportional, derivative and damping terms and the
-/// integrator step at the level's scales. Out of line: an axis without the backoff pays
-/// one test.
+/// The Feedforward law of an axis with any of the gain backoff, the active damping or
+/// the feed-forward trim ([`AxisCoeffs::extras`]): the backoff's detector on the error,
+/// then the law — feed-forward `ff` (`I16F16` LSB) at the trim's ratio, less the
+/// damping's term — with the proportional, derivative and damping terms and the
+/// integrator step at the backoff level's scales (1 at level 0), then the trim's
+/// transfer from the integrator. Out of line: an axis without them pays one test.
 #[inline(never)]
-fn ff_law_backoff<const S: usize>(
+fn ff_law_extras<const S: usize>(
     c: &AxisCoeffs,
     rt: &mut AxisRt,
     err: i32,
@@ -824,14 +840,30 @@ fn ff_law_backoff<const S: usize>(
     p: &[[PressureBar; 2]; S],
     i: usize,
 ) -> i32 {
-    backoff::observe(&c.backoff, &mut rt.backoff, rt.st.error_change(err));
+    if c.backoff.is_on() {
+        backoff::observe(&c.backoff, &mut rt.backoff, rt.st.error_change(err));
+    }
     let d = rt.backoff.scale(damping_term(c, &mut rt.damp, p, i));
-    positional_law_with::<true>(c, &mut rt.st, err, ff.saturating_sub(d), &rt.backoff)
+    let ff_trimmed = if c.ff_trim.is_on() {
+        rt.trim.apply(ff)
+    } else {
+        ff
+    };
+    let u = positional_law_with::<true>(
+        c,
+        &mut rt.st,
+        err,
+        ff_trimmed.saturating_sub(d),
+        &rt.backoff,
+    );
+    if c.ff_trim.is_on() {
+        rt.st.offload_to_trim(&mut rt.trim, &c.ff_trim, ff);
+    }
+    u
 }
 
 /// The Feedforward law of a following axis with feed-forward `ff` (`I16F16` LSB; 0 once
-/// the table has ended): with the gain backoff out of line, else less the active
-/// damping's term ([`damping_term`]).
+/// the table has ended): the extras out of line ([`ff_law_extras`]), else the plain law.
 #[inline(always)]
 fn ff_law<const S: usize>(
     c: &AxisCoeffs,
@@ -841,10 +873,9 @@ fn ff_law<const S: usize>(
     p: &[[PressureBar; 2]; S],
     i: usize,
 ) -> i32 {
-    if c.backoff.is_on() {
-        ff_law_backoff(c, rt, err, ff, p, i)
+    if c.extras {
+        ff_law_extras(c, rt, err, ff, p, i)
     } else {
-        let ff = ff.saturating_sub(damping_term(c, &mut rt.damp, p, i));
         positional_law_ff(c, &mut rt.st, err, ff)
     }
 }

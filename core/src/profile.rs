@@ -30,6 +30,9 @@ pub const PERIOD_US: u32 = 1000;
 /// The gain backoff's band of the shipped tuning, µm (`axis::backoff`; the 1 ms
 /// feed-forward set of `host-sim/scenarios/tangent.toml` carries the same).
 pub const OSC_BAND_UM: f32 = 4.0;
+/// The feed-forward trim's time constant of the shipped tuning, s (`axis::ff_trim`; the
+/// 1 ms feed-forward set of `host-sim/scenarios/tangent.toml` carries the same).
+pub const FF_TRIM_TAU_S: f32 = 1.0;
 /// Rows of the board's capture ring (`crate::runtime::capture`): 2.048 s of every tick at
 /// [`PERIOD_US`], so 500 ms before a trigger and 1 500 ms after it fit with room (the
 /// firmware keeps them in the F407's 64 KiB CCM RAM: 32 B per row for [`SLAVES`] = 2,
@@ -112,6 +115,7 @@ pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {
             dp_gain_lsb_per_kn: 0.0,
             dp_corner_hz: 5.0,
             osc_band_um: OSC_BAND_UM,
+            ff_trim_tau_s: FF_TRIM_TAU_S,
         },
         mode: ControlMode::Feedforward,
         valve: ValveCal {

@@ -484,6 +484,13 @@ pub fn position_gains_with(
             } else {
                 0.0
             },
+            // The feed-forward trim (core `axis::ff_trim`) likewise: measured on the
+            // robustness box at 1 ms only.
+            ff_trim_tau_s: if ff && period_us <= 1000 {
+                hydra_core::profile::FF_TRIM_TAU_S
+            } else {
+                0.0
+            },
             ..PositionGains::default()
         },
         ku,
@@ -744,6 +751,7 @@ mod tests {
         for t in shipped.tuning.iter_mut() {
             for x in t.axes.values_mut() {
                 x.osc_band_um = 0.0;
+                x.ff_trim_tau_s = 0.0;
             }
         }
         let mut boxed = shipped.clone();

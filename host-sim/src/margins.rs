@@ -141,6 +141,7 @@ pub fn measure(
     for t in sc.tuning.iter_mut() {
         for g in t.axes.values_mut() {
             g.osc_band_um = 0.0;
+            g.ff_trim_tau_s = 0.0;
         }
     }
     let spec = RunSpec {

@@ -42,7 +42,7 @@
 //! / bulk ×0.5 / flow ×1.2 / 180 bar corner: 48.4 → 30.8 µm). The level is kept through restarts, cleared faults and new runs, and
 //! through a rebuild of the law that keeps the axis' coefficients (on a board: a new
 //! table, a board-wide or another axis' setting —
-//! [`crate::follower::Follower::carry_backoff_from`] in `protocol::device`); it returns
+//! [`crate::follower::Follower::carry_learned_from`] in `protocol::device`); it returns
 //! to 0 when the axis' own coefficients change (a gain set: the engineer's new value
 //! starts as set);
 //! [`crate::follower::Follower::backoff_level`] reads it (the board's Status carries it
@@ -171,6 +171,15 @@ pub struct BackoffState {
     half_cycles: u8,
     /// Backoff level, 0 … [`MAX_LEVEL`].
     level: u8,
+    /// The growth watch after a settling: the side of the half-cycle y is in (beyond
+    /// ±b; 0: none yet).
+    hc_side: i8,
+    /// Its peak |y| so far, µm `I24F8` raw.
+    hc_peak: i32,
+    /// The last finished half-cycle's peak on each side (`[−, +]`), µm `I24F8` raw.
+    hc_last: [i32; 2],
+    /// How many half-cycles in a row on each side outgrew the one before by 1/16.
+    hc_grew: [u8; 2],
 }
 
 impl BackoffState {
@@ -184,6 +193,10 @@ impl BackoffState {
         side: 0,
         half_cycles: 0,
         level: 0,
+        hc_side: 0,
+        hc_peak: 0,
+        hc_last: [0; 2],
+        hc_grew: [0; 2],
     };
 
     /// Forgets the detector's history, keeping the level (a restart, a cleared fault).
@@ -278,6 +291,9 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
         st.env = st
             .env
             .saturating_sub(st.env.wrapping_shr(u32::from(c.decay_shift)).max(1));
+        if st.level > 0 && st.level < MAX_LEVEL && grows(c, st) {
+            return cut(c, st);
+        }
     }
     let band = st.env.max(c.band);
     let side = if st.y > band {
@@ -313,6 +329,50 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
     cut(c, st)
 }
 
+/// The growth watch while the band is raised after a cut: each half-cycle beyond ±b
+/// ends when y passes b on the other side; its peak is compared with the last one on
+/// the same side. Three in a row on one side, each 1/16 above the last (counting the
+/// first against none), grow at this gain: `true`. A decaying oscillation's peaks fall,
+/// a steady one's stay within 1/16 (the band's decay takes it), a tracking swing is one
+/// half-cycle. Sets `peak` to the grown half-cycle's when it returns `true`.
+#[inline(always)]
+fn grows(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
+    let side: i8 = if st.y > c.band {
+        1
+    } else if st.y < c.band.wrapping_neg() {
+        -1
+    } else {
+        return false;
+    };
+    let a = st.y.saturating_abs();
+    if side == st.hc_side {
+        st.hc_peak = st.hc_peak.max(a);
+        return false;
+    }
+    let done = (st.hc_side, st.hc_peak);
+    st.hc_side = side;
+    st.hc_peak = a;
+    let i = usize::from(done.0 > 0);
+    let (Some(last), Some(grew)) = (st.hc_last.get_mut(i), st.hc_grew.get_mut(i)) else {
+        return false;
+    };
+    if done.0 == 0 {
+        return false;
+    }
+    *grew = if done.1 > last.saturating_add(*last >> 4) {
+        grew.saturating_add(1)
+    } else {
+        0
+    };
+    *last = done.1;
+    if *grew < 3 {
+        return false;
+    }
+    // The new band above the grown half-cycle.
+    st.peak = done.1;
+    true
+}
+
 /// One level down: the band raised 1.25× above the oscillation's peak, the settling
 /// started. Returns `true`.
 #[inline(always)]
@@ -323,6 +383,10 @@ fn cut(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
     st.window = 0;
     st.env = st.peak.saturating_add(st.peak >> 2);
     st.settle = c.settle_ticks;
+    st.hc_side = 0;
+    st.hc_peak = 0;
+    st.hc_last = [0; 2];
+    st.hc_grew = [0; 2];
     true
 }
 

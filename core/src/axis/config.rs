@@ -7,6 +7,7 @@
 
 use super::backoff::{BackoffCoeffs, BandError};
 use super::damping::{DampingCoeffs, DampingError, PistonAreas};
+use super::ff_trim::{FfTrimCoeffs, FfTrimError};
 use crate::units::CmdLsb;
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
 use fixed::types::{I0F32, I16F16, I24F8, I8F24};
@@ -76,6 +77,13 @@ pub struct PositionGains {
     /// (`AxisConfigError::OscBand(BandError::Law)`: the baselines run as published); it
     /// acts while following (jog and test moves keep the set gain).
     pub osc_band_um: f32,
+    /// Feed-forward trim ([`super::ff_trim`]): the time constant, s, with which the
+    /// integrator's content moves into a per-direction ratio of the velocity
+    /// feed-forward while the axis moves (the valve's real flow gain, learned; 0.01 …
+    /// 1 000 and at least two control periods; 0 = off, the default). Feedforward axes
+    /// only — on a Paper or NextNode axis it is refused
+    /// (`AxisConfigError::FfTrim(FfTrimError::Law)`).
+    pub ff_trim_tau_s: f32,
 }
 
 impl Default for PositionGains {
@@ -94,6 +102,7 @@ impl Default for PositionGains {
             dp_gain_lsb_per_kn: 0.0,
             dp_corner_hz: 5.0,
             osc_band_um: 0.0,
+            ff_trim_tau_s: 0.0,
         }
     }
 }
@@ -143,6 +152,8 @@ pub enum AxisConfigError {
     Damping(DampingError),
     /// `osc_band_um` (the gain backoff's band): out of range, or on a baseline law.
     OscBand(BandError),
+    /// `ff_trim_tau_s` (the feed-forward trim): out of range, or on a baseline law.
+    FfTrim(FfTrimError),
 }
 
 /// Validated fixed-point coefficients of one axis (see the format table in
@@ -179,6 +190,11 @@ pub struct AxisCoeffs {
     pub damping: DampingCoeffs,
     /// Gain backoff on a detected oscillation.
     pub backoff: BackoffCoeffs,
+    /// Feed-forward trim learned from the integrator.
+    pub ff_trim: FfTrimCoeffs,
+    /// Whether any of the active damping, the gain backoff or the trim is on (the
+    /// Feedforward law then takes its out-of-line path: one test for an axis without).
+    pub extras: bool,
 }
 
 fn check(x: f32, lo: f32, hi: f32, e: AxisConfigError) -> Result<f32, AxisConfigError> {
@@ -223,6 +239,11 @@ impl AxisConfig {
         if backoff.is_on() && self.mode != ControlMode::Feedforward {
             return Err(E::OscBand(BandError::Law));
         }
+        let ff_trim = FfTrimCoeffs::build(g.ff_trim_tau_s, period_us, self.valve.clamp_lsb)
+            .map_err(E::FfTrim)?;
+        if ff_trim.is_on() && self.mode != ControlMode::Feedforward {
+            return Err(E::FfTrim(FfTrimError::Law));
+        }
         let lead_ticks = 1.5 + lag / f64::from(period_us);
         // Below the master filter's extrapolation limit (2^14 ticks).
         if lead_ticks >= 16_384.0 {
@@ -249,8 +270,10 @@ impl AxisConfig {
             lead_q16: (lead_ticks * 65536.0) as i32,
             fe_limit: fit::<I24F8>(fe, E::FollowingError)?.to_bits(),
             valve,
+            extras: damping.is_on() || backoff.is_on() || ff_trim.is_on(),
             damping,
             backoff,
+            ff_trim,
         })
     }
 }

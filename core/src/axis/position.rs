@@ -85,6 +85,14 @@ impl PosState {
         self.u_paper = u.to_bits();
     }
 
+    /// Hands `took` (`I16F16` LSB raw) of the integrator over to the feed-forward trim
+    /// ([`super::ff_trim`]): the integrator gives it up.
+    #[inline(always)]
+    pub(crate) fn offload_to_trim(&mut self, trim: &mut super::ff_trim::FfTrimState, c: &super::ff_trim::FfTrimCoeffs, ff: i32) {
+        let took = trim.offload(c, ff, self.integ);
+        self.integ = self.integ.saturating_sub(took);
+    }
+
     /// (e(k−1), e(k−2)) for the error `e` of this tick (both `e` on the first tick).
     #[inline(always)]
     fn history(&self, e: i32) -> (i32, i32) {

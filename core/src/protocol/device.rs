@@ -210,10 +210,11 @@ impl<L> LawPool<L> {
                 if !rt.at_safe_point() {
                     return None;
                 }
-                // The backoff levels the running law learned, for the axes whose
+                // The backoff levels and feed-forward trims the running law learned,
+                // for the axes whose
                 // coefficients the new one keeps.
                 if let (Some(running), Some(n)) = (rt.law(), new.as_mut()) {
-                    n.carry_backoff_from(running);
+                    n.carry_learned_from(running);
                 }
                 // At a safe point (checked in this call): `install` cannot refuse.
                 let old = rt.install(new.take()?).ok()?;

@@ -106,6 +106,10 @@ pub enum ParamId {
     /// back and forth four times in 150 ms takes the proportional gain (from the second
     /// time also the integral gain) down.
     OscBandUm = 32,
+    /// Feed-forward trim time constant, s (0 = off): while the axis moves, the
+    /// integrator's content moves with this time constant into a per-direction ratio of
+    /// the velocity feed-forward (the valve's real flow gain, learned).
+    FfTrimTauS = 33,
 }
 
 /// Whether a parameter belongs to each slave or to the board.
@@ -227,6 +231,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
     p(P::AreaAMm2, A, "cylinder/area_a_mm2", "mm²", 0.0, 1e6),
     p(P::AreaBMm2, A, "cylinder/area_b_mm2", "mm²", 0.0, 1e6),
     p(P::OscBandUm, A, "osc_band_um", "µm", 0.0, 10_000.0),
+    p(P::FfTrimTauS, A, "ff_trim_tau_s", "s", 0.0, 1000.0),
     p(P::ValveNullLsb, A, "valve/null_lsb", "LSB", -500.0, 500.0),
     p(
         P::ValveOverlapPosLsb,
@@ -310,7 +315,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 32;
+    pub const COUNT: usize = 33;
 
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
@@ -427,7 +432,7 @@ mod tests {
                 assert_eq!(id.info().id, id);
             }
         }
-        assert_eq!(all_paths(2).count(), 28 * 2 + 4);
+        assert_eq!(all_paths(2).count(), 29 * 2 + 4);
         for pp in all_paths(3) {
             let s = pp.to_string();
             let (axis, id) = parse_path(&s, 3).unwrap();
@@ -440,7 +445,7 @@ mod tests {
         let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
         paths.sort();
         paths.dedup();
-        assert_eq!(paths.len(), 60, "two parameters share a path");
+        assert_eq!(paths.len(), 62, "two parameters share a path");
     }
 
     #[test]
@@ -516,6 +521,7 @@ mod tests {
             P::AreaAMm2,
             P::AreaBMm2,
             P::OscBandUm,
+            P::FfTrimTauS,
         ];
         for id in gains {
             let i = id.info();

@@ -101,6 +101,13 @@ pub trait Controller<const S: usize> {
     fn backoff_level(&self, _axis: usize) -> u8 {
         0
     }
+
+    /// The feed-forward trim's ratios of slave `axis`, `[negative, positive]` feed-forward,
+    /// Q16 (65 536 = the calibrated gain, also for a law without the trim;
+    /// `crate::axis::ff_trim`). Read for the status report, not by the tick.
+    fn ff_trim_q16(&self, _axis: usize) -> [i32; 2] {
+        [65_536; 2]
+    }
 }
 
 /// `Controller` for a pointer type `$p<C>` to a law `C`, forwarding every call.
@@ -142,6 +149,10 @@ macro_rules! forward_controller {
 
             fn backoff_level(&self, axis: usize) -> u8 {
                 (**self).backoff_level(axis)
+            }
+
+            fn ff_trim_q16(&self, axis: usize) -> [i32; 2] {
+                (**self).ff_trim_q16(axis)
             }
         }
     };

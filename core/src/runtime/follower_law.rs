@@ -75,6 +75,10 @@ impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
     fn backoff_level(&self, axis: usize) -> u8 {
         Follower::backoff_level(self, axis)
     }
+
+    fn ff_trim_q16(&self, axis: usize) -> [i32; 2] {
+        Follower::ff_trim_q16(self, axis)
+    }
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 
 use super::gains::{axis_config, press_config};
 use super::{invalid, AxisCfg, Role, Scenario, ScenarioError, Tuning};
-use hydra_core::axis::{AxisConfigError, BandError, DampingError, PressConfigError};
+use hydra_core::axis::{AxisConfigError, BandError, DampingError, FfTrimError, PressConfigError};
 use hydra_core::master::MasterFilterConfig;
 use hydra_core::valve::ValveCalError;
 use std::f64::consts::PI;
@@ -367,6 +367,12 @@ fn axis_error_key(e: AxisConfigError) -> &'static str {
         AxisConfigError::OscBand(BandError::Range) => "osc_band_um",
         AxisConfigError::OscBand(BandError::Law) => {
             "osc_band_um (gain backoff: controller feedforward only)"
+        }
+        AxisConfigError::FfTrim(FfTrimError::Range) => {
+            "ff_trim_tau_s (0, or 0.01 … 1000 s and at least two periods)"
+        }
+        AxisConfigError::FfTrim(FfTrimError::Law) => {
+            "ff_trim_tau_s (feed-forward trim: controller feedforward only)"
         }
         AxisConfigError::Valve(v) => valve_error_key(v),
         AxisConfigError::Damping(DampingError::Gain) => "dp_gain_lsb_per_kn",

@@ -66,6 +66,10 @@ pub trait FollowerDyn: Send {
 
     /// The gain backoff's level of follower `j` (core `axis::backoff`; 0 = the set gain).
     fn backoff_level(&self, j: usize) -> u8;
+
+    /// The feed-forward trim's ratios of follower `j`, `[negative, positive]` feed-forward
+    /// (core `axis::ff_trim`; 1 = the calibrated gain).
+    fn ff_trim(&self, j: usize) -> [f64; 2];
 }
 
 struct Rt<const S: usize> {
@@ -138,6 +142,13 @@ impl<const S: usize> FollowerDyn for Rt<S> {
 
     fn backoff_level(&self, j: usize) -> u8 {
         self.rt.law().map_or(0, |l| l.backoff_level(j))
+    }
+
+    fn ff_trim(&self, j: usize) -> [f64; 2] {
+        self.rt
+            .law()
+            .map_or([65_536; 2], |l| l.ff_trim_q16(j))
+            .map(|r| f64::from(r) / 65_536.0)
     }
 }
 

@@ -323,6 +323,8 @@ pub fn run_probed(
                         "u",
                         "controller_target_mm",
                         "backoff_level",
+                        "ff_trim_neg",
+                        "ff_trim_pos",
                     ] {
                         cols.push(format!("{}_{c}", a.name));
                     }
@@ -470,6 +472,7 @@ pub fn run_probed(
                                     .as_ref()
                                     .map_or(0.0, |f| f64::from(f.backoff_level(fj))),
                             ]);
+                            r.extend(follower.as_ref().map_or([1.0; 2], |f| f.ff_trim(fj)));
                         }
                         fj += 1;
                     }
