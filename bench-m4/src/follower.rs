@@ -138,7 +138,8 @@ pub(crate) fn axis(mode: ControlMode) -> AxisConfig {
             ka_lsb_per_um_s2: 0.0001,
             valve_lag_us: 4200.0,
             following_error_um: 5000.0,
-            // Active damping off, as shipped (`follower_ff_1axis_damped` measures it on).
+            // Active damping, the gain backoff and the trim off: the plain law
+            // (`follower_ff_1axis_damped` and `_shipped` measure them on).
             ..PositionGains::default()
         },
         mode,
@@ -180,6 +181,16 @@ impl<const S: usize> FollowerFig<S> {
         let mut a = axis(mode);
         a.gains.dp_gain_lsb_per_kn = 16.0;
         a.areas = hydra_core::profile::piston_areas();
+        Self::with_axes([a; S], Motion::Cruise)
+    }
+
+    /// [`Self::new`] with the board profile's gain backoff band and feed-forward trim on
+    /// every axis (`profile::OSC_BAND_UM`, `profile::FF_TRIM_TAU_S`): the path the
+    /// shipped tuning runs (the error stays below the band: the detector counts nothing).
+    pub fn shipped(mode: ControlMode) -> Option<Self> {
+        let mut a = axis(mode);
+        a.gains.osc_band_um = hydra_core::profile::OSC_BAND_UM;
+        a.gains.ff_trim_tau_s = hydra_core::profile::FF_TRIM_TAU_S;
         Self::with_axes([a; S], Motion::Cruise)
     }
 

@@ -185,6 +185,10 @@ fn main() -> ! {
         FollowerFig::<1>::damped(ControlMode::Feedforward),
     );
     r.run(
+        "follower_ff_1axis_shipped",
+        FollowerFig::<1>::shipped(ControlMode::Feedforward),
+    );
+    r.run(
         "follower_ff_2axes",
         FollowerFig::<2>::new(ControlMode::Feedforward),
     );

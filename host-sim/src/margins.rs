@@ -18,8 +18,9 @@
 //! the points show it. Around the grid point closest to −1 the sweep adds [`REFINE`]
 //! frequencies across its two intervals (a sharp peak falls between grid points).
 //! Between points |L| (dB) and ∠L are interpolated linearly in log f. The gain
-//! backoff is off for the measurement (it would take the probe for an oscillation): the
-//! margins are the set gains'. A loop that oscillates on the machine has no margin to
+//! backoff is off for the measurement (it would take the probe for an oscillation), and
+//! so is the feed-forward trim (it moves the integrator's content, not the loop's gain):
+//! the margins are the set gains'. A loop that oscillates on the machine has no margin to
 //! measure: a loop that, without the probe, latches a fault or reverses more often than
 //! its table, or latches a fault with it, is refused; so is a run without a finite
 //! response (`NoResponse`). `margins_of` drops non-finite points.

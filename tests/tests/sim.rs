@@ -68,9 +68,9 @@ fn feedforward_at_1ms_meets_the_target() {
 
 /// Issue 21 part 3: the master below one count from its timestamped edges (the board's
 /// 1 MHz edge timer, the scenario's default) against the count alone
-/// (`master.edge_timer_hz = 0`): the RMS error falls by more than half (measured 1.66 →
-/// 0.45 µm) and the max by half (8.07 → 3.98 µm): issue 21's nominal target, ≤ 5 µm
-/// max and ≤ 1 µm RMS.
+/// (`master.edge_timer_hz = 0`): the RMS error falls by more than half (measured 1.63 →
+/// 0.45 µm) and the max by half (9.11 → 4.12 µm, with the 1 ms set's feed-forward trim):
+/// issue 21's nominal target, ≤ 5 µm max and ≤ 1 µm RMS.
 #[test]
 fn the_sub_count_master_lowers_the_tangent_error() {
     let (s, t) = tangent_only();

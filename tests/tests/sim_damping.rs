@@ -9,10 +9,12 @@ use std::path::Path;
 fn cases(file: &str) -> Vec<Case> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios");
     let mut s = Scenario::load(&dir.join(file)).unwrap();
-    // The damping alone: without the gain backoff (`sim_backoff.rs` tests the two together).
+    // The damping alone: without the gain backoff and the feed-forward trim
+    // (`sim_backoff.rs` tests them together).
     for t in s.tuning.iter_mut() {
         for g in t.axes.values_mut() {
             g.osc_band_um = 0.0;
+            g.ff_trim_tau_s = 0.0;
         }
     }
     let table = s.load_table(None).unwrap();

@@ -21,8 +21,9 @@ fn spec(period_us: u32) -> RunSpec {
 }
 
 /// The shipped 1 ms feed-forward set (`tangent.toml`, as host-sim compiles it in) with
-/// the gain backoff off, as `[[tuning]]` TOML: the fault path needs a machine the loop
-/// cannot hold (with the backoff it holds this one, `sim_backoff.rs`).
+/// the gain backoff and the feed-forward trim off, as `[[tuning]]` TOML: the fault path
+/// needs a machine the loop cannot hold (with the backoff it holds this one,
+/// `sim_backoff.rs`).
 fn shipped_without_backoff() -> String {
     let mut t = reference_tuning()
         .into_iter()
@@ -30,6 +31,7 @@ fn shipped_without_backoff() -> String {
         .expect("the shipped 1 ms feed-forward set");
     for g in t.axes.values_mut() {
         g.osc_band_um = 0.0;
+        g.ff_trim_tau_s = 0.0;
     }
     // This machine has the tangent axis alone.
     t.press.clear();

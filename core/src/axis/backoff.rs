@@ -39,7 +39,19 @@
 //! settling, this test has no second half and does not act). Without it an oscillation
 //! the first cuts did not stop grew for a further 150–250 ms per level to ≈ 150 µm, and
 //! the lightly damped oil column rang on from there for a second (the undamped mass ×2
-//! / bulk ×0.5 / flow ×1.2 / 180 bar corner: 48.4 → 30.8 µm). The level is kept through restarts, cleared faults and new runs, and
+//! / bulk ×0.5 / flow ×1.2 / 180 bar corner: 48.4 → 30.8 µm).
+//!
+//! After the settling, while the raised band has not decayed back to b, a **growth
+//! watch** runs beside the count: each half-cycle beyond ±b ends when y passes b on the
+//! other side, and three in a row on one side, each 1/16 above the last, grow at this
+//! gain — the next level at once. It catches an oscillation whose settling happened to
+//! see a beat (the cut shifts its phase: the second half small, no growth there) and
+//! that then grows back from below the raised band: on the same corner the second level
+//! came at 0.37 s instead of 0.45 s, and the ringing that the oil column's own damping
+//! must then decay started from ≈ 90 instead of ≈ 125 µm (30.7 → 16.8 µm at 1.5 s, where
+//! the error is first counted). A decaying oscillation's peaks fall and a steady one's
+//! stay within 1/16 (the band's decay takes that one); a tracking swing is one
+//! half-cycle. The level is kept through restarts, cleared faults and new runs, and
 //! through a rebuild of the law that keeps the axis' coefficients (on a board: a new
 //! table, a board-wide or another axis' setting —
 //! [`crate::follower::Follower::carry_learned_from`] in `protocol::device`); it returns

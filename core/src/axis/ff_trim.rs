@@ -10,17 +10,22 @@
 //! corner at the backoff's deepest level, where Ki is 0.42 of its set value). A share
 //! of the integrator that is proportional to the speed belongs to the feed-forward.
 //!
-//! While the axis moves — |ff| ≥ ff_min — each tick moves 2^−n of the integrator's
-//! content into the trim d of the feed-forward's direction, without a bump:
+//! While the axis moves — |ff| ≥ ff_min — each tick moves a share of the integrator's
+//! content, in proportion to the speed, into the trim d of the feed-forward's
+//! direction, without a bump:
 //!
 //! ```text
 //! ff'  = ff·(1 + d±)              LSB: the law's feed-forward, d± of ff's direction
-//! ΔI   = I·2^−n                   τ = 2^n·T ≈ ff_trim_tau_s: I empties with τ
-//! d±  ← clamp(d± + ΔI/ff, −0.5, +1)      the ratio 1 + d± within 0.5 … 2
+//! Δd±  = sign(ff)·I·2^−n / ff_ref        ff_ref = 2^round(log2(clamp/4)) LSB (512 of 2 047)
+//! d±  ← clamp(d± + Δd±, −0.5, +1)        the ratio 1 + d± within 0.5 … 2
 //! I   ← I − (d±_new − d±_old)·ff  what the trim took: ff' + I is unchanged
 //! ```
 //!
-//! (ff the untrimmed feed-forward kv±·v + ka·a.) The integrator keeps what does not
+//! (ff the untrimmed feed-forward kv±·v + ka·a.) The integrator so empties with
+//! τ·ff_ref/|ff| (τ = 2^n·T ≈ `ff_trim_tau_s`): with τ at a quarter of the valve's
+//! range, faster above it, slower below — least where a constant is most of what the
+//! integrator holds. Every step is a shift and one product (a division by ff cost ≈ 150
+//! instructions a tick on the Cortex-M4: `bench-m4`, twentieth session). The integrator keeps what does not
 //! scale with speed — a valve null offset, a load, a ratio beyond the clamp: below
 //! ff_min = 1/64 of the valve's clamp (32 LSB of 2 047) the axis is taken to be at rest
 //! and nothing moves. The transfer is no feedback of its own: the loop's gains and
@@ -53,7 +58,7 @@ pub enum FfTrimError {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FfTrimCoeffs {
-    /// n: the integrator moves by 2^−n per tick (0: off).
+    /// n + log2(ff_ref in `I16F16` raw): Δd (Q30) = I·2^30 >> this (0: off).
     shift: u8,
     /// ff_min, `I16F16` LSB raw: below it the axis is taken to be at rest.
     ff_min: i32,
@@ -85,9 +90,13 @@ impl FfTrimCoeffs {
         if ticks < 2.0 {
             return Err(FfTrimError::Range);
         }
+        // 2 … 2·10^7 ticks: n = 1 … 24 (τ within 0.71 … 1.41 of the set value).
+        let n = libm::round(libm::log2(ticks)).clamp(1.0, 30.0) as u8;
+        // ff_ref = 2^round(log2(clamp/4)) LSB, in Q16: 2^14 … 2^25 raw for clamp 1 … 2 047.
+        let ff_ref = libm::round(libm::log2(f64::from(clamp_lsb.max(1)) / 4.0)).max(-2.0);
         Ok(Self {
-            // 2 … 2·10^7 ticks: n = 1 … 24 (τ within 0.71 … 1.41 of the set value).
-            shift: libm::round(libm::log2(ticks)).clamp(1.0, 30.0) as u8,
+            // n + 16 + log2(ff_ref): 15 … 50, below 64.
+            shift: n.saturating_add((16.0 + ff_ref) as u8),
             // ≤ 2 047 LSB / 64 in Q16: below 2^22.
             ff_min: i32::from(clamp_lsb).wrapping_shl(10),
         })
@@ -139,13 +148,9 @@ impl FfTrimState {
         let Some(d) = self.d_q30.get_mut(usize::from(ff > 0)) else {
             return 0;
         };
-        let moved = integ.wrapping_shr(u32::from(c.shift));
-        // Δd = moved / ff in Q30: |moved·2^30| < 2^61 and |ff| ≥ 1, so the quotient is
-        // below 2^61 (no i64::MIN / −1).
-        let dd = i64::from(moved)
-            .wrapping_shl(30)
-            .checked_div(i64::from(ff))
-            .unwrap_or(0);
+        // Δd = I·2^−n / ff_ref in Q30: |I·2^30| < 2^61, shifted right by 15 … 50.
+        let dd = i64::from(integ).wrapping_shl(30) >> c.shift;
+        let dd = if ff > 0 { dd } else { dd.wrapping_neg() };
         let new = i64::from(*d)
             .saturating_add(dd)
             .clamp(i64::from(D_MIN), i64::from(D_MAX)) as i32;

@@ -88,7 +88,12 @@ impl PosState {
     /// Hands `took` (`I16F16` LSB raw) of the integrator over to the feed-forward trim
     /// ([`super::ff_trim`]): the integrator gives it up.
     #[inline(always)]
-    pub(crate) fn offload_to_trim(&mut self, trim: &mut super::ff_trim::FfTrimState, c: &super::ff_trim::FfTrimCoeffs, ff: i32) {
+    pub(crate) fn offload_to_trim(
+        &mut self,
+        trim: &mut super::ff_trim::FfTrimState,
+        c: &super::ff_trim::FfTrimCoeffs,
+        ff: i32,
+    ) {
         let took = trim.offload(c, ff, self.integ);
         self.integ = self.integ.saturating_sub(took);
     }

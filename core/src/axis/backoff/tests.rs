@@ -154,6 +154,41 @@ fn a_decaying_oscillation_after_a_backoff_takes_no_further_level() {
     }
 }
 
+/// An oscillation whose settling after the first cut happened to see a beat (the
+/// second half small: no growth there) and that then grows again at the new gain by
+/// 15 % a cycle: the growth watch takes the next level on its third same-side
+/// half-cycle beyond ±4 µm, each 1/16 above the last (0.52 s); without the watch it
+/// took no level by 0.6 s (measured: it must first outgrow the raised band, 1.25 × 9 µm
+/// decaying with τ = 0.5 s, four times). A steady oscillation after the
+/// settling (peaks within 1/16) takes no level from the watch.
+#[test]
+fn an_oscillation_growing_after_the_settling_takes_the_next_level_early() {
+    let c = BackoffCoeffs::build(4.0, 1000).unwrap();
+    let w = 2.0 * core::f64::consts::PI * 25.0;
+    let shape = |t: f64, grow: bool| {
+        let a = if t < 0.202 {
+            (1.0 + 10.0 * t).powi(2)
+        } else if t < 0.252 {
+            9.8
+        } else if t < 0.302 {
+            2.0
+        } else if grow {
+            3.0 * ((t - 0.302) / 0.286).exp()
+        } else {
+            6.0
+        };
+        a * (w * t).sin()
+    };
+    let mut st = BackoffState::RESET;
+    let hits = run(&c, &mut st, 600, |t| shape(t, true));
+    assert_eq!(hits.len(), 2, "{hits:?}");
+    assert_eq!(hits[0], 202);
+    assert!((440..=530).contains(&hits[1]), "{hits:?}");
+    let mut st = BackoffState::RESET;
+    let hits = run(&c, &mut st, 700, |t| shape(t, false));
+    assert_eq!(hits, [202]);
+}
+
 /// What a following axis shows when nothing oscillates: a table corner's slow swing of
 /// 50 µm, a 1 Hz tracking ripple of ±20 µm, the slave encoder's ±1 µm count jitter and a
 /// single sharp step of 30 µm (a load bump). None backs off.

@@ -20,14 +20,14 @@ fn off_at_zero_and_refuses_a_bad_tau() {
     );
     let c = FfTrimCoeffs::build(1.0, 1000, 2047).unwrap();
     assert!(c.is_on());
-    // 1 000 ticks → 2^10; ff_min 2 047/64 LSB.
-    assert_eq!((c.shift, c.ff_min), (10, 2047 << 10));
+    // 1 000 ticks → n = 10; ff_ref 2^9 LSB = 2^25 raw; ff_min 2 047/64 LSB.
+    assert_eq!((c.shift, c.ff_min), (35, 2047 << 10));
 }
 
 /// The loop's view: whatever the trimmed feed-forward misses, the integrator holds
 /// (here at once). A valve 27 % faster than calibrated needs 1/1.27 of the
-/// feed-forward; after 5 τ the trim holds it within 1 % and the integrator nearly
-/// nothing, and the command never jumps on the way.
+/// feed-forward; after 5 τ·ff_ref/|ff| the trim holds it within 1 % and the
+/// integrator nearly nothing, and the command never jumps on the way.
 #[test]
 fn learns_the_valve_ratio_per_direction_without_a_bump() {
     let c = FfTrimCoeffs::build(0.5, 1000, 2047).unwrap();
@@ -36,7 +36,7 @@ fn learns_the_valve_ratio_per_direction_without_a_bump() {
         let ff = ff_lsb * LSB;
         let need = (f64::from(ff) * ratio) as i32;
         let mut integ = need - st.apply(ff);
-        for _ in 0..2500 {
+        for _ in 0..5000 {
             let before = st.apply(ff) + integ;
             integ -= st.offload(&c, ff, integ);
             let after = st.apply(ff) + integ;
