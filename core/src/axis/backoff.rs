@@ -43,14 +43,20 @@
 //!
 //! After the settling, while the raised band has not decayed back to b, a **growth
 //! watch** runs beside the count: each half-cycle beyond ±b ends when y passes b on the
-//! other side, and three in a row on one side, each 1/16 above the last, grow at this
-//! gain — the next level at once. It catches an oscillation whose settling happened to
-//! see a beat (the cut shifts its phase: the second half small, no growth there) and
-//! that then grows back from below the raised band: on the same corner the second level
-//! came at 0.37 s instead of 0.45 s, and the ringing that the oil column's own damping
-//! must then decay started from ≈ 90 instead of ≈ 125 µm (30.7 → 16.8 µm at 1.5 s, where
-//! the error is first counted). A decaying oscillation's peaks fall and a steady one's
-//! stay within 1/16 (the band's decay takes that one); a tracking swing is one
+//! other side; the first after the settling is not judged (partly seen), each side's
+//! first whole one is the reference, and three after it in a row on one side, each 1/16
+//! above the last, grow at this gain — the next level at once. It catches an
+//! oscillation whose settling happened to see a beat (the cut shifts its phase: the
+//! second half small, no growth there) and that then grows back from below the raised
+//! band: on the same corner, with the feed-forward trim, the levels came at 0.17 / 0.43
+//! / 0.53 / 0.86 s instead of 0.17 / 0.45 / 0.55 / 0.88 s, and the ringing the oil
+//! column's own damping must then decay started from ≈ 119 instead of ≈ 128 µm: 30.0 →
+//! 25.6 µm at 1.5 s, where the error is first counted (`host-sim run` on that machine,
+//! `--csv`). Two tones beating rise on one side for half their beat period (2½ periods
+//! at 25 and 30 Hz): not enough (a test; a first version that judged the partly seen
+//! half-cycle and counted the reference took the review's beating decay three levels
+//! down). A decaying oscillation's peaks fall and a steady one's stay within 1/16 (the
+//! band's decay takes that one); a tracking swing is one
 //! half-cycle. The level is kept through restarts, cleared faults and new runs, and
 //! through a rebuild of the law that keeps the axis' coefficients (on a board: a new
 //! table, a board-wide or another axis' setting —
@@ -192,6 +198,8 @@ pub struct BackoffState {
     hc_last: [i32; 2],
     /// How many half-cycles in a row on each side outgrew the one before by 1/16.
     hc_grew: [u8; 2],
+    /// Whether the first half-cycle after the settling has ended (it is not judged).
+    hc_whole: bool,
 }
 
 impl BackoffState {
@@ -209,6 +217,7 @@ impl BackoffState {
         hc_peak: 0,
         hc_last: [0; 2],
         hc_grew: [0; 2],
+        hc_whole: false,
     };
 
     /// Forgets the detector's history, keeping the level (a restart, a cleared fault).
@@ -343,10 +352,12 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
 
 /// The growth watch while the band is raised after a cut: each half-cycle beyond ±b
 /// ends when y passes b on the other side; its peak is compared with the last one on
-/// the same side. Three in a row on one side, each 1/16 above the last (counting the
-/// first against none), grow at this gain: `true`. A decaying oscillation's peaks fall,
-/// a steady one's stay within 1/16 (the band's decay takes it), a tracking swing is one
-/// half-cycle. Sets `peak` to the grown half-cycle's when it returns `true`.
+/// the same side. The first half-cycle after the settling is not judged (partly seen),
+/// each side's first whole one is the reference, and three after it in a row, each 1/16
+/// above the last, grow at this gain: `true` (four whole half-cycles on one side, 3½
+/// periods: two tones beating rise for half their beat period, 2½ periods at 25 and
+/// 30 Hz, and do not qualify). A decaying oscillation's peaks fall, a steady one's stay
+/// within 1/16 (the band's decay takes it), a tracking swing is one half-cycle. Sets `peak` to the grown half-cycle's when it returns `true`.
 #[inline(always)]
 fn grows(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
     let side: i8 = if st.y > c.band {
@@ -364,14 +375,21 @@ fn grows(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
     let done = (st.hc_side, st.hc_peak);
     st.hc_side = side;
     st.hc_peak = a;
+    if done.0 == 0 {
+        return false;
+    }
+    if !st.hc_whole {
+        // The first half-cycle after the settling was partly inside it: not a peak.
+        st.hc_whole = true;
+        return false;
+    }
     let i = usize::from(done.0 > 0);
     let (Some(last), Some(grew)) = (st.hc_last.get_mut(i), st.hc_grew.get_mut(i)) else {
         return false;
     };
-    if done.0 == 0 {
-        return false;
-    }
-    *grew = if done.1 > last.saturating_add(*last >> 4) {
+    // The side's first whole half-cycle is the reference; each later one that outgrows
+    // the last by 1/16 counts, any other starts the count again.
+    *grew = if *last != 0 && done.1 > last.saturating_add(*last >> 4) {
         grew.saturating_add(1)
     } else {
         0
@@ -399,6 +417,7 @@ fn cut(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
     st.hc_peak = 0;
     st.hc_last = [0; 2];
     st.hc_grew = [0; 2];
+    st.hc_whole = false;
     true
 }
 

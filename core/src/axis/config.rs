@@ -78,9 +78,11 @@ pub struct PositionGains {
     /// acts while following (jog and test moves keep the set gain).
     pub osc_band_um: f32,
     /// Feed-forward trim ([`super::ff_trim`]): the time constant, s, with which the
-    /// integrator's content moves into a per-direction ratio of the velocity
-    /// feed-forward while the axis moves (the valve's real flow gain, learned; 0.01 …
-    /// 1 000 and at least two control periods; 0 = off, the default). Feedforward axes
+    /// integrator's content moves into a ratio of the feed-forward kv±·v + ka·a, one per
+    /// sign of the feed-forward, while the axis moves (the valve's real flow gain,
+    /// learned; a constant the integrator holds while moving one way — an uncalibrated
+    /// null, a steady load — is taken for a ratio too; 0.01 …
+    /// 1 000 and at least 16 control periods; 0 = off, the default). Feedforward axes
     /// only — on a Paper or NextNode axis it is refused
     /// (`AxisConfigError::FfTrim(FfTrimError::Law)`).
     pub ff_trim_tau_s: f32,
@@ -192,9 +194,10 @@ pub struct AxisCoeffs {
     pub backoff: BackoffCoeffs,
     /// Feed-forward trim learned from the integrator.
     pub ff_trim: FfTrimCoeffs,
-    /// Whether any of the active damping, the gain backoff or the trim is on (the
-    /// Feedforward law then takes its out-of-line path: one test for an axis without).
-    pub extras: bool,
+    /// Whether any of the active damping, the gain backoff or the trim is on (set by
+    /// [`AxisConfig::build`]; the Feedforward law tests only this for an axis without
+    /// them, then takes the backoff's and trim's out-of-line path or the damped one).
+    pub(crate) extras: bool,
 }
 
 fn check(x: f32, lo: f32, hi: f32, e: AxisConfigError) -> Result<f32, AxisConfigError> {

@@ -6,9 +6,11 @@
 //! corner: √(180/160)·1.2 = 1.27) moves the piston 27 % faster than the feed-forward
 //! asks; the integrator holds the difference, −21 % of the feed-forward. That is right
 //! at one speed only: when the master slows to its stop the feed-forward falls and the
-//! integrator must unwind at Ki's rate, so the error grows by its lag (30.7 µm on that
-//! corner at the backoff's deepest level, where Ki is 0.42 of its set value). A share
-//! of the integrator that is proportional to the speed belongs to the feed-forward.
+//! integrator must unwind at Ki's rate, so the error grows by its lag (on the mass ×2 /
+//! bulk ×0.5 corner at the backoff's deepest level, where Ki is 0.42 of its set value,
+//! 30.7 µm at the stop, nineteenth session; with the trim 7.9 µm there).
+//! A share of the integrator that is proportional to the speed belongs to the
+//! feed-forward.
 //!
 //! While the axis moves — |ff| ≥ ff_min — each tick moves a share of the integrator's
 //! content, in proportion to the speed, into the trim d of the feed-forward's
@@ -22,17 +24,27 @@
 //! ```
 //!
 //! (ff the untrimmed feed-forward kv±·v + ka·a.) The integrator so empties with
-//! τ·ff_ref/|ff| (τ = 2^n·T ≈ `ff_trim_tau_s`): with τ at a quarter of the valve's
-//! range, faster above it, slower below — least where a constant is most of what the
-//! integrator holds. Every step is a shift and one product (a division by ff cost ≈ 150
-//! instructions a tick on the Cortex-M4: `bench-m4`, twentieth session). The integrator keeps what does not
-//! scale with speed — a valve null offset, a load, a ratio beyond the clamp: below
-//! ff_min = 1/64 of the valve's clamp (32 LSB of 2 047) the axis is taken to be at rest
-//! and nothing moves. The transfer is no feedback of its own: the loop's gains and
+//! τ·ff_ref/|ff| (τ = 2^n·T ≈ `ff_trim_tau_s`): with τ at |ff| = ff_ref, faster above
+//! it, slower below — least where a constant is most of what the
+//! integrator holds. Every step is a shift and one product (a division by ff cost 157
+//! instructions a tick on the Cortex-M4: docs/bench.md, twentieth session).
+//!
+//! The integrator keeps what does not scale with speed — a valve null offset, a load, a
+//! ratio beyond the clamp. Below ff_min = 1/64 of the valve's clamp (32 LSB of 2 047)
+//! the axis is taken to be at rest, and above the clamp (ff_max) the output saturates:
+//! there nothing moves. With τ ≥ 16 periods a tick moves at most 5.7/16 of the
+//! integrator (|ff|/ff_ref ≤ 4√2), so the transfer never overshoots. The transfer is no feedback of its own: the loop's gains and
 //! margins are unchanged, only where the integrator's content lives. The trims are
 //! kept through restarts and cleared faults (what the axis learned about its valve
 //! stays true) and through a rebuild of the law that keeps the axis' coefficients, and
-//! return to 0 when the axis' own settings change (as the gain backoff's level).
+//! return to 0 when the axis' coefficients change — its gains, valve calibration,
+//! damping or the control period; not its limits or areas with the damping off (as the
+//! gain backoff's level).
+//!
+//! It learns from whatever the integrator holds while moving, also a start-up or
+//! acceleration lag (the trim's time constant averages those) and, while the integrator
+//! is at its clamp, content the clamp would have refused: the trim's own clamp (ratio
+//! 0.5 … 2) bounds the integral action it can take on.
 //!
 //! What it cannot tell apart: a constant the integrator holds *while moving* in one
 //! direction (an uncalibrated valve null, a steady load) is taken for a ratio at the
@@ -47,7 +59,7 @@
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FfTrimError {
-    /// τ is not finite, not 0 and outside 0.01 … 1 000 s, or shorter than two periods.
+    /// τ is not finite, not 0 and outside 0.01 … 1 000 s, or shorter than 16 periods.
     Range,
     /// A trim on an axis whose law is not `Feedforward` (the baselines have no or the
     /// published feed-forward).
@@ -62,6 +74,10 @@ pub struct FfTrimCoeffs {
     shift: u8,
     /// ff_min, `I16F16` LSB raw: below it the axis is taken to be at rest.
     ff_min: i32,
+    /// ff_max, `I16F16` LSB raw: the valve's clamp — beyond it the output saturates and
+    /// nothing is learnt; it also bounds a tick's transfer to |ff|/ff_ref·2^−n ≤ 5.7/16
+    /// of the integrator (no overshoot).
+    ff_max: i32,
 }
 
 /// The trim's lower bound, Q30: the ratio 0.5.
@@ -74,10 +90,11 @@ impl FfTrimCoeffs {
     pub const OFF: Self = Self {
         shift: 0,
         ff_min: 0,
+        ff_max: 0,
     };
 
     /// The trim with time constant `tau_s` (0 = off; else 0.01 … 1 000 s and at least
-    /// two control periods) at `period_us`, for a valve clamped at `clamp_lsb` (1 … 2 047;
+    /// 16 control periods) at `period_us`, for a valve clamped at `clamp_lsb` (1 … 2 047;
     /// ff_min is 1/64 of it).
     pub fn build(tau_s: f32, period_us: u32, clamp_lsb: u16) -> Result<Self, FfTrimError> {
         if !(tau_s.is_finite() && (tau_s == 0.0 || (0.01..=1000.0).contains(&tau_s))) {
@@ -87,10 +104,10 @@ impl FfTrimCoeffs {
             return Ok(Self::OFF);
         }
         let ticks = f64::from(tau_s) * 1e6 / f64::from(period_us.max(1));
-        if ticks < 2.0 {
+        if ticks < 16.0 {
             return Err(FfTrimError::Range);
         }
-        // 2 … 2·10^7 ticks: n = 1 … 24 (τ within 0.71 … 1.41 of the set value).
+        // 16 … 2·10^7 ticks: n = 4 … 24 (τ within 0.71 … 1.41 of the set value).
         let n = libm::round(libm::log2(ticks)).clamp(1.0, 30.0) as u8;
         // ff_ref = 2^round(log2(clamp/4)) LSB, in Q16: 2^14 … 2^25 raw for clamp 1 … 2 047.
         let ff_ref = libm::round(libm::log2(f64::from(clamp_lsb.max(1)) / 4.0)).max(-2.0);
@@ -99,6 +116,8 @@ impl FfTrimCoeffs {
             shift: n.saturating_add((16.0 + ff_ref) as u8),
             // ≤ 2 047 LSB / 64 in Q16: below 2^22.
             ff_min: i32::from(clamp_lsb).wrapping_shl(10),
+            // ≤ 2 047 · 2^16: below 2^27.
+            ff_max: i32::from(clamp_lsb).wrapping_shl(16),
         })
     }
 
@@ -139,10 +158,12 @@ impl FfTrimState {
 
     /// One tick's transfer from the integrator `integ` (`I16F16` LSB raw) into the trim
     /// of the direction of `ff` (the untrimmed feed-forward, `I16F16` LSB raw); returns
-    /// what the integrator gives up (the caller subtracts it). 0 below ff_min.
+    /// what the integrator gives up (the caller subtracts it). 0 below ff_min and above
+    /// ff_max.
     #[inline(always)]
     pub fn offload(&mut self, c: &FfTrimCoeffs, ff: i32, integ: i32) -> i32 {
-        if ff.saturating_abs() < c.ff_min.max(1) {
+        let a = ff.saturating_abs();
+        if !c.is_on() || a < c.ff_min.max(1) || a > c.ff_max {
             return 0;
         }
         let Some(d) = self.d_q30.get_mut(usize::from(ff > 0)) else {

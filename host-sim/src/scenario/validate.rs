@@ -369,7 +369,7 @@ fn axis_error_key(e: AxisConfigError) -> &'static str {
             "osc_band_um (gain backoff: controller feedforward only)"
         }
         AxisConfigError::FfTrim(FfTrimError::Range) => {
-            "ff_trim_tau_s (0, or 0.01 … 1000 s and at least two periods)"
+            "ff_trim_tau_s (0, or 0.01 … 1000 s and at least 16 periods)"
         }
         AxisConfigError::FfTrim(FfTrimError::Law) => {
             "ff_trim_tau_s (feed-forward trim: controller feedforward only)"

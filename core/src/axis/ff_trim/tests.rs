@@ -13,15 +13,15 @@ fn off_at_zero_and_refuses_a_bad_tau() {
             "{bad}"
         );
     }
-    // Shorter than two periods.
+    // Shorter than 16 periods.
     assert_eq!(
-        FfTrimCoeffs::build(0.015, 10_000, 2047),
+        FfTrimCoeffs::build(0.015, 1000, 2047),
         Err(FfTrimError::Range)
     );
     let c = FfTrimCoeffs::build(1.0, 1000, 2047).unwrap();
     assert!(c.is_on());
     // 1 000 ticks → n = 10; ff_ref 2^9 LSB = 2^25 raw; ff_min 2 047/64 LSB.
-    assert_eq!((c.shift, c.ff_min), (35, 2047 << 10));
+    assert_eq!((c.shift, c.ff_min, c.ff_max), (35, 2047 << 10, 2047 << 16));
 }
 
 /// The loop's view: whatever the trimmed feed-forward misses, the integrator holds
@@ -54,13 +54,13 @@ fn learns_the_valve_ratio_per_direction_without_a_bump() {
     assert!((pos - 1.0 / 1.27).abs() < 0.01 && (neg - 1.2).abs() < 0.015);
 }
 
-/// At rest (below 1/64 of the clamp) nothing moves: a null offset held there stays in
-/// the integrator. Beyond the clamp (ratio 0.5 … 2) the rest stays in the integrator.
+/// At rest (below 1/64 of the clamp) and beyond the clamp nothing moves: a null offset
+/// held at rest stays in the integrator. Beyond the clamp (ratio 0.5 … 2) the rest stays in the integrator.
 #[test]
 fn nothing_moves_at_rest_and_the_ratio_is_clamped() {
-    let c = FfTrimCoeffs::build(0.01, 1000, 2047).unwrap();
+    let c = FfTrimCoeffs::build(0.02, 1000, 2047).unwrap();
     let mut st = FfTrimState::RESET;
-    for ff in [0, 31 * LSB, -31 * LSB] {
+    for ff in [0, 31 * LSB, -31 * LSB, 2048 * LSB, -2048 * LSB, i32::MIN] {
         assert_eq!(st.offload(&c, ff, 50 * LSB), 0);
     }
     assert_eq!(st, FfTrimState::RESET);
@@ -83,7 +83,7 @@ proptest::proptest! {
     /// rounding whatever the values.
     #[test]
     fn never_panics_and_keeps_the_command(
-        tau in 0.01f32..100.0,
+        tau in 0.016f32..100.0,
         clamp in 1u16..=2047,
         steps in proptest::collection::vec((proptest::num::i32::ANY, -(1i32 << 27)..(1 << 27)), 1..50),
     ) {
