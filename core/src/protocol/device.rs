@@ -410,19 +410,23 @@ where
         Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {
-        // The gain backoff's levels come from the law (not kept per tick in the status),
-        // read in the same critical section as the status: one tick's picture.
+        // The gain backoff's levels and the feed-forward trims come from the law (not
+        // kept per tick in the status), read in the same critical section as the
+        // status: one tick's picture.
         let read = self.glue.read(|rt| {
-            let mut levels = [0u8; S];
-            for (i, l) in levels.iter_mut().enumerate() {
-                *l = rt.law().map_or(0, |law| law.backoff_level(i));
+            let mut learned = [(0u8, [65_536i32; 2]); S];
+            for (i, l) in learned.iter_mut().enumerate() {
+                if let Some(law) = rt.law() {
+                    *l = (law.backoff_level(i), law.ff_trim_q16(i));
+                }
             }
-            (*rt.status(), levels)
+            (*rt.status(), learned)
         });
-        if let Some((st, levels)) = read {
+        if let Some((st, learned)) = read {
             fill_status::<S, P>(&st, |c| self.glue.cycles_to_ns(c), out);
-            for (a, l) in out.axes.iter_mut().zip(levels) {
-                a.backoff = l;
+            for (a, (level, trim)) in out.axes.iter_mut().zip(learned) {
+                a.backoff = level;
+                a.ff_trim = trim.map(ff_trim_e4);
             }
         }
     }
@@ -485,6 +489,13 @@ where
             out.data.truncate(n);
         });
     }
+}
+
+/// A trim ratio, Q16 (65 536 = 1), as Status' ratio − 1 in 1/10 000: (r − 65 536) ·
+/// 10 000 / 65 536, rounded down; the ratio 0.5 … 2 gives −5 000 … +10 000.
+fn ff_trim_e4(r: i32) -> i16 {
+    let x = i64::from(r).saturating_sub(65_536).saturating_mul(10_000) >> 16;
+    x.clamp(i64::from(i16::MIN), i64::from(i16::MAX)) as i16
 }
 
 #[cfg(test)]
@@ -616,6 +627,19 @@ mod tests {
     /// coefficients (a new table, a board-wide setting) and is gone after one that
     /// changes them (a gain): what the axis learned about the machine is kept until the
     /// engineer changes the axis.
+    /// Status' trim: the ratio − 1 in 1/10 000, over the trim's whole range (0.5 … 2),
+    /// rounded down; a ratio outside it saturates instead of wrapping.
+    #[test]
+    fn status_carries_the_trim_in_ten_thousandths() {
+        assert_eq!(super::ff_trim_e4(65_536), 0);
+        assert_eq!(super::ff_trim_e4(32_768), -5_000);
+        assert_eq!(super::ff_trim_e4(131_072), 10_000);
+        // 0.78 (51 118 in Q16): −2 200 (one below for the rounding down).
+        assert!((-2_201..=-2_199).contains(&super::ff_trim_e4(51_118)));
+        assert_eq!(super::ff_trim_e4(i32::MAX), i16::MAX);
+        assert_eq!(super::ff_trim_e4(i32::MIN), i16::MIN);
+    }
+
     #[test]
     fn a_rebuilt_law_keeps_the_backoff_level_unless_the_axis_changed() {
         use crate::follower::FollowerInputs;

@@ -58,6 +58,7 @@ fn status() -> StatusMsg {
         reference: 2,
         manual: 0,
         backoff: 1,
+        ff_trim: [-2_150, 300],
     });
     s
 }

@@ -750,6 +750,10 @@ pub struct AxisStatus {
     /// proportional gain at 0.36, 0.27, 0.20, 0.15 of it and the integral gain at 1,
     /// 0.75, 0.56, 0.42 (an oscillation was seen).
     pub backoff: u8,
+    /// The feed-forward trim's learned ratio − 1 (`axis::ff_trim`) for negative and
+    /// positive feed-forward, in 1/10 000 (−5 000 … +10 000: the ratio 0.5 … 2; 0 the
+    /// calibrated gain or no trim).
+    pub ff_trim: [i16; 2],
 }
 
 impl From<MotionLimitsMsg> for crate::runtime::MotionLimits {
@@ -1141,6 +1145,7 @@ mod tests {
                 reference: 2,
                 manual: 1,
                 backoff: 2,
+                ff_trim: [-2_150, 300],
             })
             .unwrap();
         let mut tm = Telemetry {

@@ -191,6 +191,7 @@ pub fn fill_status<const S: usize, const P: usize>(
             },
             manual: m.code(),
             backoff: 0,
+            ff_trim: [0; 2],
         });
     }
 }

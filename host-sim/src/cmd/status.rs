@@ -95,6 +95,9 @@ pub struct AxisReport {
     /// The gain backoff's level (core `axis::backoff`): 0 the set gain; 1 … 4 the
     /// proportional gain cut to 0.36, 0.27, 0.20, 0.15 of it after an oscillation.
     pub backoff: u8,
+    /// The feed-forward trim's learned ratios (core `axis::ff_trim`) for retracting and
+    /// extending feed-forward: 1 the calibrated valve gain.
+    pub ff_trim: [f64; 2],
 }
 
 /// The status in engineering units (the `--json` schema).
@@ -296,6 +299,7 @@ pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: 
                 }
                 .to_string(),
                 backoff: a.backoff,
+                ff_trim: a.ff_trim.map(|t| 1.0 + f64::from(t) * 1e-4),
             })
             .collect(),
         link: LinkReport {
@@ -493,7 +497,7 @@ pub fn text(r: &Report) -> String {
     for (i, a) in r.axes.iter().enumerate() {
         let _ = writeln!(
             o,
-            "axis {i}       pos {:.3} mm, target {:.3} mm, error {:.3} mm, dac {}, {}{}{}",
+            "axis {i}       pos {:.3} mm, target {:.3} mm, error {:.3} mm, dac {}, {}{}{}{}",
             a.pos_mm,
             a.target_mm,
             a.error_mm,
@@ -509,6 +513,14 @@ pub fn text(r: &Report) -> String {
                 l => format!(
                     ", gain backed off to level {l} (an oscillation was seen: the set Kp is too high for this machine)"
                 ),
+            },
+            if a.ff_trim == [1.0; 2] {
+                String::new()
+            } else {
+                format!(
+                    ", feed-forward trimmed ×{:.3} retracting / ×{:.3} extending (the valve's flow gain, learned)",
+                    a.ff_trim[0], a.ff_trim[1]
+                )
             }
         );
     }
@@ -569,6 +581,7 @@ mod tests {
             reference: 1,
             manual: 0,
             backoff: 0,
+            ff_trim: [0; 2],
         });
         let r = report_with(&s, &FaultsMsg::default(), 1000, 0.0);
         assert_eq!(r.fault_name.as_deref(), Some("following_error"));
