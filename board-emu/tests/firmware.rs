@@ -518,6 +518,38 @@ fn jog_move_deadman_and_approach_on_the_real_firmware() {
     assert_stack(&s);
 }
 
+/// The real firmware follows `scn`'s table on its plant for the scenario's duration
+/// after boot, upload, activation and the slave-0 settings `params` set over the link:
+/// the Status then and slave 0's error statistics (the stack checked).
+fn follow_on_board(
+    scn: &host_sim::scenario::Scenario,
+    params: &[(hydra_core::protocol::settings::ParamId, f32)],
+) -> (
+    hydra_core::protocol::msg::StatusMsg,
+    host_sim::sim::ErrorStat,
+) {
+    let mut s =
+        board_emu::session::Session::new(image(), board_emu::flash::Flash::new(), scn, table(scn))
+            .expect("session");
+    s.m.run_for(0.02).expect("boot");
+    s.upload_activate(11).expect("upload and activate");
+    for &(id, value) in params {
+        let set = Request::SetParam {
+            axis: 0,
+            param: id as u8,
+            value,
+        };
+        s.host.ack(&mut s.m, &set).expect("SetParam");
+    }
+    s.reference_and_start().expect("start");
+    s.m.run_for(scn.duration_s().expect("duration"))
+        .expect("follow");
+    let st = s.status().expect("status");
+    assert_stack(&s);
+    let e = s.plant.borrow().errors[0];
+    (st, e)
+}
+
 /// Active damping set over the link runs on the real firmware, where it matters: the
 /// reference machine with aerated oil (bulk modulus ×0.5). The board follows the table
 /// with ΔP feedback of `dp_gain` LSB/kN on slave 0 (the board's profile areas, the
@@ -531,33 +563,13 @@ fn soft_machine_run(dp_gain: f32, osc_band_um: f32) -> (u16, f64, f64, u8) {
     for a in &mut scn.axes {
         a.cylinder.bulk_modulus_pa *= 0.5;
     }
-    let mut s = board_emu::session::Session::new(
-        image(),
-        board_emu::flash::Flash::new(),
+    let (st, e) = follow_on_board(
         &scn,
-        table(&scn),
-    )
-    .expect("session");
-    s.m.run_for(0.02).expect("boot");
-    s.upload_activate(11).expect("upload and activate");
-    let set = Request::SetParam {
-        axis: 0,
-        param: ParamId::DpGainLsbPerKn as u8,
-        value: dp_gain,
-    };
-    s.host.ack(&mut s.m, &set).expect("SetParam dp_gain");
-    let band = Request::SetParam {
-        axis: 0,
-        param: ParamId::OscBandUm as u8,
-        value: osc_band_um,
-    };
-    s.host.ack(&mut s.m, &band).expect("SetParam osc_band_um");
-    s.reference_and_start().expect("start");
-    s.m.run_for(scn.duration_s().expect("duration"))
-        .expect("follow");
-    let st = s.status().expect("status");
-    assert_stack(&s);
-    let e = s.plant.borrow().errors[0];
+        &[
+            (ParamId::DpGainLsbPerKn, dp_gain),
+            (ParamId::OscBandUm, osc_band_um),
+        ],
+    );
     let backoff = st.axes.first().map_or(0, |a| a.backoff);
     eprintln!(
         "bulk ×0.5, dp_gain {dp_gain} LSB/kN, osc_band {osc_band_um} µm: fault {}, board {:.2} / {:.2} µm, backoff level {backoff}",
@@ -617,21 +629,7 @@ fn the_shipped_ff_trim_learns_the_valve_on_the_real_firmware() {
     for a in &mut scn.axes {
         a.valve.rated_flow_l_per_min *= 1.2;
     }
-    let mut s = board_emu::session::Session::new(
-        image(),
-        board_emu::flash::Flash::new(),
-        &scn,
-        table(&scn),
-    )
-    .expect("session");
-    s.m.run_for(0.02).expect("boot");
-    s.upload_activate(11).expect("upload and activate");
-    s.reference_and_start().expect("start");
-    s.m.run_for(scn.duration_s().expect("duration"))
-        .expect("follow");
-    let st = s.status().expect("status");
-    assert_stack(&s);
-    let e = s.plant.borrow().errors[0];
+    let (st, e) = follow_on_board(&scn, &[]);
     let trim = st.axes.first().map_or([0; 2], |a| a.ff_trim);
     eprintln!(
         "flow ×1.2 at 180 bar: fault {}, board {:.2} / {:.2} µm, Status ff_trim {trim:?} (ratio − 1, 1/10 000)",

@@ -450,6 +450,8 @@ pub fn position_gains_with(
     let ki = round2(kp * kp * kvel / 4.0);
     let p = axis.plant(s.supply(), 0.5 * axis.cylinder.stroke_mm * 1e-3);
     let ff = controller == Controller::Feedforward;
+    // The feed-forward law at 1 ms carries the shipped gain backoff and trim.
+    let shipped_extras = ff && period_us <= 1000;
     let lag_us =
         2.0 * axis.valve.damping / (2.0 * std::f64::consts::PI * axis.valve.bandwidth_hz) * 1e6;
     Ok((
@@ -476,17 +478,16 @@ pub fn position_gains_with(
             ka_lsb_per_um_s2: 0.0,
             valve_lag_us: lag_us.round() as f32,
             following_error_um: 20_000.0,
-            // The gain backoff (core `axis::backoff`) on the feed-forward law, with the
-            // band measured on the robustness box at 1 ms (README, "Robustness"); not
-            // measured at longer periods, where it stays off.
-            osc_band_um: if ff && period_us <= 1000 {
+            // The gain backoff (core `axis::backoff`) and the feed-forward trim
+            // (`axis::ff_trim`) on the feed-forward law, as measured on the robustness
+            // box at 1 ms (README, "Robustness"); not measured at longer periods, where
+            // they stay off.
+            osc_band_um: if shipped_extras {
                 hydra_core::profile::OSC_BAND_UM
             } else {
                 0.0
             },
-            // The feed-forward trim (core `axis::ff_trim`) likewise: measured on the
-            // robustness box at 1 ms only.
-            ff_trim_tau_s: if ff && period_us <= 1000 {
+            ff_trim_tau_s: if shipped_extras {
                 hydra_core::profile::FF_TRIM_TAU_S
             } else {
                 0.0

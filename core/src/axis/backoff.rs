@@ -50,9 +50,9 @@
 //! second half small, no growth there) and that then grows back from below the raised
 //! band: on the same corner, with the feed-forward trim, the levels came at 0.17 / 0.43
 //! / 0.53 / 0.86 s instead of 0.17 / 0.45 / 0.55 / 0.88 s, and the ringing the oil
-//! column's own damping must then decay started from ≈ 119 instead of ≈ 128 µm: 30.0 →
-//! 25.6 µm at 1.5 s, where the error is first counted (`host-sim run` on that machine,
-//! `--csv`). Two tones beating rise on one side for half their beat period (2½ periods
+//! column's own damping must then decay started from ≈ 119 instead of ≈ 128 µm: 25.6
+//! µm at 1.5 s, where the error is first counted (`host-sim run` on that machine,
+//! `--csv`; 30.0 on a build without the watch, not kept). Two tones beating rise on one side for half their beat period (2½ periods
 //! at 25 and 30 Hz): not enough (a test; a first version that judged the partly seen
 //! half-cycle and counted the reference took the review's beating decay three levels
 //! down). A decaying oscillation's peaks fall and a steady one's stay within 1/16 (the

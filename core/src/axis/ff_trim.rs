@@ -163,7 +163,8 @@ impl FfTrimState {
     #[inline(always)]
     pub fn offload(&mut self, c: &FfTrimCoeffs, ff: i32, integ: i32) -> i32 {
         let a = ff.saturating_abs();
-        if !c.is_on() || a < c.ff_min.max(1) || a > c.ff_max {
+        // Off: ff_max is 0 (and ff_min ≥ 2^10 when on, so ff = 0 never moves).
+        if !c.is_on() || a < c.ff_min || a > c.ff_max {
             return 0;
         }
         let Some(d) = self.d_q30.get_mut(usize::from(ff > 0)) else {

@@ -725,25 +725,11 @@ fn the_gain_backoff_acts_on_feedforward_keeps_its_level_and_leaves_the_baselines
         "a new configuration starts from the set gain"
     );
     // The baselines run as published: a band on a Paper or NextNode axis is refused.
+    refused_on_the_baselines(
+        |g| g.osc_band_um = 4.0,
+        AxisConfigError::OscBand(crate::axis::BandError::Law),
+    );
     for mode in [ControlMode::Paper, ControlMode::NextNode] {
-        let mut a = ff_axis();
-        a.mode = mode;
-        a.gains.osc_band_um = 4.0;
-        let cfg = FollowerConfig {
-            axes: [a],
-            ..FollowerConfig::default()
-        };
-        let e = Follower::new(&cfg, table1(&nodes)).map(|_| ()).unwrap_err();
-        assert!(
-            matches!(
-                e,
-                FollowerError::Axis {
-                    axis: 0,
-                    error: AxisConfigError::OscBand(crate::axis::BandError::Law)
-                }
-            ),
-            "{mode:?}: {e:?}"
-        );
         let (f, _, _) = run(mode, 0.0);
         assert_eq!(f.backoff_level(0), 0, "{mode:?}");
     }
@@ -816,24 +802,33 @@ fn the_ff_trim_learns_the_valve_ratio_and_keeps_it() {
         [65_536; 2],
         "a new configuration starts afresh"
     );
+    refused_on_the_baselines(
+        |g| g.ff_trim_tau_s = 1.0,
+        AxisConfigError::FfTrim(crate::axis::FfTrimError::Law),
+    );
+}
+
+/// A Feedforward-only setting (`set`) on a Paper or NextNode axis is refused with
+/// `want`, naming axis 0: the baselines run as published.
+fn refused_on_the_baselines(set: impl Fn(&mut PositionGains), want: AxisConfigError) {
     for mode in [ControlMode::Paper, ControlMode::NextNode] {
         let mut a = ff_axis();
         a.mode = mode;
-        a.gains.ff_trim_tau_s = 1.0;
+        set(&mut a.gains);
         let cfg = FollowerConfig {
             axes: [a],
             ..FollowerConfig::default()
         };
-        let e = Follower::new(&cfg, table1(&nodes)).map(|_| ()).unwrap_err();
-        assert!(
-            matches!(
-                e,
-                FollowerError::Axis {
-                    axis: 0,
-                    error: AxisConfigError::FfTrim(crate::axis::FfTrimError::Law)
-                }
-            ),
-            "{mode:?}: {e:?}"
+        let e = Follower::new(&cfg, table1(&sine_nodes()))
+            .map(|_| ())
+            .unwrap_err();
+        assert_eq!(
+            e,
+            FollowerError::Axis {
+                axis: 0,
+                error: want
+            },
+            "{mode:?}"
         );
     }
 }
