@@ -55,7 +55,7 @@
 //! (`k_c` the contact stiffness: N/s per LSB of the force plant). The approach gains
 //! are the position rule's `Kp` for the `feedforward` law and `kv = 2047/v_max+`.
 
-use crate::plant::{dac_to_unit, HydraulicAxis};
+use crate::plant::{valve_command, HydraulicAxis};
 use crate::scenario::gains::filter_limit_hz;
 use crate::scenario::{
     AxisCfg, Controller, PositionGains, PredictorCfg, PressGains, Role, Scenario, ScenarioError,
@@ -202,7 +202,7 @@ pub fn step_test(
             ..PosRef::default()
         };
         let u = position_law(&c, &mut st, &r, x);
-        let u_next = dac_to_unit(c.valve.output(u));
+        let u_next = valve_command(c.valve.output(u).get(), true);
         for _ in 0..steps {
             plant.step(u_now, h);
         }

@@ -136,16 +136,6 @@ pub fn xy_axes(origin_m: f64, start_um: [f64; 2]) -> (HydraulicAxis, HydraulicAx
     (ax, ay, supply)
 }
 
-/// The valve command of a signed DAC code (0 = mid-scale, ±2047 = full scale) with the
-/// valve power on; 0 with it off.
-pub fn valve_command(code: i16, enable: bool) -> f64 {
-    if enable {
-        (f64::from(code) / 2047.0).clamp(-1.0, 1.0)
-    } else {
-        0.0
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -162,13 +152,5 @@ mod tests {
         assert_eq!(p.slave_count(2), 0);
         let (pa, pb) = p.slaves[0].pressures_bar();
         assert!(pa > 0.0 && pb > 0.0, "{pa} {pb}");
-    }
-
-    #[test]
-    fn valve_command_is_zero_unpowered_and_clamped() {
-        assert_eq!(valve_command(2047, false), 0.0);
-        assert_eq!(valve_command(-2047, true), -1.0);
-        assert_eq!(valve_command(i16::MAX, true), 1.0);
-        assert!((valve_command(1024, true) - 0.5002).abs() < 1e-3);
     }
 }

@@ -24,8 +24,8 @@
 //! likewise waits for the tick's reply; that tick is the next period of the simulated
 //! timeline, not an extra one (`serve` paces on [`VBoard::ticks`]).
 
-use crate::machine::{valve_command, MachinePlant};
-use crate::plant::EdgeTimer;
+use crate::machine::MachinePlant;
+use crate::plant::{valve_command, EdgeTimer};
 use crate::scenario::Scenario;
 use hydra_core::dac::DacRange;
 use hydra_core::follower::Follower;

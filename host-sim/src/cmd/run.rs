@@ -145,6 +145,7 @@ pub fn to_json(r: &RunReport) -> serde_json::Value {
         "wall_seconds": r.wall_seconds,
         "axes": axes,
         "faults": faults,
+        "valves_null_s": r.valves_null_s,
         "oscillation": osc,
     });
     if !force.is_empty() {
@@ -278,6 +279,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         println!("{}", summary_line(&r));
         for f in &r.faults {
             println!("{}", fault_line(f));
+        }
+        if let (Some(first), Some(t)) = (r.faults.first(), r.valves_null_s) {
+            let ticks = ((t - first.t_s) * 1e6 / f64::from(r.period_us)).round();
+            println!("valves at null from {t:.3} s ({ticks} tick(s) after the first fault)");
         }
     }
     if let (Some(first), false) = (r.faults.first(), args.allow_fault) {

@@ -25,5 +25,5 @@ pub use axis::{HydraulicAxis, Supply};
 pub use cylinder::{Contact, Cylinder};
 pub use edges::EdgeTimer;
 pub use master::{MasterMotion, MasterProfile};
-pub use sensors::{dac_to_unit, Encoder, PressureAdc};
+pub use sensors::{valve_command, Encoder, PressureAdc};
 pub use valve::Valve;

@@ -66,10 +66,17 @@ impl PressureAdc {
     }
 }
 
-/// The normalised valve command of a DAC code, `u = n/2047 ∈ [−1, 1]`.
+/// The normalised valve command of a signed DAC code (0 = mid-scale, ±2047 = full
+/// scale) with the valve power on, `u = n/2047` clamped to [−1, 1]; 0 with it off (the
+/// spool centres). The one conversion from DAC code to valve opening: the simulated
+/// runs, the virtual board and board-emu all drive the plant's valves through it.
 #[inline]
-pub fn dac_to_unit(code: DacCode) -> f64 {
-    f64::from(code.get()) / f64::from(DacCode::MAX)
+pub fn valve_command(code: i16, enable: bool) -> f64 {
+    if enable {
+        (f64::from(code) / f64::from(DacCode::MAX)).clamp(-1.0, 1.0)
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]
@@ -103,8 +110,11 @@ mod tests {
 
     #[test]
     fn dac_maps_to_unit() {
-        assert_eq!(dac_to_unit(DacCode::new_clamped(2047)), 1.0);
-        assert_eq!(dac_to_unit(DacCode::new_clamped(-2047)), -1.0);
-        assert_eq!(dac_to_unit(DacCode::NULL), 0.0);
+        assert_eq!(valve_command(DacCode::new_clamped(2047).get(), true), 1.0);
+        assert_eq!(valve_command(DacCode::new_clamped(-2047).get(), true), -1.0);
+        assert_eq!(valve_command(DacCode::NULL.get(), true), 0.0);
+        assert_eq!(valve_command(2047, false), 0.0);
+        assert_eq!(valve_command(i16::MAX, true), 1.0);
+        assert!((valve_command(1024, true) - 0.5002).abs() < 1e-3);
     }
 }

@@ -166,6 +166,7 @@ impl Default for Scenario {
                 AxisCfg::reference_side_press(),
             ],
             tuning: reference_tuning(),
+            events: super::events::EventsCfg::default(),
             base_dir: PathBuf::from("."),
         }
     }

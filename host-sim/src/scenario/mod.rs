@@ -18,6 +18,7 @@
 //! Nothing here runs the simulator or the tuning procedure.
 
 mod defaults;
+pub mod events;
 pub mod gains;
 mod physics;
 mod validate;
@@ -102,6 +103,8 @@ pub struct Scenario {
     /// share a reference axis' name and role (other axes run on the core's default gains).
     #[serde(default)]
     pub tuning: Vec<Tuning>,
+    /// What happens to the board's inputs during a run ([`events`]).
+    pub events: events::EventsCfg,
     /// Directory that relative paths in the file are resolved against.
     #[serde(skip)]
     pub base_dir: PathBuf,

@@ -125,6 +125,13 @@ impl Scenario {
                 d.validate(&format!("axis.{}.drift", a.name))?;
             }
         }
+        let followers: Vec<&str> = self
+            .axes
+            .iter()
+            .filter(|a| a.role == Role::Follower)
+            .map(|a| a.name.as_str())
+            .collect();
+        self.events.validate(&followers)?;
         validate_tuning(self)
     }
 }

@@ -1,7 +1,8 @@
 //! The controllers of a run, built from the scenario: the core's [`Follower`] for the
-//! table-following axes — run inside the core's [`Runtime`], as on the board, so its
-//! fault rules (following error, encoder plausibility, master stall) are live and a
-//! latched fault puts the valves at null — and the core's press law for the force axes.
+//! table-following axes — run inside the core's [`Runtime`] by the firmware's tick,
+//! [`TickLoop::run`], over a [`SampledBoard`], so its fault rules (E-stop, following
+//! error, encoder plausibility, master stall, pressure health) are live and a latched
+//! fault puts the valves at null — and the core's press law for the force axes.
 //!
 //! The follower is generic over the number of slave axes `S`; the simulator supports 1 to
 //! [`MAX_FOLLOWERS`] follower axes through one monomorphisation each, behind the
@@ -13,9 +14,10 @@ use crate::scenario::{AxisCfg, Controller, Role, Scenario, ScenarioError, Tuning
 use hydra_core::axis::{PressCoeffs, PressOutput, PressState};
 use hydra_core::follower::{Follower, FollowerError};
 use hydra_core::master::EdgeReading;
+use super::board::{SampledBoard, SimHost, CYCLES_PER_US};
 use hydra_core::runtime::{
-    BootCause, Command, CommandError, EncoderSample, FaultRecord, Runtime, RuntimeConfig, Sample,
-    State, MAX_STEP_LIMIT_COUNTS,
+    BootCause, Command, CommandError, EncoderSample, FaultRecord, Runtime, RuntimeConfig, State,
+    TickLoop, MAX_STEP_LIMIT_COUNTS,
 };
 use hydra_core::table::{AxisLimits, CamTable, Node, TableError, TableLimits};
 use hydra_core::units::{Counts, DacCode, Master, MasterRate, PosUm, PressureBar, VelUmPerS};
@@ -27,6 +29,9 @@ pub const MAX_FOLLOWERS: usize = 4;
 /// The runtime's pressure inputs: chambers A and B of each of up to [`MAX_FOLLOWERS`]
 /// follower axes (slave k on inputs 2k, 2k + 1, as on the board).
 const PRESSURES: usize = 2 * MAX_FOLLOWERS;
+/// A queued command older than this when the tick takes it is dropped, µs (a simulated
+/// tick takes its command at once: only the firmware's rule, kept).
+const MAX_COMMAND_AGE_US: u32 = 50_000;
 
 /// What one runtime tick of the followers gives the simulator.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,22 +48,29 @@ pub struct FollowerTick {
     pub start_refused: Option<CommandError>,
 }
 
+/// What the board's inputs read at one period's sample instant.
+#[derive(Clone, Copy, Debug)]
+pub struct Reading<'a> {
+    /// The master encoder count.
+    pub master: i64,
+    /// The master's edge timer, if the board has one.
+    pub master_edges: Option<EdgeReading>,
+    /// Each follower's encoder count.
+    pub slaves: &'a [i64],
+    /// Each follower's chamber A and B pressure, bar.
+    pub pressures: &'a [[PressureBar; 2]],
+    /// The E-stop chain is open.
+    pub estop: bool,
+    /// The pressure inputs are updating.
+    pub pressure_live: bool,
+}
+
 /// The followers of a run inside the runtime, whatever the number of axes.
 pub trait FollowerDyn: Send {
-    /// One control period: the master and slave encoder counts (and the master's edge
-    /// timer, if the board has one) and each slave's chamber A and B pressure readings
-    /// in; valve codes (the nulls unless controlling) and the targets X(θ_f(k)) (µm) out.
-    /// The first tick starts the runtime (Start).
-    #[allow(clippy::too_many_arguments)]
-    fn tick(
-        &mut self,
-        master: i64,
-        master_edges: Option<EdgeReading>,
-        slaves: &[i64],
-        pressures: &[[PressureBar; 2]],
-        dac: &mut [DacCode],
-        target: &mut [PosUm],
-    ) -> FollowerTick;
+    /// One control period, one [`TickLoop::run`] (the firmware's tick) over the board
+    /// inputs `r`: valve codes (the nulls unless controlling) and the targets X(θ_f(k))
+    /// (µm) out. The first tick starts the runtime (Start).
+    fn tick(&mut self, r: &Reading, dac: &mut [DacCode], target: &mut [PosUm]) -> FollowerTick;
 
     /// |target − position| of follower `j` at the last tick, µm (the value a
     /// following-error fault trips on).
@@ -72,8 +84,13 @@ pub trait FollowerDyn: Send {
     fn ff_trim(&self, j: usize) -> [f64; 2];
 }
 
+type Law<const S: usize> = Box<Follower<S, TABLE_CAPACITY>>;
+
 struct Rt<const S: usize> {
-    rt: Runtime<Box<Follower<S, TABLE_CAPACITY>>, S, PRESSURES>,
+    tl: TickLoop<Law<S>, S, PRESSURES>,
+    io: SampledBoard<S, PRESSURES>,
+    host: SimHost,
+    period_ns: u32,
     started: bool,
     /// |target − position| per slave at the last tick (the law's, also on the tick a
     /// fault latched), µm.
@@ -85,54 +102,36 @@ fn counts(c: i64) -> Counts {
 }
 
 impl<const S: usize> FollowerDyn for Rt<S> {
-    fn tick(
-        &mut self,
-        master: i64,
-        master_edges: Option<EdgeReading>,
-        slaves: &[i64],
-        pressures: &[[PressureBar; 2]],
-        dac: &mut [DacCode],
-        target: &mut [PosUm],
-    ) -> FollowerTick {
-        let mut pressure_bar = [PressureBar::ZERO; PRESSURES];
-        for (o, p) in pressure_bar.chunks_exact_mut(2).zip(pressures) {
+    fn tick(&mut self, r: &Reading, dac: &mut [DacCode], target: &mut [PosUm]) -> FollowerTick {
+        for (o, p) in self.io.pressure_bar.chunks_exact_mut(2).zip(r.pressures) {
             o.copy_from_slice(p);
         }
-        let mut enc = EncoderSample {
-            master: counts(master),
-            slaves: [Counts(0); S],
-            master_edges,
-        };
-        for (o, &c) in enc.slaves.iter_mut().zip(slaves) {
+        self.io.enc.master = counts(r.master);
+        self.io.enc.master_edges = r.master_edges;
+        for (o, &c) in self.io.enc.slaves.iter_mut().zip(r.slaves) {
             *o = counts(c);
         }
-        let sample = Sample {
-            enc,
-            pressure_bar,
-            estop: false,
-            overrun: false,
-        };
-        let cmd = (!self.started).then_some(Command::Start);
-        self.started = true;
-        let out = self.rt.step(&sample, cmd);
-        dac.copy_from_slice(&out.dac);
-        let st = self.rt.status();
+        self.io.estop = r.estop;
+        self.io.pressure_live = r.pressure_live;
+        if !self.started {
+            self.host.queue(Command::Start);
+            self.started = true;
+        }
+        self.tl.run(&mut self.io, &mut self.host);
+        self.host.now_ns = self.host.now_ns.wrapping_add(self.period_ns);
+        dac.copy_from_slice(&self.io.codes);
+        let rt = self.tl.runtime();
+        let st = rt.status();
         for (e, s) in self.error_um.iter_mut().zip(st.error_um) {
             *e = s.to_num::<f64>().abs();
         }
         target.copy_from_slice(&st.target_um);
         FollowerTick {
-            master_estimate: self
-                .rt
-                .law()
-                .map_or(Master::ZERO, |l| l.master_estimate().pos),
-            enable: out.enable,
+            master_estimate: rt.law().map_or(Master::ZERO, |l| l.master_estimate().pos),
+            enable: self.io.enable,
             state: st.state,
             fault: st.fault,
-            start_refused: match out.reply {
-                Some(Err(e)) => Some(e),
-                _ => None,
-            },
+            start_refused: self.host.take_refusal().flatten(),
         }
     }
 
@@ -141,11 +140,12 @@ impl<const S: usize> FollowerDyn for Rt<S> {
     }
 
     fn backoff_level(&self, j: usize) -> u8 {
-        self.rt.law().map_or(0, |l| l.backoff_level(j))
+        self.tl.runtime().law().map_or(0, |l| l.backoff_level(j))
     }
 
     fn ff_trim(&self, j: usize) -> [f64; 2] {
-        self.rt
+        self.tl
+            .runtime()
             .law()
             .map_or([65_536; 2], |l| l.ff_trim_q16(j))
             .map(|r| f64::from(r) / 65_536.0)
@@ -308,8 +308,16 @@ fn build<const S: usize>(
             format!("the runtime's configuration at {period_us} µs"),
         )
     })?;
+    let rt = Runtime::new(coeffs, Some(f), BootCause::Normal);
     Ok(Box::new(Rt::<S> {
-        rt: Runtime::new(coeffs, Some(f), BootCause::Normal),
+        tl: TickLoop::new(rt, CYCLES_PER_US, MAX_COMMAND_AGE_US),
+        io: SampledBoard::new(EncoderSample {
+            master: Counts(0),
+            slaves: [Counts(0); S],
+            master_edges: None,
+        }),
+        host: SimHost::default(),
+        period_ns: period_us.saturating_mul(CYCLES_PER_US),
         started: false,
         error_um: [0.0; S],
     }))
@@ -322,7 +330,8 @@ fn build<const S: usize>(
 /// counts per tick, which at long periods (≥ ≈ 70 ms with 1 µm encoders) sits below 4×
 /// the axis' speed, so a loop that diverges there latches `encoder_jump`; every other rule
 /// at the runtime's defaults (a master stall after 1 s standing still while following,
-/// never within the end window of the table).
+/// never within the end window of the table). With a force axis the pressure inputs are
+/// required: stale ones latch `pressure_input`.
 pub fn runtime_config<const S: usize>(
     s: &Scenario,
     following_error_um: &[f32; S],
@@ -339,6 +348,8 @@ pub fn runtime_config<const S: usize>(
     let m = &s.master;
     let peak = m.speed_deg_per_s.abs() * (1.0 + m.ripple.abs()) / m.resolution_deg;
     rc.master_max_speed_counts_per_s = (4.0 * peak).max(1000.0).min(cap_per_s) as f32;
+    // A force axis' law depends on the pressures: stale ones are a fault.
+    rc.pressure_required = s.axes.iter().any(|a| a.role == Role::Force);
     for (j, a) in followers(s).iter().enumerate().take(S) {
         rc.slave_um_per_count[j] = a.sensors.encoder_um as f32;
         let p = a.plant(s.supply(), a.cylinder.stroke_mm * 0.5e-3);

@@ -7,10 +7,11 @@
 //!    the newest rising A edge since `t_{k−1}` with its time (`crate::plant::edges`:
 //!    the runtime then feeds the law the master below one count), every axis position through its linear encoder, the force axes' two
 //!    chamber pressures through the 12-bit ADC.
-//! 2. **Compute**: the follower, inside the core's runtime (Start at the first period;
-//!    its fault rules live: a latched fault unpowers the valves, `u` = 0 from the next
-//!    period, and is reported in [`RunReport::faults`]), and each press law return valve
-//!    codes.
+//! 2. **Compute**: the follower, inside the core's runtime, one [`hydra_core::runtime::TickLoop::run`]
+//!    per period as the firmware's tick ([`board`]: Start at the first period; the
+//!    scenario's `[events]` drive the E-stop, encoder and pressure inputs; the fault rules
+//!    live: a latched fault unpowers every valve, `u` = 0 from the next period, and is
+//!    reported in [`RunReport::faults`]), and each press law return valve codes.
 //! 3. **Apply** one period later: the codes computed at `t_k` drive the valves from
 //!    `t_{k+1}` to `t_{k+2}` (one period of computation delay); during period 0 the valves
 //!    are at null. The DAC holds each code: `u = n/2047`.
@@ -35,13 +36,14 @@
 //! backoff's level, core `axis::backoff`; 0 = the set gain); per force axis `_x_mm`, `_force_n`,
 //! `_force_ref_n`, `_u`.
 
+pub mod board;
 pub mod control;
 pub mod probe;
 
 use crate::camfile::{interpolate, CamCsv};
-use crate::plant::{dac_to_unit, HydraulicAxis, MasterProfile, PressureAdc};
+use crate::plant::{valve_command, HydraulicAxis, MasterProfile, PressureAdc};
 use crate::scenario::{Controller, Role, Scenario, ScenarioError};
-use control::{build_follower, Press};
+use control::{build_follower, Press, Reading};
 use hydra_core::axis::PressPhase;
 use hydra_core::units::{DacCode, PosUm, PressureBar};
 use std::time::Instant;
@@ -142,6 +144,10 @@ pub struct RunReport {
     pub tuned_period_us: u32,
     /// Faults the runtime latched, in order (a run without faults: empty).
     pub faults: Vec<FaultEvent>,
+    /// After the first fault: the start of the first period in which every valve's
+    /// applied command is 0, s (the fault's tick unpowers the valves; its code acts one
+    /// period of computation delay later at most).
+    pub valves_null_s: Option<f64>,
     /// Per follower axis: velocity reversals against the table's own.
     pub oscillation: Vec<Oscillation>,
     /// Per follower axis: the gain backoff's level at the end of the run (core
@@ -349,9 +355,12 @@ pub fn run_probed(
     let mut dac = vec![DacCode::NULL; nf];
     let mut ctrl_target = vec![PosUm::ZERO; nf];
     let mut faults: Vec<FaultEvent> = Vec::new();
+    let mut valves_null_s = None;
     let mut start_refused = None;
     let mut osc: Vec<Reversals> = vec![Reversals::default(); nf];
     let mut master_est_deg = 0.0;
+    // The runtime's valve power (always on without a follower: no runtime to cut it).
+    let mut powered = true;
     let mut err_stats = vec![ErrorStat::default(); nf];
     let mut peak = vec![0.0f64; n_axes];
     let mut cursors = vec![0usize; nf];
@@ -371,15 +380,25 @@ pub fn run_probed(
                 tm.reading(counts, t_k - period_s, t_k)
             });
             for (j, &i) in follower_idx.iter().enumerate() {
-                enc[j] = encoders[i].count(plants[i].x_m());
+                let true_count = encoders[i].count(plants[i].x_m());
+                enc[j] = sc.events.encoder_count(&sc.axes[i].name, t_k, true_count, enc[j]);
                 osc[j].add(plants[i].v_m_per_s());
                 chambers[j] = adc_bar(&adcs[i], plants[i].pressures_pa());
             }
-            let o = f.tick(m, edges, &enc, &chambers, &mut dac, &mut ctrl_target);
+            let reading = Reading {
+                master: m,
+                master_edges: edges,
+                slaves: &enc,
+                pressures: &chambers,
+                estop: sc.events.estop(t_k),
+                pressure_live: sc.events.pressure_live(t_k),
+            };
+            let o = f.tick(&reading, &mut dac, &mut ctrl_target);
+            powered = o.enable;
             master_est_deg = o.master_estimate.to_num::<f64>() * sc.master.resolution_deg;
             for (j, &i) in follower_idx.iter().enumerate() {
                 // Not controlling: the valves are unpowered and their spools centre.
-                u_next[i] = if o.enable { dac_to_unit(dac[j]) } else { 0.0 };
+                u_next[i] = valve_command(dac[j].get(), o.enable);
             }
             if let Some(p) = probe.filter(|_| o.enable) {
                 if let Some(&i) = follower_idx.get(p.follower) {
@@ -425,9 +444,13 @@ pub fn run_probed(
             p.phase = o.phase;
             p.f_ref_n = o.force_ref_n.to_num::<f64>();
             p.last_cmd = c;
-            u_next[i] = dac_to_unit(o.dac);
+            // One valve-power enable for every valve of the board (the runtime's).
+            u_next[i] = valve_command(o.dac.get(), powered);
         }
         // 3–4. integrate the period with the codes computed one period ago
+        if valves_null_s.is_none() && !faults.is_empty() && u_now.iter().all(|&u| u == 0.0) {
+            valves_null_s = Some(t_k);
+        }
         for (pk, u) in peak.iter_mut().zip(&u_now) {
             *pk = pk.max(u.abs());
         }
@@ -568,6 +591,7 @@ pub fn run_probed(
         axes,
         trace,
         faults,
+        valves_null_s,
         oscillation,
         backoff_levels,
         error_skip_s: sc.sim.error_skip_s,
