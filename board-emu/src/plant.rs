@@ -15,8 +15,8 @@
 use crate::bus::{Environment, Inputs, Outputs, SYSCLK_HZ};
 use host_sim::camfile::{interpolate, CamCsv};
 use host_sim::machine::{MachineAxis, MachinePlant};
-use host_sim::plant::valve_command;
 use host_sim::plant::edges::newest_rising_a;
+use host_sim::plant::valve_command;
 use host_sim::scenario::Scenario;
 use host_sim::sim::ErrorStat;
 use std::cell::RefCell;

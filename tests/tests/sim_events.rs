@@ -32,7 +32,10 @@ fn run_with(file: &str, events: impl FnOnce(&mut Scenario)) -> RunReport {
 
 /// The fault latched first, which must be `name`, at or after `at_s`.
 fn first_fault<'a>(r: &'a RunReport, name: &str, at_s: f64) -> &'a FaultEvent {
-    let f = r.faults.first().unwrap_or_else(|| panic!("no fault: expected {name}"));
+    let f = r
+        .faults
+        .first()
+        .unwrap_or_else(|| panic!("no fault: expected {name}"));
     assert_eq!(f.name, name, "{:?}", r.faults);
     assert!(f.t_s >= at_s - 1e-9, "{f:?} before the event at {at_s} s");
     f
@@ -54,8 +57,15 @@ fn valves_null_within_one_tick(r: &RunReport, axes: &[&str], t_s: f64) {
             .filter(|row| row[0] > t_s + PERIOD_S + 1e-9)
             .map(|row| row[ui])
             .collect();
-        assert!(after.len() > 1000, "{a}: {} rows after the fault", after.len());
-        assert!(after.iter().all(|&u| u == 0.0), "{a}: valve not at null one tick after {t_s} s");
+        assert!(
+            after.len() > 1000,
+            "{a}: {} rows after the fault",
+            after.len()
+        );
+        assert!(
+            after.iter().all(|&u| u == 0.0),
+            "{a}: valve not at null one tick after {t_s} s"
+        );
         assert!(
             rows().any(|row| row[0] < t_s && row[ui] != 0.0),
             "{a}: the valve never moved before the fault"
@@ -68,11 +78,18 @@ fn an_estop_faults_the_run_and_nulls_every_valve_within_one_tick() {
     // The reference machine: the tangent follower and the side press.
     let r = run_with("tangent.toml", |s| s.events.estop_at_s = Some(2.0));
     let f = first_fault(&r, "estop", 2.0);
-    assert!(f.t_s < 2.0 + PERIOD_S + 1e-9, "latched at the first tick that saw it: {f:?}");
+    assert!(
+        f.t_s < 2.0 + PERIOD_S + 1e-9,
+        "latched at the first tick that saw it: {f:?}"
+    );
     assert_eq!((f.code, f.axis.as_deref()), (0x0100, None), "{f:?}");
     // The report measures it too: every valve at null at most one period after the fault.
     let null_s = r.valves_null_s.expect("valves went to null");
-    assert!(null_s >= f.t_s && null_s <= f.t_s + PERIOD_S + 1e-9, "{null_s} s, fault at {}", f.t_s);
+    assert!(
+        null_s >= f.t_s && null_s <= f.t_s + PERIOD_S + 1e-9,
+        "{null_s} s, fault at {}",
+        f.t_s
+    );
     valves_null_within_one_tick(&r, &["tangent", "side_press"], f.t_s);
 }
 
@@ -116,7 +133,9 @@ fn lost_pressures_fault_a_machine_with_a_force_axis_only() {
     assert!(f.t_s < 2.0 + PERIOD_S + 1e-9, "{f:?}");
     valves_null_within_one_tick(&r, &["tangent", "side_press"], f.t_s);
     // Without a force axis the law holds the last live pressures and the run goes on.
-    let r = run_with("tangent_alone.toml", |s| s.events.pressure_lost_at_s = Some(2.0));
+    let r = run_with("tangent_alone.toml", |s| {
+        s.events.pressure_lost_at_s = Some(2.0)
+    });
     assert!(r.faults.is_empty(), "{:?}", r.faults);
 }
 
@@ -148,7 +167,9 @@ fn host_sim_run_with_an_estop_event_exits_3() {
         margins: host_sim::autotune::Margins::Nominal,
     };
     let e = run_cmd(&args(false)).expect_err("an E-stop is a latched fault");
-    let f = e.downcast_ref::<FaultLatched>().expect("FaultLatched (exit 3)");
+    let f = e
+        .downcast_ref::<FaultLatched>()
+        .expect("FaultLatched (exit 3)");
     assert!(e.to_string().contains("estop"), "{e}: {f:?}");
     assert_eq!(host_sim::cmd::run::FAULT_EXIT_CODE, 3);
     run_cmd(&args(true)).expect("--allow-fault: exit 0");

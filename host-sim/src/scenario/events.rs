@@ -137,8 +137,14 @@ mod tests {
         assert!(msg.contains("events.estop_at_s"), "{msg}");
         let e: EventsCfg = toml::from_str("encoder_lost = { axis = \"q\", at_s = 1.0 }").unwrap();
         let msg = e.validate(&["x"]).unwrap_err().to_string();
-        assert!(msg.contains("events.encoder_lost.axis") && msg.contains("q"), "{msg}");
+        assert!(
+            msg.contains("events.encoder_lost.axis") && msg.contains("q"),
+            "{msg}"
+        );
         assert!(toml::from_str::<EventsCfg>("estop_at = 1.0").is_err());
-        assert!(toml::from_str::<EventsCfg>("encoder_lost = { axis = \"x\", at_s = 1.0, mode = \"melt\" }").is_err());
+        assert!(toml::from_str::<EventsCfg>(
+            "encoder_lost = { axis = \"x\", at_s = 1.0, mode = \"melt\" }"
+        )
+        .is_err());
     }
 }

@@ -8,8 +8,8 @@
 //! µs), wrapping `u32`.
 
 use hydra_core::runtime::{
-    Command, CommandError, EncoderInput, EncoderSample, PressureInput, Reply, SafetyInput,
-    Status, TickCommand, TickHost, TickSample, ValveOutput,
+    Command, CommandError, EncoderInput, EncoderSample, PressureInput, Reply, SafetyInput, Status,
+    TickCommand, TickHost, TickSample, ValveOutput,
 };
 use hydra_core::units::{DacCode, PressureBar};
 

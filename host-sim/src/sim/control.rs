@@ -8,13 +8,13 @@
 //! [`MAX_FOLLOWERS`] follower axes through one monomorphisation each, behind the
 //! object-safe [`FollowerDyn`]. Tables hold up to [`TABLE_CAPACITY`] nodes.
 
+use super::board::{SampledBoard, SimHost, CYCLES_PER_US};
 use crate::camfile::CamCsv;
 use crate::scenario::gains::{follower_config, press_config};
 use crate::scenario::{AxisCfg, Controller, Role, Scenario, ScenarioError, Tuning};
 use hydra_core::axis::{PressCoeffs, PressOutput, PressState};
 use hydra_core::follower::{Follower, FollowerError};
 use hydra_core::master::EdgeReading;
-use super::board::{SampledBoard, SimHost, CYCLES_PER_US};
 use hydra_core::runtime::{
     BootCause, Command, CommandError, EncoderSample, FaultRecord, Runtime, RuntimeConfig, State,
     TickLoop, MAX_STEP_LIMIT_COUNTS,

@@ -381,7 +381,9 @@ pub fn run_probed(
             });
             for (j, &i) in follower_idx.iter().enumerate() {
                 let true_count = encoders[i].count(plants[i].x_m());
-                enc[j] = sc.events.encoder_count(&sc.axes[i].name, t_k, true_count, enc[j]);
+                enc[j] = sc
+                    .events
+                    .encoder_count(&sc.axes[i].name, t_k, true_count, enc[j]);
                 osc[j].add(plants[i].v_m_per_s());
                 chambers[j] = adc_bar(&adcs[i], plants[i].pressures_pa());
             }
