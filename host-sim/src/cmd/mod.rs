@@ -9,6 +9,7 @@ pub mod margins;
 pub mod motion;
 pub mod open_loop;
 pub mod param;
+pub mod param_file;
 pub mod robust;
 pub mod run;
 pub mod scurve;

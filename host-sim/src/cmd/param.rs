@@ -1,5 +1,6 @@
-//! `host-sim param list|get|set|save --port PORT [PATH] [VALUE] [--json]`: the board's
-//! settings tree ([`hydra_core::protocol::settings`]) by path, with units and ranges.
+//! `host-sim param list|get|set|save|load|dump --port PORT [PATH|FILE] [VALUE] [--json]`:
+//! the board's settings tree ([`hydra_core::protocol::settings`]) by path, with units and
+//! ranges.
 //!
 //! - `list`: every path with its value in force, unit and range (`--json`:
 //!   `[{"path", "value", "unit", "min", "max"}]`);
@@ -7,7 +8,10 @@
 //! - `set PATH VALUE`: sets it (the board validates the value, then the whole set with
 //!   the active table; nothing changes on a refusal) and prints the value read back;
 //! - `save`: persists the settings with the active table (both, validated together, are
-//!   what the next boot runs), or the settings alone before any table.
+//!   what the next boot runs), or the settings alone before any table;
+//! - `load FILE`: a settings file, checked whole before anything is sent and taken whole
+//!   or not at all ([`super::param_file`]);
+//! - `dump`: every writable setting in force, as a file `load` takes back.
 //!
 //! A value is a number in the path's unit; a boolean may be written `true` / `false`.
 
@@ -26,6 +30,11 @@ pub enum What {
     Set,
     /// Persist the settings (with the active table, if any) to flash.
     Save,
+    /// Send a settings file (TOML, `path = value`): every entry checked before anything
+    /// is sent; a refused set changes nothing.
+    Load,
+    /// Print every writable setting in force as a file `load` takes back.
+    Dump,
 }
 
 /// Arguments of `param`.
@@ -37,7 +46,8 @@ pub struct Args {
     /// What to do.
     #[arg(value_enum)]
     pub what: What,
-    /// The setting's path (get, set), e.g. `axis/0/kp_lsb_per_um` (see `param list`).
+    /// The setting's path (get, set), e.g. `axis/0/kp_lsb_per_um` (see `param list`); the
+    /// settings file (load).
     pub path: Option<String>,
     /// The value (set), in the path's unit.
     #[arg(allow_negative_numbers = true)]
@@ -183,6 +193,29 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             set(&mut link, pp, v)?;
             show(pp, get(&mut link, pp)?, args.json);
         }
+        What::Load => {
+            let file = std::path::PathBuf::from(args.path.as_deref().ok_or_else(|| {
+                anyhow::anyhow!("param load needs a FILE (TOML, `path = value`)")
+            })?);
+            let entries = super::param_file::read(&file, axes)?;
+            let before = super::param_file::apply(&mut link, &entries)?;
+            for ((pp, _), old) in entries.iter().zip(before) {
+                let now = get(&mut link, *pp)?;
+                if args.json {
+                    let j = serde_json::json!({
+                        "path": pp.to_string(), "value": json_value(now), "was": json_value(old),
+                    });
+                    println!("{j}");
+                } else {
+                    println!("{pp} = {now} {} (was {old})", pp.id.info().unit);
+                }
+            }
+            eprintln!(
+                "{} setting(s) in force until the next boot; `param save` persists them",
+                entries.len()
+            );
+        }
+        What::Dump => print!("{}", super::param_file::dump(&mut link)?),
         What::Save => {
             eprintln!(
                 "saving to flash: the board erases a sector (up to 2 s, its tick paused, axes idle) …"
