@@ -186,3 +186,21 @@ fn an_event_naming_no_follower_is_refused_with_its_key() {
     let e = s.validate().unwrap_err().to_string();
     assert!(e.contains("events.encoder_lost.axis"), "{e}");
 }
+
+#[test]
+fn the_shipped_estop_scenario_faults_at_its_event() {
+    // host-sim/scenarios/tangent_estop.toml, as the README runs it (whole, 12 s E-stop).
+    let s = Scenario::load(&scenarios().join("tangent_estop.toml")).unwrap();
+    assert_eq!(s.events.estop_at_s, Some(12.0));
+    let t = s.load_table(None).unwrap();
+    let spec = RunSpec {
+        controller: Controller::Feedforward,
+        period_us: 1000,
+        trace_every_s: Some(1e-3),
+    };
+    let r = run(&s, &t, &spec, &mut |_| {}).unwrap();
+    let f = first_fault(&r, "estop", 12.0);
+    assert!(f.t_s < 12.0 + PERIOD_S + 1e-9, "{f:?}");
+    let null = r.valves_null_s.expect("valves at null after the fault");
+    assert!(null - f.t_s <= PERIOD_S + 1e-9, "{null} s vs {f:?}");
+}
