@@ -45,9 +45,27 @@ fn the_readme_is_a_manual_of_at_most_300_lines() {
 fn history(line: &str) -> Option<&'static str> {
     let l = line.to_lowercase();
     const ORDINALS: [&str; 21] = [
-        "first", "second", "third", "fourth", "fifth", "sixth", "seventh", "eighth", "ninth",
-        "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth", "sixteenth",
-        "seventeenth", "eighteenth", "nineteenth", "twentieth", "this",
+        "first",
+        "second",
+        "third",
+        "fourth",
+        "fifth",
+        "sixth",
+        "seventh",
+        "eighth",
+        "ninth",
+        "tenth",
+        "eleventh",
+        "twelfth",
+        "thirteenth",
+        "fourteenth",
+        "fifteenth",
+        "sixteenth",
+        "seventeenth",
+        "eighteenth",
+        "nineteenth",
+        "twentieth",
+        "this",
     ];
     if ORDINALS.iter().any(|o| l.contains(&format!("{o} session"))) {
         return Some("a session");
@@ -80,7 +98,11 @@ fn no_document_speaks_of_the_projects_history() {
             }
         }
     }
-    assert!(found.is_empty(), "history in the docs:\n{}", found.join("\n"));
+    assert!(
+        found.is_empty(),
+        "history in the docs:\n{}",
+        found.join("\n")
+    );
 }
 
 #[test]
@@ -100,7 +122,10 @@ fn every_relative_link_resolves() {
             }
             let file = target.split('#').next().unwrap_or(target);
             // `../shared/` lies beside the repository, outside what CI clones.
-            if file.is_empty() || file.starts_with("../shared/") || file.starts_with("../../shared/") {
+            if file.is_empty()
+                || file.starts_with("../shared/")
+                || file.starts_with("../../shared/")
+            {
                 continue;
             }
             if !dir.join(file).exists() {
@@ -115,7 +140,10 @@ fn every_relative_link_resolves() {
 fn the_history_check_sees_what_it_should() {
     assert_eq!(history("the twentieth session's trim"), Some("a session"));
     assert_eq!(history("(issue 21 part 3)"), Some("an issue number"));
-    assert_eq!(history("measured on a build not kept"), Some("a build not kept"));
+    assert_eq!(
+        history("measured on a build not kept"),
+        Some("a build not kept")
+    );
     assert_eq!(history("a PTY session paced by the host"), None);
     assert_eq!(history("the host issues a command"), None);
 }

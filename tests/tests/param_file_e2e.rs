@@ -6,7 +6,7 @@ use host_sim::cmd::param::{self, get, resolve};
 use host_sim::cmd::param_file;
 use host_sim::cmd::serial::Link;
 use host_sim::cmd::serve;
-use host_sim::scenario::Scenario;
+use host_sim::scenario::{Controller, Scenario};
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -117,4 +117,15 @@ fn load_is_checked_whole_taken_whole_and_dump_round_trips() {
     assert_eq!(value(&port, KP), kp0 * 2.0);
     let mut link = Link::open(&port).unwrap();
     assert_eq!(param_file::dump(&mut link).unwrap(), dumped);
+    drop(link);
+
+    // A tuned set (`tune --settings-out`) goes to the board in one command.
+    let s = Scenario::default();
+    let t = s
+        .tuning
+        .iter()
+        .find(|t| t.period_us == 1000 && t.controller == Controller::Feedforward)
+        .unwrap();
+    load(&port, &param_file::from_tuning(&s, t, 0).unwrap()).unwrap();
+    assert_eq!(value(&port, KP), t.axes["tangent"].kp_lsb_per_um);
 }

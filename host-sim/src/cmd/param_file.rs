@@ -23,6 +23,7 @@
 
 use super::param::{get, parse_value, resolve, set};
 use super::serial::Link;
+use crate::scenario::{Role, Scenario, Tuning};
 use hydra_core::protocol::settings::{all_paths, ParamPath};
 use std::path::Path;
 
@@ -184,9 +185,86 @@ pub fn dump(link: &mut Link) -> anyhow::Result<String> {
     Ok(out)
 }
 
+/// A tuned gain set (`host-sim tune`) as a settings file for the board: each follower
+/// axis of `s`, in file order, is slave `first_slave`, `first_slave + 1`, …; each key of
+/// its `[tuning.axes.<name>]` is the board's `axis/<n>/<key>`, and the master filter's
+/// bandwidth is `master/filter_bandwidth_hz`. Force axes' gains are not board settings
+/// and are left out (named in a comment). The text is checked as `param load` checks a
+/// file before it is returned.
+pub fn from_tuning(s: &Scenario, t: &Tuning, first_slave: u8) -> anyhow::Result<String> {
+    let followers: Vec<&str> = s
+        .axes
+        .iter()
+        .filter(|a| a.role == Role::Follower)
+        .map(|a| a.name.as_str())
+        .collect();
+    let mut out = format!(
+        "# {} gains for a {} µs board period (`host-sim param load --port P FILE` sends them;\n\
+         # the board's period_us must be {}).\n\"master/filter_bandwidth_hz\" = {}\n",
+        t.controller.name(),
+        t.period_us,
+        t.period_us,
+        t.master_filter_hz
+    );
+    for (k, name) in followers.iter().enumerate() {
+        let g = t
+            .axes
+            .get(*name)
+            .ok_or_else(|| anyhow::anyhow!("the gain set has no axis {name}"))?;
+        let slave = u8::try_from(k)
+            .ok()
+            .and_then(|k| k.checked_add(first_slave))
+            .ok_or_else(|| anyhow::anyhow!("too many follower axes for slave {first_slave} on"))?;
+        out.push_str(&format!("\n[axis.{slave}] # {name}\n"));
+        out.push_str(&toml::to_string(g).map_err(|e| anyhow::anyhow!("{name}'s gains: {e}"))?);
+    }
+    for name in t.press.keys() {
+        out.push_str(&format!(
+            "\n# {name}: a force axis; its gains are not board settings\n"
+        ));
+    }
+    let slaves = u8::try_from(followers.len())
+        .ok()
+        .and_then(|n| n.checked_add(first_slave))
+        .ok_or_else(|| anyhow::anyhow!("too many follower axes"))?;
+    parse(&out, slaves)
+        .map_err(|e| anyhow::anyhow!("the tuned set is not a settings file: {e}"))?;
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tuned_set_is_a_settings_file_of_board_paths() {
+        let s = Scenario::default();
+        let t = s
+            .tuning
+            .iter()
+            .find(|t| {
+                t.period_us == 1000 && t.controller == crate::scenario::Controller::Feedforward
+            })
+            .unwrap();
+        let text = from_tuning(&s, t, 0).unwrap();
+        let e = parse(&text, 1).unwrap();
+        let kp = e
+            .iter()
+            .find(|(pp, _)| pp.to_string() == "axis/0/kp_lsb_per_um")
+            .unwrap();
+        assert_eq!(kp.1, t.axes["tangent"].kp_lsb_per_um);
+        assert!(e
+            .iter()
+            .any(|(pp, _)| pp.to_string() == "master/filter_bandwidth_hz"));
+        // The side press's force gains are named, not sent.
+        assert!(text.contains("# side_press: a force axis"), "{text}");
+        // On slave 1 instead: the paths move with it.
+        let text1 = from_tuning(&s, t, 1).unwrap();
+        assert!(parse(&text1, 2)
+            .unwrap()
+            .iter()
+            .any(|(pp, _)| pp.to_string() == "axis/1/kp_lsb_per_um"));
+    }
 
     #[test]
     fn nested_tables_and_quoted_paths_are_the_same_paths() {

@@ -18,7 +18,9 @@
 //! `[tuning.axes.<name>]` is the board's setting `axis/<n>/<key>` (`param set`). The
 //! check runs the machine file's own table (the reference table unless it names one) at
 //! the machine file's period (the board's, when `identify` wrote it from a capture)
-//! unless `--period-us` says otherwise.
+//! unless `--period-us` says otherwise. `--settings-out` writes the same set as a settings
+//! file for the board ([`super::param_file::from_tuning`]), which `param load` sends
+//! whole.
 
 use crate::autotune::{tune, Margins};
 use crate::robust::{evaluate, Variant};
@@ -47,6 +49,14 @@ pub struct Args {
     /// Write the machine file with the new gain set appended here.
     #[arg(long, value_name = "TUNED.toml")]
     pub out: Option<PathBuf>,
+    /// Write the gain set as a settings file for the board here (`host-sim param load
+    /// --port P FILE` sends it whole): each follower axis, in the machine file's order,
+    /// is slave `--slave`, `--slave` + 1, ….
+    #[arg(long, value_name = "SETTINGS.toml")]
+    pub settings_out: Option<PathBuf>,
+    /// The board slave of the machine file's first follower axis (`--settings-out`).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub slave: u8,
     /// Print one JSON object: `ultimate_gain`, `gains` (the TOML), `check` (max_um,
     /// rms_um, oscillating, faults).
     #[arg(long)]
@@ -55,7 +65,7 @@ pub struct Args {
 
 /// Runs `host-sim tune`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    if let Some(out) = &args.out {
+    for out in [&args.out, &args.settings_out].into_iter().flatten() {
         crate::csvout::writable(out)?;
     }
     let mut s = Scenario::load(&args.machine)?;
@@ -88,6 +98,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let (t, ku) = tune(&s, controller, period_us, args.margins)
         .with_context(|| format!("tuning {}", args.machine.display()))?;
     let text = crate::autotune::to_toml(&t);
+    let settings = super::param_file::from_tuning(&s, &t, args.slave)?;
     s.tuning
         .retain(|x| !(x.controller == controller && x.period_us == period_us));
     s.tuning.push(t);
@@ -191,6 +202,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
         crate::csvout::save(out, &body)?;
         eprintln!("tune: machine with its gains written to {}", out.display());
+    }
+    if let Some(out) = &args.settings_out {
+        crate::csvout::save(out, &settings)?;
+        eprintln!(
+            "tune: the board's settings written to {} (`host-sim param load --port P {}`)",
+            out.display(),
+            out.display()
+        );
     }
     Ok(())
 }
