@@ -40,9 +40,10 @@ pub struct Args {
     /// pb<i> [bar]).
     #[arg(long, default_value = "now")]
     pub trigger: String,
-    /// Time kept before the trigger, ms.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 500.0)]
-    pub pre_ms: f64,
+    /// Time kept before the trigger, ms [default: 500; 0 with `--trigger now`, which
+    /// fires on the first tick after the arming: the ring holds nothing before it].
+    #[arg(long, allow_negative_numbers = true)]
+    pub pre_ms: Option<f64>,
     /// Time recorded after the trigger, ms.
     #[arg(long, allow_negative_numbers = true, default_value_t = 1500.0)]
     pub post_ms: f64,
@@ -323,15 +324,29 @@ pub fn plot(c: &Captured, path: &std::path::Path, title: &str) -> anyhow::Result
     plot_panels(path, title, ("t from the trigger (s)", &t), &ps, Some(0.0))
 }
 
+/// Time kept before an event trigger unless `--pre-ms` says otherwise, ms.
+pub const DEFAULT_PRE_MS: f64 = 500.0;
+
 /// Runs `capture`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let trigger = parse_trigger(&args.trigger)?;
+    let pre_ms = match (trigger, args.pre_ms) {
+        (Trigger::Now, Some(ms)) if ms > 0.0 => {
+            eprintln!(
+                "warning: --trigger now fires on the first tick after the arming, so nothing \
+                 before it exists: --pre-ms {ms} records no ticks before the trigger"
+            );
+            ms
+        }
+        (Trigger::Now, None) => 0.0,
+        (_, ms) => ms.unwrap_or(DEFAULT_PRE_MS),
+    };
     anyhow::ensure!(
         args.timeout_s.is_finite() && args.timeout_s > 0.0,
         "--timeout-s {}: must be > 0",
         args.timeout_s
     );
-    for (ms, what) in [(args.pre_ms, "pre"), (args.post_ms, "post")] {
+    for (ms, what) in [(pre_ms, "pre"), (args.post_ms, "post")] {
         anyhow::ensure!(
             ms.is_finite() && ms >= 0.0,
             "--{what}-ms {ms}: a time must be ≥ 0 ms"
@@ -344,7 +359,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let mut link = Link::open(&args.port)?;
     if !args.read_only {
-        arm(&mut link, trigger, args.pre_ms, args.post_ms)?;
+        arm(&mut link, trigger, pre_ms, args.post_ms)?;
     }
     if args.arm_only {
         eprintln!("armed (trigger {}); read it with --read-only", args.trigger);
