@@ -1,8 +1,8 @@
 //! The crate's one square root, `hydra_core::fixed_point::sqrt_u64` (table + one Newton step,
 //! one 32-bit division), on a 64-bit LCG shifted right by 0…15 bits (magnitudes 2^48 …
-//! 2^64: the fhan and contour ranges). The same inputs chose it (eighth session): 61
-//! instructions against 99 for the reciprocal-square-root form (three Newton steps of
-//! 1/√x, no division), which the crate no longer has (docs/bench.md).
+//! 2^64: the fhan and contour ranges). On these inputs it is the cheaper of the two
+//! forms the crate could use; the other is √x = x·(1/√x) by three Newton steps of the
+//! reciprocal square root, no division (docs/bench.md, "Design choices").
 
 use crate::harness::Figure;
 use core::hint::black_box;

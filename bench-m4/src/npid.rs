@@ -1,12 +1,12 @@
 //! Nonlinear PID figure (SPEC §D): one axis of the cross-coupled nonlinear PID.
 //!
 //! `npid_td_fal`: [`Npid::track`] — TD-I on the reference, TD-II on the measurement
-//! (two `fhan` evaluations), the integral, and the three `β·fal` terms. Gains: the
-//! nonlinear axis values host-sim's X–Y tuning chose in the first session
-//! (`axis_nonlinear`: β = (15, 1.6·20^0.2, 0), α = (1, 0.8, 1), δ = (1 µm·s, 20 µm,
-//! 1 µm/s), TD r = 5·10⁷ µm/s², h0 = 1 ms, period 1 ms, integral limit 1000 LSB / β0,
-//! output ±2047 LSB). The second session's retuning (`host-sim/src/xy/gains.rs`) chose
-//! α1 = 1 (a linear fal, the identity path, cheaper); the figure keeps α1 = 0.8 so that
+//! (two `fhan` evaluations), the integral, and the three `β·fal` terms. Gains: a
+//! nonlinear axis setting (`axis_nonlinear`: β = (15, 1.6·20^0.2, 0), α = (1, 0.8, 1),
+//! δ = (1 µm·s, 20 µm, 1 µm/s), TD r = 5·10⁷ µm/s², h0 = 1 ms, period 1 ms, integral
+//! limit 1000 LSB / β0, output ±2047 LSB). host-sim's tuned X–Y gains
+//! (`host-sim/src/xy/gains.rs`) have α1 = 1 (a linear fal, the identity path, cheaper);
+//! the figure keeps α1 = 0.8 so that
 //! it measures the fal power law a nonlinear setting pays — the conservative case. The reference moves at 50 mm/s (the scenario's feed: 50 µm per
 //! period); the measurement lags it by one period with a ±3 µm ripple.
 //!
@@ -58,7 +58,7 @@ fn nl(beta: [f64; 3], alpha: [f64; 3], delta: [f64; 3]) -> Option<NpidCoeffs> {
     .ok()
 }
 
-/// The first session's tuned axis law (`axis_nonlinear`): small-signal kp 1.6 LSB/µm through fal, β =
+/// A nonlinear axis law (`axis_nonlinear`): small-signal kp 1.6 LSB/µm through fal, β =
 /// (15, 1.6·20^0.2, 0), α = (1, 0.8, 1), δ = (1 µm·s, 20 µm, 1 µm/s).
 pub fn axis_coeffs() -> Option<NpidCoeffs> {
     nl(
@@ -68,7 +68,7 @@ pub fn axis_coeffs() -> Option<NpidCoeffs> {
     )
 }
 
-/// The first session's tuned contour law (`contour_nonlinear`): small-signal kc 0.2 LSB/µm through fal,
+/// A nonlinear contour law (`contour_nonlinear`): small-signal kc 0.2 LSB/µm through fal,
 /// β = (0, 0.2·5^0.5, 0), α = (1, 0.5, 1), δ = (1 µm·s, 5 µm, 1 µm/s).
 pub fn contour_coeffs() -> Option<NpidCoeffs> {
     nl(

@@ -10,7 +10,7 @@
 //! x from −40 to +40 mm, feed 50 mm/s (50 µm per 1 ms period, 2 366 periods for the
 //! path), Q = 1 s, window 64 ordinary points × up to 15 extra points, the nonlinear
 //! gains of `crate::npid` (fal power laws with α < 1: the conservative case; the
-//! retuned defaults in `xy/gains.rs` use α = 1). The measured point is the reference of three periods earlier with a
+//! tuned defaults in `xy/gains.rs` use α = 1). The measured point is the reference of three periods earlier with a
 //! ±2 µm ripple (a servo lagging 150 µm along the path): the estimator searches a window
 //! position well behind the newest point. The 2 300 calls of a run (warm-up included)
 //! cover the path through the vertex without reaching its end.

@@ -6,7 +6,8 @@
 //! accelerator off (FLASH_ACR without both ICEN and PRFTEN) each 16-byte flash line a
 //! translation block spans costs FLASH_ACR.LATENCY more (the wait states of an
 //! uncached fetch). Load/store and branch penalties are not modelled: the cycle count
-//! is a lower bound, compared with bench-m4's per-class estimate in the README. Time is
+//! is a lower bound, compared with bench-m4's per-class estimate in docs/results.md,
+//! "Firmware in the loop". Time is
 //! that count at 168 MHz; WFI/WFE (and polling a busy flash) skip to the next event.
 //! Nothing depends on the host's clock: the same ELF and inputs give the same run.
 //!

@@ -585,7 +585,8 @@ fn soft_machine_run(dp_gain: f32, osc_band_um: f32) -> (u16, f64, f64, u8) {
 /// with it (60 LSB/kN) the same firmware holds it within 30 µm — so the firmware hands
 /// the pressures to the law, and the law uses them. (The simulator, with a full period
 /// of computation delay where the board writes its valves within the tick, holds it at
-/// 20 LSB/kN; on the board 20 gives 179 µm and 60 is needed: README, "Active damping".)
+/// 20 LSB/kN; on the board 20 gives 179 µm and 60 is needed: docs/results.md,
+/// "Active damping".)
 #[test]
 fn active_damping_set_over_the_link_holds_the_soft_machine_on_the_real_firmware() {
     let (fault_off, max_off, _, _) = soft_machine_run(0.0, 0.0);

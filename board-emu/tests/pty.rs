@@ -159,8 +159,8 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
         )
         .expect("fit")
     };
-    // The viscous term's sensitivity to the pressures' timing (README, "Identification on
-    // the board"): the same recording read as if the pressures were 0.05 ms and 0.119 ms
+    // The viscous term's sensitivity to the pressures' timing (docs/results.md,
+    // "Identification and tuning"): the same recording read as if the pressures were 0.05 ms and 0.119 ms
     // (the mean age of the firmware's averaged ADC scans) older than the position.
     for skew_ms in [-0.05, -0.119] {
         let v = fit(skew_ms)
@@ -190,7 +190,7 @@ fn host_sim_uploads_activates_saves_and_reads_status_over_the_pty() {
         // The viscous friction is the one sensitive to the sub-tick timing of the
         // emulated ADC scans against the encoder latch: +4 … +10 % in runs here (the PTY
         // session is paced by the host, so runs differ); 50 µs
-        // of skew moves it by ≈ 18 % (README, "Identification").
+        // of skew moves it by ≈ 18 % (docs/results.md, "Identification and tuning").
         let tol = if name == "viscous_n_s_per_m" {
             0.15
         } else {

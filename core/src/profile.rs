@@ -95,8 +95,8 @@ pub fn piston_areas() -> PistonAreas {
 /// The follower's configuration on every slave: the reference machine's feed-forward
 /// gain set at 1 ms (`host-sim/scenarios/tangent.toml`, `[[tuning]]` controller
 /// `feedforward`, `period_us = 1000`: the set `host-sim run` uses), so the board runs
-/// what the simulator measured. (Earlier hand-set gains — kp 0.4, ki 5, i_limit 100 LSB
-/// — lagged 0.5 mm on the retraction; found by running the firmware in board-emu.)
+/// what the simulator measured (hand-set gains such as kp 0.4, ki 5, i_limit 100 LSB lag
+/// 0.5 mm on the retraction of the firmware in board-emu).
 /// `clamp_lsb`: the law's output clamp, the board's usable DAC range
 /// (`DacRange::max_code`), so it never commands a code the pin cannot follow.
 pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {

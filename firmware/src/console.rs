@@ -1,7 +1,8 @@
 //! The bring-up console: a line protocol on the host link, for a terminal.
 //!
-//! Until the framed table-upload protocol (issue 8) takes the link over — it implements
-//! the same [`LinkProtocol`] trait — the board answers plain text lines (the link's baud rate, `crate::board::LINK_BAUD`, 8N1,
+//! Built with `--features console`, it takes the place of the framed protocol on the
+//! link — it implements the same [`LinkProtocol`] trait — and the board answers plain
+//! text lines (the link's baud rate, `crate::board::LINK_BAUD`, 8N1,
 //! `\n` or `\r` terminated, case-insensitive):
 //!
 //! | line | effect | answer |

@@ -8,10 +8,10 @@
 //! link task — `Follower::configure` then `Follower::load_table`, field by field and one
 //! table copy, in thread mode while the tick keeps running — then `Runtime::install`
 //! swaps it with the running one in a critical section of a few dozen instructions, and
-//! the old buffer becomes the spare. (Moving `Follower<2, 256>` by value inside that
-//! section was measured at 119 448 instructions, bench-m4 `runtime_install_law` at
-//! 67685ae: ≈ 0.96 ms at 168 MHz, estimated — one whole tick; and building one by value
-//! put 50 KB frames on a 64 KB stack, the first-power-up issue.)
+//! the old buffer becomes the spare. (Moving `Follower<2, 256>`, 12.6 KiB, by value
+//! inside that section would copy it in and the old one out with the tick masked —
+//! about one whole 1 ms tick at 168 MHz; and building a law by value puts frames of
+//! tens of KiB on the 64 KiB stack. bench-m4's `runtime_install_law` measures the swap.)
 //!
 //! Exactly two buffers: one runs, one is spare (or not yet used).
 

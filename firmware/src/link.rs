@@ -142,7 +142,8 @@ impl LinkIo<'_> {
     }
 }
 
-/// A host-link protocol (bring-up console now, framed protocol in issue 8).
+/// A host-link protocol: the framed protocol (default) or the bring-up console
+/// (`--features console`).
 pub trait LinkProtocol {
     /// Bytes received from the host.
     fn on_rx(&mut self, bytes: &[u8], io: &mut LinkIo<'_>);

@@ -37,8 +37,8 @@
 //!    whose integral only trims the feed-forward: the shortfall of the feed-forward on
 //!    the robustness box's slowest valve (flow ×0.8 at 120 bar: 630 LSB on the reference
 //!    machine), whichever the margins — the valve tolerance a machine builder specifies
-//!    is what the integral must be allowed to make up (sixteenth session; 200 LSB before
-//!    left that machine at 66 µm, and 630 changes nothing on the nominal one).
+//!    is what the integral must be allowed to make up (a clamp of 200 LSB leaves that
+//!    machine at 66 µm, 630 at 23 µm, and 630 changes nothing on the nominal one).
 //! 6. `feedforward` only: `kv± = 2047 / v_max±` from the closed-form full-opening speeds
 //!    (PLANT.md's "known" valve), aimed past the valve lag `2ζ_v/ω_v`.
 //! 7. Master filter bandwidth: 8 Hz (core default), or the filter's limit `0.2/T`
@@ -50,8 +50,8 @@
 //! when the force still swings by more than 10 % of the set-point in the last second of
 //! the hold, peak-to-peak about its least-squares line (a weak P loop still creeping
 //! toward its balance — the approach's feed-forward carried over bumplessly keeps
-//! pushing — is slow, not unstable: measured without the trend, the eleventh session's
-//! rule took that creep for an oscillation and printed `kp_lsb_per_n = 0.00064`). `Kp_F = K_u/2`, `Ki_F = Kp_F·ω_c/4` with `ω_c = Kp_F·k_c·K_vel`
+//! pushing — is slow, not unstable: measured without the trend, the swing would take
+//! that creep for an oscillation, and the rule would give `kp_lsb_per_n = 0.00064`). `Kp_F = K_u/2`, `Ki_F = Kp_F·ω_c/4` with `ω_c = Kp_F·k_c·K_vel`
 //! (`k_c` the contact stiffness: N/s per LSB of the force plant). The approach gains
 //! are the position rule's `Kp` for the `feedforward` law and `kv = 2047/v_max+`.
 
@@ -301,16 +301,18 @@ pub fn master_filter_hz(period_us: u32) -> f64 {
     filter_limit_hz(period_us).min(8.0)
 }
 
-/// Which machine the rule's gain margin of 2 (6 dB) holds on, and how it is judged.
+/// Which machine the rule's gain margin of 2 (6 dB) holds on, and how it is judged
+/// (`Box`: [`box_ultimate_gain`]; `Measured`: [`meet_measured_margins`]). The variants'
+/// doc lines are `--margins`' help: plain words, no links.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Margins {
     /// The scenario's own machine (the shipped reference sets).
     #[default]
     Nominal,
-    /// Every machine of the robustness box ([`box_ultimate_gain`]).
+    /// Every machine of the robustness box (mass, oil, valve flow, supply off nominal).
     Box,
     /// The scenario's own machine, then Kp (and Ki with it) lowered until the loop
-    /// measures gain margin ≥ 6 dB and phase margin ≥ 45° ([`meet_measured_margins`]).
+    /// measures gain margin ≥ 6 dB and phase margin ≥ 45° (the probe of `host-sim margins`).
     Measured,
 }
 
@@ -480,8 +482,8 @@ pub fn position_gains_with(
             following_error_um: 20_000.0,
             // The gain backoff (core `axis::backoff`) and the feed-forward trim
             // (`axis::ff_trim`) on the feed-forward law, as measured on the robustness
-            // box at 1 ms (README, "Robustness"); not measured at longer periods, where
-            // they stay off.
+            // box at 1 ms (docs/results.md, "Robustness"); not measured at longer
+            // periods, where they stay off.
             osc_band_um: if shipped_extras {
                 hydra_core::profile::OSC_BAND_UM
             } else {
@@ -730,7 +732,8 @@ mod tests {
         let a = &s.axes[0];
         let nominal = ultimate_gain(&s, a, ControlMode::Feedforward, 1000).unwrap();
         let (ku, worst) = box_ultimate_gain(&s, a, ControlMode::Feedforward, 1000).unwrap();
-        // The README's figures: 0.49 in the box against 2.22 nominal (±2 %).
+        // docs/results.md's figures ("Robustness"): 0.49 in the box against 2.22
+        // nominal (±2 %).
         assert!((ku / 0.4882 - 1.0).abs() < 0.02, "box K_u {ku}");
         assert!(
             (nominal / 2.2238 - 1.0).abs() < 0.02,
@@ -786,7 +789,7 @@ mod tests {
     }
 
     /// `--margins measured`: the shipped 1 ms feed-forward set (K_u/2) measures a
-    /// 5.3 dB gain margin with its PI and feed-forward (README "Robustness"); the rule
+    /// 5.3 dB gain margin with its PI and feed-forward (docs/results.md, "Robustness"); the rule
     /// lowers Kp until the probe measures ≥ 6 dB and ≥ 45°, and no further than one
     /// round past it.
     #[test]

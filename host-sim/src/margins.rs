@@ -13,7 +13,7 @@
 //!
 //! A lightly damped oil column can lift |L| above 1 again near its own frequency with
 //! the phase already past −180° (a phase-stabilised resonance on the reference
-//! machine's shipped set, README "Robustness"). The classic margins at the first
+//! machine's shipped set, docs/results.md, "Robustness"). The classic margins at the first
 //! crossings do not see how close that loop passes to −1; the modulus margin does, and
 //! the points show it. Around the grid point closest to −1 the sweep adds [`REFINE`]
 //! frequencies across its two intervals (a sharp peak falls between grid points).

@@ -1,4 +1,4 @@
-//! Identification on the board (issue 21 part 1): a virtual board of a machine off
+//! Identification on the board: a virtual board of a machine off
 //! nominal in mass, oil, valve flow and friction runs `motion test` (step, PRBS and
 //! chirp, each recorded by the loop-rate capture), `identify` fits the captures
 //! without a spool signal from the quantised readings, and recovers each parameter

@@ -28,7 +28,8 @@ fn margins_of_the_shipped_set_and_refusals() {
     let pm = m["phase_margin_deg"].as_f64().expect("phase margin");
     let fc = m["gain_crossover_hz"].as_f64().expect("crossover");
     println!("shipped 1 ms set: GM {gm:.1} dB, PM {pm:.1}° at {fc:.1} Hz");
-    // README: 5.3 dB, 50.1° at 13.6 Hz (±0.5 dB, ±2° for the plant's nonlinearity).
+    // docs/results.md, "Robustness": 5.3 dB, 50.1° at 13.6 Hz (±0.5 dB, ±2° for the
+    // plant's nonlinearity).
     assert!(
         (4.8..5.8).contains(&gm) && (48.0..52.5).contains(&pm),
         "{m}"

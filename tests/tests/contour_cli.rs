@@ -1,5 +1,5 @@
-//! `host-sim contour-estimate`: the JSON object's shape and the benchmark targets of
-//! issue 5 at the default settings (deterministic: seeded points, fixed-point core).
+//! `host-sim contour-estimate`: the JSON object's shape and the benchmark targets
+//! (docs/contour.md) at the default settings (deterministic: seeded points, fixed-point core).
 
 use host_sim::cmd::contour_estimate::{evaluate, Args, PathKind};
 

@@ -1,5 +1,5 @@
 //! The README is a manual and the docs describe the product as it is: the README stays
-//! short, no document outside CHANGELOG.md speaks of sessions, issue numbers, commit
+//! short, no document outside CHANGELOG.md (and no code comment) speaks of sessions, issue numbers, commit
 //! hashes or builds not kept, and every relative link points at a file that exists.
 
 use std::path::{Path, PathBuf};
@@ -101,6 +101,61 @@ fn no_document_speaks_of_the_projects_history() {
     assert!(
         found.is_empty(),
         "history in the docs:\n{}",
+        found.join("\n")
+    );
+}
+
+/// Every `.rs` file under `dir`, recursively.
+fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in rd.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            sources(&p, out);
+        } else if p
+            .extension()
+            .is_some_and(|x| x == "rs" || x == "toml" || x == "sh")
+        {
+            out.push(p);
+        }
+    }
+}
+
+#[test]
+fn no_code_comment_speaks_of_the_projects_history() {
+    let r = root();
+    let mut files = Vec::new();
+    for d in [
+        "core/src",
+        "host-sim/src",
+        "host-sim/tests",
+        "firmware/src",
+        "board-emu/src",
+        "board-emu/tests",
+        "bench-m4/src",
+        "tests/tests",
+        "scripts",
+    ] {
+        sources(&r.join(d), &mut files);
+    }
+    files.push(r.join("bench-budget.toml"));
+    files.push(r.join("ci.sh"));
+    let me = Path::new(file!()).file_name().unwrap();
+    let mut found = Vec::new();
+    for p in files.iter().filter(|p| p.file_name() != Some(me)) {
+        let text = std::fs::read_to_string(p).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            if let Some(what) = history(line) {
+                found.push(format!("{}:{}: {what}: {line}", p.display(), n + 1));
+            }
+        }
+    }
+    assert!(files.len() > 100, "{} files", files.len());
+    assert!(
+        found.is_empty(),
+        "history in the code:\n{}",
         found.join("\n")
     );
 }

@@ -1,11 +1,11 @@
 //! A valid, non-flat 512-row table uploaded through `Handler<1, 512>` must commit
-//! (and activate) — the protocol path of the `TableTooSteep` report (the first-power-up
-//! issue): with the table built by value, a frame of two tables (> 32 KiB) made x86-64's
-//! stack-probe loop clobber the register holding the master top speed in builds with 16
-//! codegen units and no LTO — the `bench` profile `ci.sh` runs the host tests with — and
-//! every non-flat table of ≥ 409 rows was refused. On d327636 all three tests below fail
-//! under `cargo test --profile bench` ("TableCommit of a valid 512-row table: Nak {
-//! code: TableTooSteep, detail: 1 }"); tables are now built in place.
+//! (and activate) — the protocol path of the `TableTooSteep` report. Tables are built in
+//! place: a table built by value puts a frame of two tables (> 32 KiB) on the stack, and
+//! x86-64's stack-probe loop for such a frame can clobber the register holding the
+//! master top speed in builds with 16 codegen units and no LTO — the `bench` profile
+//! `ci.sh` runs the host tests with —, so that every non-flat table of ≥ 409 rows is
+//! refused ("TableCommit of a valid 512-row table: Nak { code: TableTooSteep,
+//! detail: 1 }"). These tests run under `cargo test --profile bench` to catch that.
 
 use hydra_core::protocol::frame::{FrameDecoder, MAX_WIRE};
 use hydra_core::protocol::handler::encode_request;

@@ -1,4 +1,4 @@
-//! Settings come back as they were saved (settings issue 2c), on the virtual board: a
+//! Settings come back as they were saved, on the virtual board: a
 //! saved set is applied at boot as one validated set, never replayed one by one.
 
 use host_sim::scenario::Scenario;

@@ -3,7 +3,7 @@
 //!
 //! The simulation is deterministic (fixed-step RK4, quantised sensors, no noise), so the
 //! bounds below cannot flake; they sit between the measured figures of docs/sim.md and
-//! the targets of issue 3.
+//! its targets.
 
 use host_sim::camfile::CamCsv;
 use host_sim::cmd::run::to_json;
@@ -50,8 +50,8 @@ fn tangent(r: &RunReport) -> (f64, f64) {
     }
 }
 
-/// Issue 3's target: feed-forward at 1 ms, max ≤ 10 µm and RMS ≤ 2 µm (measured 8.0 and
-/// 1.7 µm with the master's count alone, 4.0 and 0.45 µm with its edges).
+/// The target: feed-forward at 1 ms, max ≤ 10 µm and RMS ≤ 2 µm (measured 4.1 and
+/// 0.45 µm with the master from its edges, 9.1 and 1.6 µm with its count alone).
 #[test]
 fn feedforward_at_1ms_meets_the_target() {
     let (s, t) = tangent_only();
@@ -66,11 +66,11 @@ fn feedforward_at_1ms_meets_the_target() {
     assert!((0.2..0.4).contains(&peak), "peak command {peak}");
 }
 
-/// Issue 21 part 3: the master below one count from its timestamped edges (the board's
+/// The master below one count from its timestamped edges (the board's
 /// 1 MHz edge timer, the scenario's default) against the count alone
 /// (`master.edge_timer_hz = 0`): the RMS error falls by more than half (measured 1.63 →
 /// 0.45 µm) and the max by half (9.11 → 4.12 µm, with the 1 ms set's feed-forward trim):
-/// issue 21's nominal target, ≤ 5 µm max and ≤ 1 µm RMS.
+/// the nominal target, ≤ 5 µm max and ≤ 1 µm RMS.
 #[test]
 fn the_sub_count_master_lowers_the_tangent_error() {
     let (s, t) = tangent_only();
@@ -185,7 +185,7 @@ fn side_press_switches_bumplessly_and_holds_the_force() {
     assert!(a.peak_command < 0.5, "peak command {}", a.peak_command);
 }
 
-/// `--json` prints the shape of issue 3.
+/// `--json` prints the documented shape (docs/sim.md).
 #[test]
 fn json_has_the_issue_shape() {
     let (mut s, t) = reference();

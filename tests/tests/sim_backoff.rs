@@ -1,9 +1,9 @@
 //! The gain backoff (core's `axis::backoff`) on the simulated machine: with the shipped
 //! 1 ms gains and active damping (`tangent_damped.toml`) every machine of the robustness
-//! box runs without oscillation within issue 21's targets, and with the shipped gains
+//! box runs without oscillation within the robustness targets, and with the shipped gains
 //! alone (`tangent_alone.toml`, the gain backoff and the feed-forward trim, no damping)
-//! so does every machine; the aerated-oil machine that shook into its fault before
-//! (`sim_faults.rs`, the backoff off) is held.
+//! so does every machine; the aerated-oil machine that shakes into its fault with the
+//! backoff off (`sim_faults.rs`) is held.
 
 use host_sim::robust::{cases as box_variants, evaluate, Case, Variant};
 use host_sim::scenario::{Controller, Scenario};
@@ -31,7 +31,7 @@ fn show(c: &[Case]) -> String {
         .join("\n")
 }
 
-/// Issue 21 part 2's targets on the whole box (measured: worst 17.9 µm, nominal 3.9 /
+/// The robustness targets on the whole box (measured: worst 17.9 µm, nominal 3.9 /
 /// 0.46 µm; the four mass ×2 / bulk ×0.5 corners end at level 1 … 3).
 #[test]
 fn damped_shipped_gains_with_the_backoff_hold_every_machine_of_the_box() {
@@ -57,8 +57,8 @@ fn damped_shipped_gains_with_the_backoff_hold_every_machine_of_the_box() {
     // The machines that do not need it are not touched: at most two others — the
     // stiff-oil mass ×2 corner whose 43 Hz ringing also backs off, and aerated oil alone
     // (bulk ×0.5), whose start-up error of ≈ 5 µm rides at the 4 µm band (level 0 or 1
-    // by a hair: 5.4 µm at level 0 before the feed-forward trim, 15.2 at level 1 with
-    // it; measured) — never the nominal.
+    // by a hair: 15.2 µm at level 1 with the feed-forward trim; measured) — never the
+    // nominal.
     let touched = c
         .iter()
         .filter(|k| k.backoff_level > 0 && !(k.variant.mass == 2.0 && k.variant.bulk == 0.5))
@@ -66,13 +66,11 @@ fn damped_shipped_gains_with_the_backoff_hold_every_machine_of_the_box() {
     assert!(touched <= 2, "{all}");
 }
 
-/// Issue 21 part 2's targets with the shipped gains alone, no damping (the gain
+/// The robustness targets with the shipped gains alone, no damping (the gain
 /// backoff with its growth watch and the feed-forward trim): every machine of the box
 /// runs without oscillation within 30 µm, the nominal within 5 µm max and 1 µm RMS at
 /// its set gain (measured: worst 25.6 µm, the mass ×2 / bulk ×0.5 / flow ×1.2 / 180 bar
-/// corner at level 4, its start-up ringing; 30.8 µm before the trim and the watch, 48.4 µm before an
-/// oscillation still growing in a settling took the next level at once; nominal 4.1 /
-/// 0.45 µm).
+/// corner at level 4, its start-up ringing; nominal 4.1 / 0.45 µm).
 #[test]
 fn the_shipped_gains_with_the_backoff_and_the_trim_hold_every_machine_of_the_box() {
     let s = scenario("tangent_alone.toml");

@@ -13,8 +13,9 @@ fn the_procedure_finds_the_papers_own_gains_at_72_ms() {
     let r = compare(&s, &table, &[(Controller::Paper, 72_000)], &|_, _| {}).unwrap();
     let f = &r[0];
     assert_eq!(f.runs, 54);
-    // The rule's own set is the README's reference row (4 719.3 µm with the master from
-    // its edges; 4 722.7 µm with the count alone).
+    // The rule's own set is the reference row of docs/results.md, "Following on the
+    // reference machine" (4 719.3 µm with the master from its edges; 4 722.7 µm with the
+    // count alone).
     assert!((f.rule.max_um - 4719.3).abs() < 5.0, "{:?}", f.rule);
     // The search: measured 1 904 µm (1 909 with the count master) at Kp 0.136 (the √2 ceiling), no integral.
     assert!(f.best.faults.is_empty(), "{:?}", f.best);

@@ -49,9 +49,8 @@ fn every_controller_stays_on_the_line() {
 /// The tuned nonlinear controllers (defaults from `host-sim xy --tune`, whose cost
 /// includes the parabola) do not oscillate by the tuning rule on the circle nor on the
 /// parabola, and stay within the measured figures with margin (measured: circle nccc
-/// 8.9 µm at 6.4 sign changes/s, nccc-est 11.2 µm at 9.3/s, independent 8.6 µm;
-/// parabola nccc 13.2 µm at 6.8/s, nccc-est 13.1 µm at 11.6/s. Before the parabola
-/// was in the tuning cost nccc-est dithered on the parabola at 27.8/s, rms 2.85 µm).
+/// 8.94 µm at 8.4 sign changes/s, nccc-est 8.94 µm at 7.1/s, independent 8.72 µm;
+/// parabola nccc 13.36 µm at 9.0/s, nccc-est 13.36 µm at 9.0/s).
 #[test]
 fn tuned_nccc_does_not_oscillate_on_the_circle() {
     let run = |path, controller| {
@@ -116,12 +115,12 @@ fn bad_arguments_are_rejected() {
     assert!(simulate(&bad).is_err());
 }
 
-/// Issue 6's three targets measure peaks where the path normal is (within 10°) one
+/// The three X–Y targets (docs/npid.md) measure peaks where the path normal is (within 10°) one
 /// coordinate axis — the Y reversal at the top of the circle, the X reversal where the
 /// 2 kN step acts, the parabola's vertex — so only that one axis can change the contour
 /// error there (the other axis' share is sin(off-axis angle) < 0.18), and the load
 /// step's peak comes within 20 ms (the oil column's half period, before the valve acts).
-/// Measured: 1.1° (circle), 7.7° (step, at +10 ms), 4.6–4.8° (parabola).
+/// Measured: 1.1° (circle), 7.6–7.7° (step, at +9 … +10 ms), 4.6–4.8° (parabola).
 #[test]
 fn the_largest_contour_errors_sit_where_one_axis_is_the_normal() {
     for c in [ControllerKind::Independent, ControllerKind::Nccc] {
@@ -153,8 +152,8 @@ fn the_largest_contour_errors_sit_where_one_axis_is_the_normal() {
 
 /// nccc-est's estimated ε follows the exact contour error through the whole circle,
 /// including the feed ramps where the axes (led by the feed-forward) run ahead of the
-/// newest window point: measured max |ε_est − ε_exact| 0.68 µm (before the window's ends
-/// were opened it was ≈ 20 µm there, with a flipping sign).
+/// newest window point: measured max |ε_est − ε_exact| 0.69 µm (the window's ends are
+/// open: a point ahead of the newest one is measured to the path beyond it).
 #[test]
 fn estimated_contour_error_follows_the_exact_one_at_the_feed_ramps() {
     let r = simulate(&XyScenario {

@@ -3,7 +3,7 @@
 //!
 //! A gain set tuned for a 6 dB margin on the machine it was measured on shakes a machine
 //! whose oil column is softer (twice the moving mass on aerated oil halves the hydraulic
-//! frequency; README, "Robustness"). The oscillation shows in the following error long
+//! frequency; docs/results.md, "Robustness"). The oscillation shows in the following error long
 //! before a person sees it: a growing sine at the loop's crossover, riding on the slow
 //! tracking error. The detector high-passes the error and counts its half-cycles across
 //! a band:
@@ -22,8 +22,8 @@
 //! on the integrator step is scaled too, to min(1, s/0.36) (0.75, 0.56, 0.42): the PI
 //! corner Ki/Kp never rises above 2.8× its set value (with Ki kept, the integrator's own
 //! ≈ 6 Hz mode shook two soft corners at levels 3 and 4 without damping; measured).
-//! (Steps of 0.6 each were tried first: the oscillation outgrew the first cut and the
-//! detector went a level too deep on the soft corners.)
+//! (With equal steps of 0.6 the oscillation outgrows the first cut and the detector
+//! goes a level too deep on the soft corners.)
 //!
 //! Counting: the first excursion beyond the band sets its side; each later crossing to
 //! the other side counts, and the window opens at the first counted one — so four counted
@@ -37,9 +37,9 @@
 //! outgrow the last (and every peak before) still grows at the new gain and takes the
 //! next level as the settling ends (at periods above 33 ms, fewer than four ticks of
 //! settling, this test has no second half and does not act). Without it an oscillation
-//! the first cuts did not stop grew for a further 150–250 ms per level to ≈ 150 µm, and
-//! the lightly damped oil column rang on from there for a second (the undamped mass ×2
-//! / bulk ×0.5 / flow ×1.2 / 180 bar corner: 48.4 → 30.8 µm).
+//! the first cuts do not stop grows for a further 150–250 ms per level to ≈ 150 µm, and
+//! the lightly damped oil column rings on from there for a second (the undamped mass ×2
+//! / bulk ×0.5 / flow ×1.2 / 180 bar corner).
 //!
 //! After the settling, while the raised band has not decayed back to b, a **growth
 //! watch** runs beside the count: each half-cycle beyond ±b ends when y passes b on the
@@ -48,13 +48,12 @@
 //! above the last, grow at this gain — the next level at once. It catches an
 //! oscillation whose settling happened to see a beat (the cut shifts its phase: the
 //! second half small, no growth there) and that then grows back from below the raised
-//! band: on the same corner, with the feed-forward trim, the levels came at 0.17 / 0.43
-//! / 0.53 / 0.86 s instead of 0.17 / 0.45 / 0.55 / 0.88 s, and the ringing the oil
-//! column's own damping must then decay started from ≈ 119 instead of ≈ 128 µm: 25.6
-//! µm at 1.5 s, where the error is first counted (`host-sim run` on that machine,
-//! `--csv`; 30.0 on a build without the watch, not kept). Two tones beating rise on one side for half their beat period (2½ periods
-//! at 25 and 30 Hz): not enough (a test; a first version that judged the partly seen
-//! half-cycle and counted the reference took the review's beating decay three levels
+//! band: on the same corner, with the feed-forward trim, the levels come at 0.17 / 0.43
+//! / 0.53 / 0.86 s, and the ringing the oil column's own damping must then decay starts
+//! from ≈ 119 µm: 25.6 µm at 1.5 s, where the error is first counted (`host-sim run` on
+//! that machine, `--csv`). Two tones beating rise on one side for half their beat
+//! period (2½ periods at 25 and 30 Hz): not enough (a test; judging the partly seen
+//! half-cycle, or counting the reference, would take a beating decay three levels
 //! down). A decaying oscillation's peaks fall and a steady one's stay within 1/16 (the
 //! band's decay takes that one); a tracking swing is one
 //! half-cycle. The level is kept through restarts, cleared faults and new runs, and
@@ -69,8 +68,8 @@
 //!
 //! The slow tracking error of a table corner is a single swing, not four alternating
 //! crossings, and the 10 Hz high-pass takes most of it out. Measured with b = 4 µm on the
-//! robustness box (`host-sim robust host-sim/scenarios/tangent_damped.toml`, README
-//! "Robustness"): the nominal machine and 19 of the 24 others never trigger it, the four
+//! robustness box (`host-sim robust host-sim/scenarios/tangent_damped.toml`,
+//! docs/results.md, "Robustness"): the nominal machine and 19 of the 24 others never trigger it, the four
 //! mass ×2 / bulk ×0.5 corners end at levels 1, 1, 1 and 3, the stiff-oil mass ×2 corner
 //! whose 43 Hz ringing crosses the band at 1, and no machine oscillates.
 //!

@@ -8,7 +8,7 @@
 //! at one speed only: when the master slows to its stop the feed-forward falls and the
 //! integrator must unwind at Ki's rate, so the error grows by its lag (on the mass ×2 /
 //! bulk ×0.5 corner at the backoff's deepest level, where Ki is 0.42 of its set value,
-//! 30.7 µm at the stop, nineteenth session; with the trim 7.9 µm there).
+//! 30.7 µm at the stop without the trim; with the trim 7.9 µm there).
 //! A share of the integrator that is proportional to the speed belongs to the
 //! feed-forward.
 //!
@@ -26,8 +26,9 @@
 //! (ff the untrimmed feed-forward kv±·v + ka·a.) The integrator so empties with
 //! τ·ff_ref/|ff| (τ = 2^n·T ≈ `ff_trim_tau_s`): with τ at |ff| = ff_ref, faster above
 //! it, slower below — least where a constant is most of what the
-//! integrator holds. Every step is a shift and one product (a division by ff cost 157
-//! instructions a tick on the Cortex-M4: docs/bench.md, twentieth session).
+//! integrator holds. Every step is a shift and one product: no division by ff, which
+//! would be an `i64` division (`__aeabi_ldivmod`) every tick on the Cortex-M4
+//! (docs/bench.md).
 //!
 //! The integrator keeps what does not scale with speed — a valve null offset, a load, a
 //! ratio beyond the clamp. Below ff_min = 1/64 of the valve's clamp (32 LSB of 2 047)

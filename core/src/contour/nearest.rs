@@ -3,8 +3,8 @@
 //!
 //! # Warm start
 //!
-//! A full scan costs N squared distances (measured before the warm start: about 75
-//! Cortex-M4 instructions each, 4 900 of the X–Y tick's 11 600 with its 64-point window). But from one period to the next the
+//! A full scan costs N squared distances every period (64 for the X–Y tick's window).
+//! But from one period to the next the
 //! measured point moves by about one segment along the path, and the window by one
 //! point, so the nearest point of the last call is a neighbour of this one's. The
 //! window remembers the **physical slot** of the last nearest point (slots do not move

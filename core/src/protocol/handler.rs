@@ -978,7 +978,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         }
         // Never erase the slot that booted or was saved last (the one that boots now),
         // even when the other slot is newer: after a fallback boot the newer slot is the
-        // refused one (first-power-up review; settings issue 2b).
+        // refused one.
         let keep = self.saved.map(|h| h.slot);
         let h = self
             .store

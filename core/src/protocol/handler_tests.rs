@@ -1252,7 +1252,7 @@ fn set_position_offset_and_link_timeout_are_saved() {
     assert!(r2.h.watch_link(&mut r2.dev, 261));
 }
 
-/// Settings issue 2a: a committed table that a later SetParam makes invalid is refused at
+/// A committed table that a later SetParam makes invalid is refused at
 /// Activate (typed, naming the row), and nothing changes.
 #[test]
 fn activate_rechecks_the_limits_in_force() {
@@ -1283,7 +1283,7 @@ fn activate_rechecks_the_limits_in_force() {
     assert_eq!(r.dev.table, before);
 }
 
-/// Settings issue 2b: after a fallback boot (the newer slot refused), Save writes over
+/// After a fallback boot (the newer slot refused), Save writes over
 /// the refused slot and never erases the one that booted: a power cut at any point of that
 /// Save still boots a table.
 #[test]

@@ -1,4 +1,4 @@
-//! The UART protocol: table upload, commands, status and telemetry (issue 8).
+//! The UART protocol: table upload, commands, status and telemetry.
 //!
 //! Layers, bottom up (byte-by-byte description in `PROTOCOL.md`):
 //!

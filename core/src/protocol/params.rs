@@ -416,7 +416,7 @@ mod tests {
         apply_param(&mut c1, &mut l1, NONE, 0, ParamId::MaxUm, 90_000.0).unwrap();
     }
 
-    /// Settings issue 2c: min 100 mm, max 700 mm, then min 550 mm (replacing the first
+    /// Min 100 mm, max 700 mm, then min 550 mm (replacing the first
     /// record in place): one by one against the boot max of 500 mm the min fails; as a
     /// set the limits are [550, 700] mm. A set invalid as a whole changes nothing.
     #[test]

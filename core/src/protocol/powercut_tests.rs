@@ -1,4 +1,4 @@
-//! The power-cut benchmark of the store (settings issue 3): random sequences
+//! The power-cut benchmark of the store: random sequences
 //! cut → boot → save → cut → boot … on the F4-like [`RamFlash`] (sector erase, word
 //! program, half-done operations, weak cells), through the handler as the board runs it.
 //!
@@ -11,7 +11,8 @@
 //! from the previous boot of the same image).
 //!
 //! `cargo test -p hydra-core --profile bench --lib powercut -- --nocapture` prints the
-//! counts (the README's figure; `POWERCUT_SEED=<u64>` for another random draw); CI runs
+//! counts (the figure of docs/results.md, "The link and the flash store";
+//! `POWERCUT_SEED=<u64>` for another random draw); CI runs
 //! the full 10⁵ sequences.
 
 use super::handler::Handler;
@@ -190,7 +191,7 @@ fn run(sequences: u64, seed: u64) -> Counts {
 /// acknowledged (or booted) save or the interrupted one, 0 boots that differ.
 #[test]
 fn powercut_benchmark() {
-    // Another seed: POWERCUT_SEED=<u64> (the README's figure is the default seed's).
+    // Another seed: POWERCUT_SEED=<u64> (docs/results.md's figure is the default seed's).
     let seed = std::env::var("POWERCUT_SEED")
         .ok()
         .and_then(|s| s.parse().ok())

@@ -486,7 +486,7 @@ proptest! {
                 && after == State::Holding(HoldReason::EndOfTable);
             // The end of an accepted approach starts following on its own, in any tick —
             // also in one whose command is refused (a Start refused Busy while the
-            // approach ends: found by this test, nineteenth session).
+            // approach ends).
             let approach_ended = approach && before == State::Manual && after == State::Following;
             if matches!(e.cmd, Some(Command::Approach { .. })) && out.reply == Some(Ok(())) {
                 approach = true;

@@ -72,7 +72,7 @@ fn run_with_bar(
     Ok(r)
 }
 
-/// The JSON object of a run (the shape of issue 3; force axes under `force_axes`).
+/// The JSON object of a run (the shape docs/sim.md documents; force axes under `force_axes`).
 pub fn to_json(r: &RunReport) -> serde_json::Value {
     let mut axes = serde_json::Map::new();
     let mut force = serde_json::Map::new();

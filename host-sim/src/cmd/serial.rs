@@ -13,8 +13,8 @@ pub const BAUD: u32 = 921_600;
 /// How long to wait for an answer.
 pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(3);
 /// How long to wait for Save's answer: the board erases a 128 KiB flash sector, 1 s
-/// typical and 2 s at most at x32 (4 s at most at x8, as firmware before the x32 erase
-/// did), then programs ≤ 4 KiB (≤ 0.1 s at 100 µs per word) and reads it back.
+/// typical and 2 s at most at x32 (4 s at most at x8: the margin covers a firmware that
+/// erases at x8), then programs ≤ 4 KiB (≤ 0.1 s at 100 µs per word) and reads it back.
 pub const SAVE_TIMEOUT: Duration = Duration::from_secs(6);
 
 /// The answer timeout of request `q`.
@@ -165,11 +165,13 @@ pub struct Link {
 
 impl Link {
     /// Opens `path` and says Hello.
+    ///
+    /// A port that cannot be opened is an error with [`open_hint`]'s advice.
     pub fn open(path: &str) -> anyhow::Result<Self> {
         let port = serialport::new(path, BAUD)
             .timeout(Duration::from_millis(20))
             .open()
-            .map_err(|e| anyhow::anyhow!("open {path}: {e}"))?;
+            .map_err(|e| anyhow::anyhow!("cannot open {path}: {e}\n{}", open_hint()))?;
         let mut l = Self {
             port,
             dec: FrameDecoder::new(),
@@ -313,10 +315,51 @@ impl Link {
     }
 }
 
+/// What to try when a serial port does not open: the ports this machine has (USB-serial
+/// adapters and boards with a USB UART), the `dialout` group, and the virtual boards.
+pub fn open_hint() -> String {
+    let mut ports: Vec<String> = std::fs::read_dir("/dev")
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with("ttyUSB") || n.starts_with("ttyACM"))
+                .map(|n| format!("/dev/{n}"))
+                .collect()
+        })
+        .unwrap_or_default();
+    ports.sort();
+    let found = if ports.is_empty() {
+        "no /dev/ttyUSB* or /dev/ttyACM* here (is the adapter plugged in?)".to_string()
+    } else {
+        format!("serial ports here: {}", ports.join(", "))
+    };
+    format!(
+        "  {found};\n  \"permission denied\": add yourself to the dialout group \
+         (`sudo usermod -aG dialout $USER`, then log in again);\n  \
+         without a board: `host-sim serve --pty` (the virtual board) or `cargo run --release \
+         -p board-emu -- --pty` (the firmware, emulated) prints a port to use"
+    )
+}
+
 #[cfg(test)]
 mod explain_tests {
-    use super::explain;
+    use super::{explain, Link};
     use hydra_core::protocol::{Nak, NakCode};
+
+    #[test]
+    fn a_port_that_does_not_open_says_what_to_try() {
+        let Err(e) = Link::open("/dev/hydra-no-such-port") else {
+            panic!("opened a port that does not exist");
+        };
+        let e = format!("{e:#}");
+        for p in [
+            "cannot open /dev/hydra-no-such-port",
+            "dialout",
+            "serve --pty",
+        ] {
+            assert!(e.contains(p), "{p} missing: {e}");
+        }
+    }
 
     #[test]
     fn naks_are_explained_with_their_details() {

@@ -49,7 +49,7 @@ fn no_crossover_no_margin() {
 
 /// The shipped 1 ms feed-forward set on the reference machine: the probe's gain margin
 /// agrees with the tuning procedure's, K_u / Kp = 2.22 / 1.1 (6.1 dB, a P step test),
-/// within 2 dB; the phase margin is measured (README "Robustness").
+/// within 2 dB; the phase margin is measured (docs/results.md, "Robustness").
 #[test]
 fn the_shipped_set_measured_against_the_ultimate_gain() {
     let s = Scenario::default();

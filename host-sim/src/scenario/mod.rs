@@ -167,7 +167,7 @@ pub struct MasterCfg {
     /// The board's edge timer, Hz: it timestamps the master encoder's rising A edges and
     /// the runtime estimates the master below one count from them
     /// (`hydra_core::master::EdgeEstimator`). Default 1 MHz, the firmware's; 0 = no edge
-    /// timer (the master is the count, as before the sixteenth session).
+    /// timer (the master is the count alone).
     pub edge_timer_hz: f64,
 }
 

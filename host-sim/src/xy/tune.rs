@@ -595,7 +595,7 @@ mod tests {
     }
 
     /// A candidate's cost is the worse of its two runs' costs, each read from its trace
-    /// (a first build of the early rejection dropped the trace first and scored every
+    /// (an early rejection that dropped the trace before scoring it would score every
     /// accepted candidate 0 µm).
     #[test]
     fn a_candidates_cost_is_the_worse_of_its_two_runs() {

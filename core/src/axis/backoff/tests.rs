@@ -191,7 +191,7 @@ fn an_oscillation_growing_after_the_settling_takes_the_next_level_early() {
 }
 
 /// Two tones beating are not growth: after the first cut a 25 Hz mode decays from
-/// 9.84 µm with τ = 1 s under a 1 µm ripple at 30 Hz (the review's case: its peaks on
+/// 9.84 µm with τ = 1 s under a 1 µm ripple at 30 Hz (its peaks on
 /// one side rise for half of each 200 ms beat, 7.15 → 7.67 → 8.28 µm). The watch takes
 /// no level; the count takes the next one only when the raised band (τ = 0.5 s) has
 /// fallen below the slower-decaying mode, after 0.8 s.

@@ -191,7 +191,8 @@ mod recovery {
                     p.std,
                     100.0 * err
                 );
-                // Measured: within 5 % (README); the issue's criterion is 10 %.
+                // Measured: within 5 % (docs/results.md, "Identification and
+                // tuning"); the criterion is 10 %.
                 assert!(
                     err.abs() < 0.10,
                     "noise {noise} bar: {name} {:+.1} %",
