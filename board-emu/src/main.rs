@@ -6,7 +6,7 @@ use board_emu::elf::Image;
 use board_emu::flash::Flash;
 use board_emu::session::Session;
 use clap::Parser;
-use host_sim::scenario::Scenario;
+use hydra_plant::scenario::Scenario;
 use std::io::Write;
 use std::path::PathBuf;
 use std::rc::Rc;

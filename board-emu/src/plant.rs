@@ -13,12 +13,12 @@
 //! true position, every millisecond of master time after `sim.error_skip_s`.
 
 use crate::bus::{Environment, Inputs, Outputs, SYSCLK_HZ};
-use host_sim::camfile::{interpolate, CamCsv};
-use host_sim::machine::{MachineAxis, MachinePlant};
-use host_sim::plant::edges::newest_rising_a;
-use host_sim::plant::valve_command;
-use host_sim::scenario::Scenario;
-use host_sim::sim::ErrorStat;
+use hydra_plant::camfile::{interpolate, CamCsv};
+use hydra_plant::hydraulics::edges::newest_rising_a;
+use hydra_plant::hydraulics::valve_command;
+use hydra_plant::machine::{MachineAxis, MachinePlant};
+use hydra_plant::scenario::Scenario;
+use hydra_plant::stats::ErrorStat;
 use std::cell::RefCell;
 use std::rc::Rc;
 
@@ -108,7 +108,7 @@ impl PlantEnv {
     }
 
     /// The newest rising edge of the master encoder's channel A up to core cycle `now`
-    /// (host-sim's sensor model, `host_sim::plant::edges`).
+    /// (host-sim's sensor model, `hydra_plant::hydraulics::edges`).
     fn scan_edges(&mut self, now: u64) {
         let Some(start) = self.shared.borrow().master_start else {
             self.edge_scan = now;

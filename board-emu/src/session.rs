@@ -9,12 +9,12 @@ use crate::host::Host;
 use crate::machine::Machine;
 use crate::plant::{PlantEnv, Shared};
 use anyhow::{bail, Result};
-use host_sim::camfile::CamCsv;
-use host_sim::scenario::Scenario;
 use hydra_core::protocol::msg::StatusMsg;
 use hydra_core::protocol::{Request, Response};
 use hydra_core::table::Node;
 use hydra_core::units::{Master, PosUm};
+use hydra_plant::camfile::CamCsv;
+use hydra_plant::scenario::Scenario;
 use std::cell::RefCell;
 use std::rc::Rc;
 

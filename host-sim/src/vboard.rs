@@ -8,7 +8,7 @@
 //!
 //! | board (`firmware/`) | virtual board |
 //! |---|---|
-//! | TIM5 / TIM2 / TIM3 encoders | [`VirtualIo`]: the plant's positions through the scenario's encoders |
+//! | TIM5 / TIM2 / TIM3 encoders | [`VirtualIo`] samples the plant's positions through the scenario's encoders into a [`SampledBoard`], which core's tick reads through its board traits |
 //! | ADC1 chamber pressures | the plant's chamber pressures through the scenario's transducers, bar |
 //! | E-stop input PE8 | [`VirtualIo::estop`] (closed unless a test opens it) |
 //! | DAC1 ch 1/2 + valve enable PE7 | the codes (clamped to the board's DAC range) drive the plant's valves, 0 while unpowered; a code acts from the next period on (one period of computation delay) |
@@ -36,12 +36,12 @@ use hydra_core::protocol::msg::Telemetry;
 use hydra_core::protocol::ramflash::RamFlash;
 use hydra_core::protocol::{Handler, Nak, NakCode, Store};
 use hydra_core::runtime::{
-    BootCause, Capture, CaptureRow, Command, CommandError, EncoderInput, EncoderSample,
-    PressureInput, Reply, Runtime, SafetyInput, Status, TickCommand, TickHost, TickLoop,
-    TickSample, ValveOutput,
+    BootCause, Capture, CaptureRow, Command, CommandError, EncoderSample, Reply, Runtime, Status,
+    TickCommand, TickHost, TickLoop, TickSample,
 };
 use hydra_core::table::CamTable;
 use hydra_core::units::{Counts, DacCode, PressureBar};
+use hydra_plant::board::SampledBoard;
 use std::time::Instant;
 
 /// Slave axes: the board's.
@@ -88,7 +88,9 @@ pub struct VirtualIo {
     applied: [f64; AXES],
 }
 
-impl EncoderInput<AXES> for VirtualIo {
+impl VirtualIo {
+    /// The encoders latched at this tick's sample instant (the master through its edge
+    /// timer between the last latch and this one).
     fn latch(&mut self) -> EncoderSample<AXES> {
         let m = (self.plant.master.angle_deg(self.t_master) / self.master_res_deg).round();
         // The master between the last latch and this one, on the board's clock (the
@@ -111,10 +113,9 @@ impl EncoderInput<AXES> for VirtualIo {
             master_edges,
         }
     }
-}
 
-impl PressureInput<PRESSURES> for VirtualIo {
-    fn read(&mut self) -> [PressureBar; PRESSURES] {
+    /// The chamber pressures, bar (A, B per slave).
+    fn pressures(&self) -> [PressureBar; PRESSURES] {
         let mut p = [PressureBar::ZERO; PRESSURES];
         for (k, s) in self.plant.slaves.iter().enumerate().take(AXES) {
             let (a, b) = s.pressures_bar();
@@ -125,20 +126,22 @@ impl PressureInput<PRESSURES> for VirtualIo {
         }
         p
     }
-}
 
-impl SafetyInput for VirtualIo {
-    fn estop_active(&mut self) -> bool {
-        self.estop
+    /// The board's inputs at this tick's sample instant, for core's tick to read
+    /// ([`SampledBoard`]: core's board traits, implemented once for every simulated
+    /// board).
+    fn sample(&mut self) -> SampledBoard<AXES, PRESSURES> {
+        let mut b = SampledBoard::new(self.latch());
+        b.pressure_bar = self.pressures();
+        b.estop = self.estop;
+        b
     }
-}
 
-impl ValveOutput<AXES> for VirtualIo {
-    fn write(&mut self, codes: &[DacCode; AXES]) {
-        self.written = codes.map(|c| self.range.clamp(c));
-    }
-    fn set_enable(&mut self, on: bool) {
-        self.enable = on;
+    /// What the tick wrote: the codes, clamped to the board's DAC range as its DAC
+    /// driver clamps them, and the valve power.
+    fn take_outputs(&mut self, b: &SampledBoard<AXES, PRESSURES>) {
+        self.written = b.codes.map(|c| self.range.clamp(c));
+        self.enable = b.enable;
     }
 }
 
@@ -328,9 +331,15 @@ impl Machine {
     /// the period. Returns the reply to a command the tick took.
     fn tick(&mut self) -> Option<Reply> {
         let tl = self.tl.as_mut()?;
-        self.host.wall = Instant::now();
         let before = tl.runtime().state();
-        tl.run(&mut self.io, &mut self.host);
+        // The inputs are sampled before the tick starts (the simulated clock stands
+        // still meanwhile): the host's compute time counted into the tick's clock is
+        // the tick's own, so a host preempted while sampling the plant does not make
+        // the tick look a period late.
+        let mut board = self.io.sample();
+        self.host.wall = Instant::now();
+        tl.run(&mut board, &mut self.host);
+        self.io.take_outputs(&board);
         // The simulated master runs once following starts (a Start, or the end of an
         // approach), as the machine's master would be started for a run.
         use hydra_core::runtime::State as S;

@@ -36,7 +36,8 @@
 //! backoff's level, core `axis::backoff`; 0 = the set gain); per force axis `_x_mm`, `_force_n`,
 //! `_force_ref_n`, `_u`.
 
-pub mod board;
+pub use hydra_plant::board;
+pub use hydra_plant::stats::ErrorStat;
 pub mod control;
 pub mod probe;
 
@@ -191,36 +192,6 @@ impl RunReport {
     /// The report of an axis by name.
     pub fn axis(&self, name: &str) -> Option<&AxisReport> {
         self.axes.iter().find(|a| a.name == name)
-    }
-}
-
-/// Accumulates max |e| and Σe² (the error statistics of a run; board-emu measures the
-/// emulated board with the same).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct ErrorStat {
-    /// Largest |e|.
-    pub max: f64,
-    sum2: f64,
-    /// Samples.
-    pub n: u64,
-}
-
-impl ErrorStat {
-    /// Adds one sample.
-    #[inline]
-    pub fn add(&mut self, e: f64) {
-        self.max = self.max.max(e.abs());
-        self.sum2 += e * e;
-        self.n += 1;
-    }
-
-    /// RMS of the samples (0 without any).
-    pub fn rms(&self) -> f64 {
-        if self.n == 0 {
-            0.0
-        } else {
-            (self.sum2 / self.n as f64).sqrt()
-        }
     }
 }
 

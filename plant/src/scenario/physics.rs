@@ -1,8 +1,8 @@
-//! The plant and sensors a scenario describes, in SI units (`crate::plant`'s models):
+//! The plant and sensors a scenario describes, in SI units (`crate::hydraulics`'s models):
 //! valves, cylinders, encoders, pressure transducers, the supply and the master motion.
 
 use super::{invalid, AxisCfg, Scenario, ScenarioError};
-use crate::plant::{
+use crate::hydraulics::{
     Contact, Cylinder, Encoder, HydraulicAxis, MasterMotion, MasterProfile, PressureAdc, Supply,
     Valve,
 };
@@ -39,8 +39,8 @@ impl Scenario {
     }
 
     /// The board's master edge timer, if the scenario has one (`master.edge_timer_hz`).
-    pub fn master_edge_timer(&self) -> Option<crate::plant::EdgeTimer> {
-        (self.master.edge_timer_hz > 0.0).then_some(crate::plant::EdgeTimer {
+    pub fn master_edge_timer(&self) -> Option<crate::hydraulics::EdgeTimer> {
+        (self.master.edge_timer_hz > 0.0).then_some(crate::hydraulics::EdgeTimer {
             hz: self.master.edge_timer_hz,
         })
     }

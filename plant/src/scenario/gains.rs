@@ -7,7 +7,7 @@
 //! (gains tuned for a longer period are the conservative choice on a faster loop), or
 //! the longest set if T is longer than every tuned period (then the run prints a note).
 //! The procedure that produced the reference sets is in `docs/sim.md`
-//! ([`crate::autotune`]).
+//! (`host_sim::autotune`).
 
 use super::{
     AxisCfg, Controller, PositionGains, PredictorCfg, PressGains, Role, Scenario, ScenarioError,

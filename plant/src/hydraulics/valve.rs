@@ -8,7 +8,7 @@
 //! ```
 //!
 //! and the metering opening is `sat(x_v) ∈ [−1, 1]` (the spool's mechanical travel; the
-//! state itself is stopped at ±1 by [`crate::plant::HydraulicAxis`] after every step).
+//! state itself is stopped at ±1 by [`crate::hydraulics::HydraulicAxis`] after every step).
 //!
 //! **Lands.** Critically lapped, turbulent orifice flow per land
 //!

@@ -237,9 +237,8 @@ pub struct PressCfg {
 }
 
 /// The follower law (`--controller`).
-#[derive(
-    Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq, PartialOrd, Ord)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Controller {
     /// PID toward the table node at the far end of the current segment (core `NextNode`).

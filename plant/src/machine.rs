@@ -12,7 +12,7 @@
 //! (an unpowered servo valve's spool centres).
 
 use crate::camfile::{interpolate, CamCsv};
-use crate::plant::{Encoder, HydraulicAxis, MasterProfile, PressureAdc, Supply};
+use crate::hydraulics::{Encoder, HydraulicAxis, MasterProfile, PressureAdc, Supply};
 use crate::scenario::{AxisCfg, Role, Scenario, ScenarioError};
 
 /// Where a slave starts when neither the scenario (`x0_mm`) nor its table column says, mm.

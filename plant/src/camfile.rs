@@ -67,7 +67,7 @@ pub struct CamCsv {
 /// skipped. A header that is one field holding `;` is refused in words: the file was
 /// written with `;` as the separator (a locale with decimal commas). An empty text is an
 /// error naming the header it should have had (`expected`).
-pub(crate) struct CsvRecords {
+pub struct CsvRecords {
     /// 1-based line of the header.
     pub header_line: usize,
     /// The header's fields.
@@ -77,11 +77,7 @@ pub(crate) struct CsvRecords {
 }
 
 /// Reads `text` (see [`CsvRecords`]); `path` is only used in messages.
-pub(crate) fn csv_records(
-    text: &str,
-    path: &Path,
-    expected: &str,
-) -> Result<CsvRecords, TableError> {
+pub fn csv_records(text: &str, path: &Path, expected: &str) -> Result<CsvRecords, TableError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut r = csv::ReaderBuilder::new()
         .has_headers(false)
@@ -145,7 +141,7 @@ pub(crate) fn csv_records(
 }
 
 /// An error at a line of a CSV file.
-pub(crate) fn line_error(path: &Path, line: usize, reason: String) -> TableError {
+pub fn line_error(path: &Path, line: usize, reason: String) -> TableError {
     TableError::Line {
         path: path.to_path_buf(),
         line,

@@ -174,7 +174,7 @@ impl Default for Scenario {
 
 /// The reference machine's tuned gain sets: the `[[tuning]]` sets of
 /// `host-sim/scenarios/tangent.toml` (compiled in, so the defaults and the shipped file
-/// cannot differ; see `docs/sim.md` and [`crate::autotune`] for the procedure).
+/// cannot differ; see `docs/sim.md` and `host_sim::autotune` for the procedure).
 pub fn reference_tuning() -> Vec<Tuning> {
     /// Only the gain sets of the file (the other keys are ignored here).
     #[derive(serde::Deserialize)]
@@ -182,7 +182,7 @@ pub fn reference_tuning() -> Vec<Tuning> {
         #[serde(default)]
         tuning: Vec<Tuning>,
     }
-    toml::from_str::<TuningFile>(include_str!("../../scenarios/tangent.toml"))
+    toml::from_str::<TuningFile>(include_str!("../../../host-sim/scenarios/tangent.toml"))
         .map(|f| f.tuning)
         .unwrap_or_default()
 }
