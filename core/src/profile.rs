@@ -59,7 +59,8 @@ pub fn runtime_config() -> RuntimeConfig<SLAVES> {
         // Incremental linear encoders: each slave is referenced (set-position or
         // homing to its index / reference input) before Start.
         slave_reference: [ReferenceMode::Incremental; SLAVES],
-        // The reference marks of the reference machine's cylinders sit at 20 mm.
+        // The reference marks of the reference machine's cylinders sit at 20 mm (the
+        // default of the setting `axis/<n>/reference/home_um`).
         home_position_um: [20_000.0; SLAVES],
         // No force axis on this board's law: stale pressures are reported, not a fault.
         pressure_required: false,

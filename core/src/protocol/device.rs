@@ -25,7 +25,9 @@ use super::handler::{Device, Motion};
 use super::msg::ParamId;
 use super::msg::{Nak, NakCode, StatusMsg};
 use super::overrides::ParamRecord;
-use super::params::{apply_param, apply_saved_set, read_param, reference_offset_um};
+use super::params::{
+    apply_param, apply_saved_set, home_um, read_param, reference_offset_um, SlaveRefs,
+};
 use super::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
 };
@@ -36,7 +38,7 @@ use crate::runtime::{
     State, Trigger, FAULT_HISTORY_LEN,
 };
 use crate::table::{CamTable, TableLimits};
-use crate::units::{DacCode, PosUm};
+use crate::units::DacCode;
 
 /// A law buffer: a pointer to a follower the runtime can run.
 pub trait LawBuffer<const S: usize, const N: usize>:
@@ -89,7 +91,10 @@ pub struct LawDevice<L, T, const S: usize, const N: usize> {
     boot_limits: TableLimits<S>,
     active: T,
     pool: LawPool<L>,
-    boot_offsets: [Option<PosUm>; S],
+    /// The reference offsets and home positions set before the runtime runs (boot),
+    /// given to it by [`LawDevice::start`]; the home positions set since, too (so a
+    /// reset of the parameters at boot returns to the defaults).
+    boot_refs: SlaveRefs<S>,
     firmware: [u8; 3],
 }
 
@@ -119,7 +124,7 @@ where
                 free: [Some(a), Some(b)],
                 boot_law: None,
             },
-            boot_offsets: [None; S],
+            boot_refs: SlaveRefs::NONE,
             firmware,
         }
     }
@@ -129,9 +134,10 @@ where
         &self.fcfg
     }
 
-    /// The runtime after boot: the law built from flash (if a slot was loaded) and the
-    /// reference offsets restored with it (an offset the runtime refuses is left out and
-    /// its slave reported in the returned mask, bit k = slave k).
+    /// The runtime after boot: the law built from flash (if a slot was loaded), the
+    /// home positions set and the reference offsets restored with it (an offset the
+    /// runtime refuses is left out and its slave reported in the returned mask, bit k =
+    /// slave k).
     pub fn start<const P: usize>(
         &mut self,
         coeffs: RuntimeCoeffs<S>,
@@ -139,7 +145,13 @@ where
     ) -> (Runtime<L, S, P>, u32) {
         let mut rt = Runtime::new(coeffs, self.pool.boot_law.take(), boot);
         let mut refused_mask = 0u32;
-        for (axis, off) in (0u8..).zip(self.boot_offsets.iter()) {
+        for (axis, home) in (0u8..).zip(self.boot_refs.homes.iter()) {
+            if let Some(h) = home {
+                // Every slave of `S` exists in the runtime: never refused.
+                let _ = rt.set_home_um(axis, *h);
+            }
+        }
+        for (axis, off) in (0u8..).zip(self.boot_refs.offsets.iter()) {
             if let Some(o) = off {
                 if rt.restore_reference_offset(axis, *o).is_err() {
                     refused_mask |= 1u32.checked_shl(u32::from(axis)).unwrap_or(0);
@@ -325,6 +337,25 @@ where
             .map(|o| o.to_num())
     }
     fn get_param(&self, axis: u8, param: ParamId) -> Result<f32, Nak> {
+        if param == ParamId::HomeUm {
+            let i = usize::from(axis);
+            let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
+            // The runtime's once it runs; before (boot) the one kept for it.
+            let home = match self
+                .glue
+                .read(|rt| rt.references().home_um().get(i).copied())
+            {
+                Some(h) => h,
+                None => self
+                    .st
+                    .boot_refs
+                    .homes
+                    .get(i)
+                    .copied()
+                    .map(Option::unwrap_or_default),
+            };
+            return home.map(|h| h.to_num()).ok_or(unknown);
+        }
         if param == ParamId::SlaveOffsetUm {
             let i = usize::from(axis);
             let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
@@ -336,7 +367,8 @@ where
                 Some(o) => o,
                 None => self
                     .st
-                    .boot_offsets
+                    .boot_refs
+                    .offsets
                     .get(i)
                     .copied()
                     .map(Option::unwrap_or_default),
@@ -347,6 +379,25 @@ where
     }
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
         let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+        if param == ParamId::HomeUm {
+            let h = home_um(axis, value)?;
+            let slot = self
+                .st
+                .boot_refs
+                .homes
+                .get_mut(usize::from(axis))
+                .ok_or(Nak::with(
+                    NakCode::UnknownParam,
+                    u16::from(axis),
+                    param as u8,
+                ))?;
+            // In any state: it acts at the next reference edge of an armed homing.
+            if let Some(r) = self.glue.write(|rt| rt.set_home_um(axis, h)) {
+                r.map_err(|_| range)?;
+            }
+            *slot = Some(h);
+            return Ok(());
+        }
         if param == ParamId::SlaveOffsetUm {
             let off = reference_offset_um(axis, value)?;
             // Before the runtime runs (boot): kept for `LawDevice::start`.
@@ -355,7 +406,8 @@ where
                 None => {
                     let slot = self
                         .st
-                        .boot_offsets
+                        .boot_refs
+                        .offsets
                         .get_mut(usize::from(axis))
                         .ok_or(range)?;
                     *slot = Some(off);
@@ -392,11 +444,11 @@ where
         }
         let mut f = self.st.fcfg;
         let mut lim = self.st.limits;
-        let mut offsets = self.st.boot_offsets;
-        apply_saved_set::<S, N>(&mut f, &mut lim, &mut offsets, records)?;
+        let mut refs = self.st.boot_refs;
+        apply_saved_set::<S, N>(&mut f, &mut lim, &mut refs, records)?;
         self.st.fcfg = f;
         self.st.limits = lim;
-        self.st.boot_offsets = offsets;
+        self.st.boot_refs = refs;
         Ok(())
     }
     fn reset_params(&mut self) -> Result<(), Nak> {
@@ -406,7 +458,7 @@ where
         }
         self.st.fcfg = self.st.boot_cfg;
         self.st.limits = self.st.boot_limits;
-        self.st.boot_offsets = [None; S];
+        self.st.boot_refs = SlaveRefs::NONE;
         Ok(())
     }
     fn status(&self, out: &mut StatusMsg) {
@@ -504,7 +556,7 @@ mod tests {
     use super::*;
     use crate::runtime::{EncoderSample, RuntimeConfig, Sample};
     use crate::table::{AxisLimits, Node};
-    use crate::units::{Counts, Master, MasterRate, VelUmPerS};
+    use crate::units::{Counts, Master, MasterRate, PosUm, VelUmPerS};
     use std::boxed::Box;
 
     type Law = Box<Follower<1, 8>>;
@@ -621,6 +673,54 @@ mod tests {
         assert!(rt.law().is_some_and(|l| l.is_ready()));
         assert_eq!(rt.absolute_offset_um(0), Some(PosUm::from_num(2500)));
         assert_eq!(st.active.len(), 3);
+    }
+
+    /// The home position is a setting: set at boot it reaches the runtime with
+    /// `start`, set while the runtime runs it acts on the next homing at once, and a
+    /// value out of range is refused naming the parameter, the old one kept.
+    #[test]
+    fn the_home_position_is_a_setting_before_and_after_the_runtime_starts() {
+        let mut st = device();
+        let mut g = Direct { rt: None };
+        let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
+            st: &mut st,
+            glue: &mut g,
+        };
+        assert_eq!(d.get_param(0, ParamId::HomeUm), Ok(0.0));
+        d.set_param(0, ParamId::HomeUm, 150_000.0).unwrap();
+        assert_eq!(d.get_param(0, ParamId::HomeUm), Ok(150_000.0));
+        let (rt, _) = st.start::<0>(coeffs(), BootCause::Normal);
+        assert_eq!(rt.references().home_um()[0], PosUm::from_num(150_000));
+        let mut g = Direct { rt: Some(rt) };
+        let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
+            st: &mut st,
+            glue: &mut g,
+        };
+        d.set_param(0, ParamId::HomeUm, -2_500.5).unwrap();
+        assert_eq!(d.get_param(0, ParamId::HomeUm), Ok(-2_500.5));
+        let home = |g: &Direct| g.rt.as_ref().map(|r| r.references().home_um()[0]);
+        assert_eq!(home(d.glue), Some(PosUm::from_num(-2_500.5)));
+        let range = Nak::with(NakCode::ParamRange, 0, ParamId::HomeUm as u8);
+        assert_eq!(d.set_param(0, ParamId::HomeUm, 9.0e6), Err(range));
+        assert_eq!(d.set_param(0, ParamId::HomeUm, f32::NAN), Err(range));
+        assert_eq!(
+            d.set_param(3, ParamId::HomeUm, 0.0).unwrap_err().code,
+            NakCode::UnknownParam
+        );
+        assert_eq!(home(d.glue), Some(PosUm::from_num(-2_500.5)));
+        // A saved set restores it at boot.
+        let mut st2 = device();
+        let mut refs = SlaveRefs::NONE;
+        let (mut f, mut l) = (st2.fcfg, st2.limits);
+        let rec = [ParamRecord {
+            axis: 0,
+            param: ParamId::HomeUm,
+            value: 20_000.0,
+        }];
+        apply_saved_set::<1, 8>(&mut f, &mut l, &mut refs, &rec).unwrap();
+        st2.boot_refs = refs;
+        let (rt2, _) = st2.start::<0>(coeffs(), BootCause::Normal);
+        assert_eq!(rt2.references().home_um()[0], PosUm::from_num(20_000));
     }
 
     /// The gain backoff's level survives a law rebuild that keeps the axis'

@@ -46,7 +46,8 @@ pub use handler::{BootReason, Device, Handler, Motion};
 pub use msg::{Nak, NakCode, ParamId, Request, Response};
 pub use overrides::{ParamOverrides, ParamRecord};
 pub use params::{
-    apply_param, apply_param_set, apply_saved_set, read_param, reference_offset_um, validate_params,
+    apply_param, apply_param_set, apply_saved_set, home_um, read_param, reference_offset_um,
+    validate_params, SlaveRefs,
 };
 pub use store::{SlotHeader, Store, StoreError};
 

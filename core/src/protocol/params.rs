@@ -47,7 +47,7 @@ pub fn apply_param_set<const S: usize, const N: usize>(
     for r in records {
         if matches!(
             r.param,
-            ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm | ParamId::PeriodUs
+            ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm | ParamId::PeriodUs | ParamId::HomeUm
         ) {
             continue;
         }
@@ -68,25 +68,60 @@ pub fn reference_offset_um(axis: u8, value: f32) -> Result<PosUm, Nak> {
         ))
 }
 
+/// A home position ([`ParamId::HomeUm`]) of slave `axis` from its wire value, µm: finite
+/// and within ±8 000 000 µm, else `ParamRange` naming the axis and the parameter.
+pub fn home_um(axis: u8, value: f32) -> Result<PosUm, Nak> {
+    let v = ParamId::HomeUm.check(axis, value)?;
+    PosUm::checked_from_num(v).ok_or(Nak::with(
+        NakCode::ParamRange,
+        u16::from(axis),
+        ParamId::HomeUm as u8,
+    ))
+}
+
+/// What a board keeps per slave beside the follower's configuration, restored with it
+/// at boot: the reference offset of an absolute slave and the home position (`None`:
+/// the board's default).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SlaveRefs<const S: usize> {
+    /// [`ParamId::SlaveOffsetUm`], µm.
+    pub offsets: [Option<PosUm>; S],
+    /// [`ParamId::HomeUm`], µm.
+    pub homes: [Option<PosUm>; S],
+}
+
+impl<const S: usize> SlaveRefs<S> {
+    /// Nothing kept: every slave at the board's defaults.
+    pub const NONE: Self = Self {
+        offsets: [None; S],
+        homes: [None; S],
+    };
+}
+
 /// A saved set as a board applies it at boot: the follower parameters with
-/// [`apply_param_set`] and, per slave, the last [`ParamId::SlaveOffsetUm`] into `offsets`
-/// ([`reference_offset_um`]). All or nothing for the caller, who passes copies and keeps
-/// them only on `Ok`.
+/// [`apply_param_set`] and, per slave, the last [`ParamId::SlaveOffsetUm`]
+/// ([`reference_offset_um`]) and [`ParamId::HomeUm`] ([`home_um`]) into `refs`. All or
+/// nothing for the caller, who passes copies and keeps them only on `Ok`.
 pub fn apply_saved_set<const S: usize, const N: usize>(
     cfg: &mut FollowerConfig<S>,
     lim: &mut TableLimits<S>,
-    offsets: &mut [Option<PosUm>; S],
+    refs: &mut SlaveRefs<S>,
     records: &[super::ParamRecord],
 ) -> Result<(), Nak> {
     apply_param_set::<S, N>(cfg, lim, None, records)?;
-    for r in records.iter().filter(|r| r.param == ParamId::SlaveOffsetUm) {
-        let off = reference_offset_um(r.axis, r.value)?;
-        let slot = offsets.get_mut(usize::from(r.axis)).ok_or(Nak::with(
-            NakCode::ParamRange,
-            u16::from(r.axis),
-            r.param as u8,
-        ))?;
-        *slot = Some(off);
+    for r in records {
+        let range = Nak::with(NakCode::ParamRange, u16::from(r.axis), r.param as u8);
+        let i = usize::from(r.axis);
+        match r.param {
+            ParamId::SlaveOffsetUm => {
+                *refs.offsets.get_mut(i).ok_or(range)? =
+                    Some(reference_offset_um(r.axis, r.value)?);
+            }
+            ParamId::HomeUm => {
+                *refs.homes.get_mut(i).ok_or(range)? = Some(home_um(r.axis, r.value)?);
+            }
+            _ => {}
+        }
     }
     Ok(())
 }

@@ -6,7 +6,8 @@
 //! `axis/<n>/cylinder/area_a_mm2` and `area_b_mm2` for the piston areas the active damping
 //! needs ([`crate::axis::PistonAreas`]),
 //! `axis/<n>/limits/<field>` for the table limits ([`crate::table::AxisLimits`]),
-//! `axis/<n>/reference_offset_um` for an absolute slave's reference, and board-wide
+//! `axis/<n>/reference_offset_um` for an absolute slave's reference,
+//! `axis/<n>/reference/home_um` for where homing references it, and board-wide
 //! `limits/master_speed_per_s`, `master/filter_bandwidth_hz`, `link/timeout_ms` and
 //! `period_us`. `<n>` is the 0-based slave.
 //!
@@ -110,6 +111,9 @@ pub enum ParamId {
     /// integrator's content moves with this time constant into a per-direction ratio of
     /// the velocity feed-forward (the valve's real flow gain, learned).
     FfTrimTauS = 33,
+    /// Where homing references the slave: its position at the reference edge (index or
+    /// switch), µm. Takes effect at the next `motion home`.
+    HomeUm = 34,
 }
 
 /// Whether a parameter belongs to each slave or to the board.
@@ -286,6 +290,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
         -8.0e6,
         8.0e6,
     )),
+    p(P::HomeUm, A, "reference/home_um", "µm", -8.0e6, 8.0e6),
     p(
         P::MasterSpeedPerS,
         B,
@@ -315,7 +320,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 33;
+    pub const COUNT: usize = 34;
 
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
@@ -432,7 +437,7 @@ mod tests {
                 assert_eq!(id.info().id, id);
             }
         }
-        assert_eq!(all_paths(2).count(), 29 * 2 + 4);
+        assert_eq!(all_paths(2).count(), 30 * 2 + 4);
         for pp in all_paths(3) {
             let s = pp.to_string();
             let (axis, id) = parse_path(&s, 3).unwrap();
@@ -445,7 +450,7 @@ mod tests {
         let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
         paths.sort();
         paths.dedup();
-        assert_eq!(paths.len(), 62, "two parameters share a path");
+        assert_eq!(paths.len(), 64, "two parameters share a path");
     }
 
     #[test]

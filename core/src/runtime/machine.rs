@@ -455,6 +455,14 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
         }
     }
 
+    /// Sets where homing references slave `axis`, µm (any state: it acts at the next
+    /// reference edge of an armed homing; `NoAxis` for a missing slave).
+    pub fn set_home_um(&mut self, axis: u8, home_um: PosUm) -> Result<(), CommandError> {
+        self.refs
+            .set_home(axis, home_um)
+            .ok_or(CommandError::NoAxis { axis })
+    }
+
     /// Restores a persisted reference offset of absolute slave `axis` (boot; Idle or
     /// Fault only; `NoAxis` for an incremental or missing slave).
     pub fn restore_reference_offset(

@@ -82,6 +82,18 @@ impl<const S: usize> References<S> {
         &self.offset_um
     }
 
+    /// Each slave's position at its reference edge (where homing references it), µm.
+    pub fn home_um(&self) -> &[PosUm; S] {
+        &self.home_um
+    }
+
+    /// Sets where homing references slave `axis` (from its next edge on; a slave
+    /// already referenced keeps its offset); `None` for no such axis.
+    pub fn set_home(&mut self, axis: u8, home_um: PosUm) -> Option<()> {
+        *self.home_um.get_mut(usize::from(axis))? = home_um;
+        Some(())
+    }
+
     /// Every slave's state.
     pub fn states(&self) -> &[RefState; S] {
         &self.state
