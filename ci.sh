@@ -43,6 +43,12 @@ cargo clippy -p board-emu --all-targets --profile bench -- -D warnings
 
 step "clippy (thumbv7em: core + firmware + bench-m4)"
 RUSTFLAGS="-D warnings" cargo clippy -p hydra-core -p firmware -p bench-m4 --release --target "$TARGET" -- -D warnings
+# The bring-up build (the text console instead of the framed protocol) is built too, so it
+# cannot rot unseen.
+RUSTFLAGS="-D warnings" cargo clippy -p firmware --release --target "$TARGET" --features console -- -D warnings
+# The firmware's modules import each other in one direction only (board constants and the
+# tick-link channels are leaf modules).
+python3 scripts/fw-modules.py
 
 step "host tests"
 mkdir -p target # the log lives here even when CARGO_TARGET_DIR points elsewhere

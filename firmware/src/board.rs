@@ -34,20 +34,16 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::qei::{Qei, QeiMode};
 use embassy_stm32::usart::{self, Uart};
 use embassy_stm32::{bind_interrupts, dma, interrupt, pac, peripherals, Peri, Peripherals};
-use hydra_core::dac::DacRange;
 use hydra_core::runtime::{EncoderInput, EncoderSample, PressureInput, SafetyInput, ValveOutput};
 use hydra_core::units::{Counts, DacCode, PressureBar};
 use static_cell::StaticCell;
 
+use crate::consts::{PRESSURES, SLAVES};
 use crate::encoders::{Encoder16, Encoder32, Encoders};
 use crate::pressure::{Pressures, ADC_BUF_LEN};
 use crate::safety::EStop;
 use crate::valves::{OnChipDac, ValveBank};
 
-/// Slave axes driven by this board (the on-chip DAC's two channels).
-pub const SLAVES: usize = hydra_core::profile::SLAVES;
-/// Pressure channels.
-pub const PRESSURES: usize = hydra_core::profile::PRESSURES;
 /// Host-link baud rate (the host tools' `host-sim … --port`: 921 600). USART6 on the
 /// 84 MHz APB2 with 16× oversampling: USARTDIV = 84 MHz / (16 · 921 600) = 5.696 →
 /// 5 + 11/16 = 5.6875, 923 077 Bd, +0.16 %. (On USART2 and the 42 MHz APB1 it would be
@@ -110,24 +106,6 @@ pub fn hal_config() -> embassy_stm32::Config {
     c.dma_interrupt_priority = Priority::P2;
     c
 }
-
-/// The valve-power enable's port and pin (PE7), for the panic handler's direct write.
-pub const ENABLE_PORT: pac::gpio::Gpio = pac::GPIOE;
-/// See [`ENABLE_PORT`].
-pub const ENABLE_PIN: usize = 7;
-
-/// The usable valve-DAC code range on this board (`hydra_core::profile::dac_range`: the
-/// analog supply VDDA = 3.0 V, as on the STM32F4-Discovery — the valve amplifiers' null
-/// must be set to VDDA/2 = 1.500 V — less the buffered output's 0.2 V swing margin at
-/// each rail): ±1774 LSB around mid-scale (273 codes lost at each end). Every code written is clamped to it (`crate::valves`), and the
-/// valve calibration's clamp is set to it (`crate::boot_config`).
-pub const DAC_RANGE: DacRange = match hydra_core::profile::dac_range() {
-    Some(r) => r,
-    None => panic!("hydra_core::profile::VDDA_MV / DAC_SWING_MARGIN_MV"),
-};
-
-/// Core clock, Hz (DWT cycles per second).
-pub const SYSCLK_HZ: u32 = 168_000_000;
 
 /// The I/O the runtime drives every tick.
 pub struct BoardIo {

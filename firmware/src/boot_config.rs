@@ -13,7 +13,7 @@
 
 #[cfg(feature = "console")]
 use heapless::Vec;
-use hydra_core::follower::{Follower, FollowerConfig};
+use hydra_core::follower::FollowerConfig;
 use hydra_core::profile;
 use hydra_core::runtime::RuntimeCoeffs;
 #[cfg(feature = "console")]
@@ -22,14 +22,7 @@ use hydra_core::table::TableLimits;
 #[cfg(feature = "console")]
 use hydra_core::units::{Master, PosUm};
 
-use crate::board::{DAC_RANGE, SLAVES};
-
-/// Table capacity (nodes).
-pub const TABLE_NODES: usize = profile::TABLE_NODES;
-/// The control law of this board.
-pub type Law = Follower<SLAVES, TABLE_NODES>;
-/// Control period, µs (`hydra_core::profile::PERIOD_US`).
-pub const PERIOD_US: u32 = profile::PERIOD_US;
+use crate::consts::{DAC_RANGE, SLAVES};
 
 /// Why the boot program could not be built.
 #[derive(Clone, Copy, Debug, defmt::Format)]

@@ -10,7 +10,7 @@ use hydra_core::profile::CAPTURE_ROWS;
 use hydra_core::runtime::{Capture, CaptureRow};
 use static_cell::ConstStaticCell;
 
-use crate::board::SLAVES;
+use crate::consts::SLAVES;
 
 /// The rows: 32 B each for two slaves, 65 536 B of CCM.
 // Note(unsafe): a section of our own linker script (`memory.x`), nothing else in it.

@@ -17,8 +17,8 @@ use core::fmt::Write;
 use heapless::String;
 use hydra_core::runtime::{Command, CommandError, State};
 
+use crate::channels::{BoardStatus, Reply};
 use crate::link::{LinkIo, LinkProtocol};
-use crate::tick::{BoardStatus, Reply};
 
 /// Longest accepted line.
 const LINE_LEN: usize = 32;
@@ -41,6 +41,7 @@ fn cmd_name(c: Command) -> &'static str {
         Command::Jog { .. } => "jog",
         Command::MoveTo { .. } => "move",
         Command::Approach { .. } => "approach",
+        Command::Test { .. } => "test",
     }
 }
 

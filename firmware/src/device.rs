@@ -18,8 +18,8 @@ use hydra_core::runtime::{Command, CommandError};
 use hydra_core::table::CamTable;
 use hydra_core::units::DacCode;
 
-use crate::board::{PRESSURES, SLAVES, SYSCLK_HZ};
-use crate::boot_config::TABLE_NODES;
+use crate::consts::TABLE_NODES;
+use crate::consts::{PRESSURES, SLAVES, SYSCLK_HZ};
 use crate::law_buffers::{self, LawRef};
 use crate::link::LinkIo;
 use crate::tick::{self, BoardRuntime};

@@ -135,7 +135,7 @@ impl NorFlash for SlotFlash {
                 .map_err(|_| SlotFlashError::NotIdle)?;
             crate::flash_acr::reset_data_cache();
             let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0);
-            let ms = cycles / (crate::board::SYSCLK_HZ / 1000);
+            let ms = cycles / (crate::consts::SYSCLK_HZ / 1000);
             defmt::info!("sector {=u8} erased in {=u32} ms", snb, ms);
             r.map_err(SlotFlashError::Driver)?;
             at = at.saturating_add(SLOT_BYTES);

@@ -18,12 +18,12 @@ use hydra_core::protocol::msg::Telemetry;
 use hydra_core::protocol::{Handler, SlotHeader, Store, StoreError};
 use static_cell::ConstStaticCell;
 
-use crate::board::SLAVES;
-use crate::boot_config::TABLE_NODES;
+use crate::channels::{BoardStatus, Reply, TickSample};
+use crate::consts::SLAVES;
+use crate::consts::TABLE_NODES;
 use crate::device::{device_state, Dev, DeviceState, FwGlue};
 use crate::flash::{SlotFlash, SLOT0_OFFSET, SLOT_BYTES};
 use crate::link::{LinkIo, LinkProtocol};
-use crate::tick::{BoardStatus, Reply, TickSample};
 use hydra_core::protocol::BoardDevice;
 
 /// Output bytes one `on_rx` call may produce (a 64-byte chunk of garbage yields at most

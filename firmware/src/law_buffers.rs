@@ -17,7 +17,7 @@
 
 use static_cell::ConstStaticCell;
 
-use crate::boot_config::Law;
+use crate::consts::Law;
 
 /// A law in one of the two static buffers.
 pub type LawRef = &'static mut Law;

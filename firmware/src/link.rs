@@ -15,43 +15,28 @@
 //!    ([`LinkProtocol::on_sample`]) to the protocol;
 //! 5. writes what the protocol queued for the host.
 //!
-//! The protocol is a trait: the framed protocol ([`crate::host_protocol::Framed`], default) and
-//! the bring-up text console ([`crate::console::Console`], `--features console`) plug
-//! into the same task.
+//! The protocol is a trait ([`LinkProtocol`]): `main.rs` chooses the framed protocol
+//! (`host_protocol::Framed`, default) or the bring-up text console (`console::Console`,
+//! `--features console`) and spawns [`link_task`] with it.
 
 use core::sync::atomic::{AtomicU8, Ordering};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::mode::Async;
 use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
-use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant, Timer};
 use heapless::spsc::{Consumer, Producer};
 use heapless::Vec;
 use hydra_core::protocol::report::state_code;
 use hydra_core::runtime::{Command, CommandError};
 
-use crate::tick::{BoardStatus, Reply, TickCommand, TickSample};
-
-/// The protocol the link task runs.
-#[cfg(not(feature = "console"))]
-pub type Proto = &'static mut crate::host_protocol::Framed;
-/// The protocol the link task runs.
-#[cfg(feature = "console")]
-pub type Proto = crate::console::Console;
+use crate::channels::{
+    BoardStatus, LinkChannels, Reply, TickCommand, TickSample, COMMAND_WAIT_MS, REPLY,
+};
 
 /// Bytes the protocol may queue for the host per wake-up.
 pub const OUT_LEN: usize = 2048;
 /// RX DMA ring size.
 pub const RX_RING_LEN: usize = 1024;
-/// How long [`LinkIo::command_wait`] waits for the tick's answer, ms (10 periods at
-/// 1 kHz; the tick drops a command older than this less one period unapplied,
-/// `crate::tick::COMMAND_MAX_AGE_US`).
-pub const COMMAND_WAIT_MS: u32 = 10;
-
-/// The tick's latest answer, with the token of the command it answers (the tick signals
-/// every reply; [`LinkIo::command_wait`] waits on it).
-pub static REPLY: Signal<CriticalSectionRawMutex, Reply> = Signal::new();
 
 /// What a protocol handler can do on the link.
 pub struct LinkIo<'a> {
@@ -161,26 +146,15 @@ pub trait LinkProtocol {
 /// 2 Holding, 3 Fault), published by the link task.
 pub static STATE_CODE: AtomicU8 = AtomicU8::new(0);
 
-/// The link's channels to the tick.
-pub struct LinkChannels {
-    /// Commands to the tick.
-    pub cmd_tx: Producer<'static, TickCommand>,
-    /// Replies from the tick.
-    pub reply_rx: Consumer<'static, Reply>,
-    /// Status snapshots from the tick.
-    pub status_rx: Consumer<'static, BoardStatus>,
-    /// Per-tick samples from the tick.
-    pub sample_rx: Consumer<'static, TickSample>,
-}
-
-/// The host-link task (see the module docs).
+/// The host-link task (see the module docs), with the protocol `main.rs` chose (one
+/// task, not generic: the executor's task is a static, and a dynamic call per event costs
+/// nothing next to a byte on the wire).
 #[embassy_executor::task]
 pub async fn link_task(
     mut rx: RingBufferedUartRx<'static>,
     mut tx: UartTx<'static, Async>,
     mut ch: LinkChannels,
-    #[allow(unused_mut)] // `Proto` is a `&mut` (framed) or a value (console)
-    mut proto: Proto,
+    proto: &'static mut dyn LinkProtocol,
 ) {
     let mut buf = [0u8; 64];
     let mut out: Vec<u8, OUT_LEN> = Vec::new();

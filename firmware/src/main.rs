@@ -18,8 +18,10 @@
 mod board;
 mod boot_config;
 mod capture;
+mod channels;
 #[cfg(feature = "console")]
 mod console;
+mod consts;
 #[cfg(not(feature = "console"))]
 mod device;
 mod edge_timer;
@@ -46,7 +48,8 @@ use hydra_core::runtime::Runtime;
 use static_cell::StaticCell;
 
 use board::Board;
-use tick::{BoardStatus, Reply, Tick, TickCommand, TickLinks, TickSample};
+use channels::{BoardStatus, Reply, TickCommand, TickLinks, TickSample};
+use tick::Tick;
 use valves::ValveBank;
 
 static CMD_Q: StaticCell<Queue<TickCommand, 8>> = StaticCell::new();
@@ -57,6 +60,9 @@ static SAMPLE_Q: StaticCell<Queue<TickSample, 32>> = StaticCell::new();
 #[cfg(not(feature = "console"))]
 static FRAMED: StaticCell<host_protocol::Framed> = StaticCell::new();
 static RX_RING: StaticCell<[u8; link::RX_RING_LEN]> = StaticCell::new();
+
+#[cfg(feature = "console")]
+static CONSOLE: StaticCell<console::Console> = StaticCell::new();
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
@@ -170,12 +176,17 @@ async fn main(spawner: Spawner) {
 
     let (tx, rx) = link.split();
     let rx = rx.into_ring_buffered(RX_RING.init([0; link::RX_RING_LEN]));
-    let channels = link::LinkChannels {
+    let channels = channels::LinkChannels {
         cmd_tx,
         reply_rx,
         status_rx,
         sample_rx,
     };
+    // The protocol the link runs: chosen here, the link task knows only its trait.
+    #[cfg(not(feature = "console"))]
+    let proto: &'static mut dyn link::LinkProtocol = proto;
+    #[cfg(feature = "console")]
+    let proto: &'static mut dyn link::LinkProtocol = CONSOLE.init(proto);
     match link::link_task(rx, tx, channels, proto) {
         Ok(t) => spawner.spawn(t),
         Err(e) => defmt::panic!("spawn link: {}", e),

@@ -19,7 +19,7 @@ use core::panic::PanicInfo;
 use core::sync::atomic::{AtomicBool, Ordering};
 use embassy_stm32::pac;
 
-use crate::board::{ENABLE_PIN, ENABLE_PORT};
+use crate::consts::{ENABLE_PIN, ENABLE_PORT};
 use crate::valves::SAFE_CODES;
 use crate::watchdog::{self, Timeout};
 

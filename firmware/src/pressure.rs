@@ -22,7 +22,7 @@ use embassy_stm32::peripherals::ADC1;
 use hydra_core::runtime::pressure::{PressureCal, PressureScale};
 use hydra_core::units::PressureBar;
 
-use crate::board::PRESSURES;
+use crate::consts::PRESSURES;
 
 /// Scans averaged per tick (at most).
 pub const AVG_SCANS: usize = 8;
@@ -32,7 +32,7 @@ pub const ADC_BUF_LEN: usize = PRESSURES * 64;
 pub const STALE_US: u32 = 2000;
 /// [`STALE_US`] in ticks (at least 1).
 const STALE_TICKS: u32 = {
-    let t = STALE_US / crate::boot_config::PERIOD_US;
+    let t = STALE_US / crate::consts::PERIOD_US;
     if t == 0 {
         1
     } else {

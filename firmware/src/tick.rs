@@ -21,28 +21,21 @@ use embassy_stm32::Peri;
 use heapless::spsc::{Consumer, Producer};
 #[cfg(not(feature = "console"))]
 use hydra_core::runtime::State;
-use hydra_core::runtime::{Runtime, Status, TickHost, TickLoop};
+use hydra_core::runtime::{Runtime, TickHost, TickLoop};
 use static_cell::StaticCell;
 
-use crate::board::{BoardIo, PRESSURES, SLAVES, SYSCLK_HZ};
+use crate::board::BoardIo;
+use crate::consts::{PRESSURES, SLAVES, SYSCLK_HZ};
 use crate::law_buffers::LawRef;
 use crate::watchdog::{self, Timeout};
 
-pub use hydra_core::runtime::{Reply, TickCommand};
+use crate::channels::{
+    BoardCapture, BoardStatus, Reply, TickCommand, TickLinks, TickSample, COMMAND_MAX_AGE_US, REPLY,
+};
 
 /// The runtime as this board runs it: the law in one of the two static law buffers
 /// (`crate::law_buffers`), so installing one swaps a reference.
 pub type BoardRuntime = Runtime<LawRef, SLAVES, PRESSURES>;
-/// The status snapshot of this board.
-pub type BoardStatus = Status<SLAVES, PRESSURES>;
-/// One tick's telemetry sample of this board.
-pub type TickSample = hydra_core::runtime::TickSample<SLAVES>;
-
-/// Age beyond which a queued command is dropped unapplied, µs: the link's wait for an
-/// answer (`crate::link::COMMAND_WAIT_MS`) less one period, so a command whose wait
-/// timed out can never take effect later (e.g. a Start after a flash erase).
-pub const COMMAND_MAX_AGE_US: u32 =
-    crate::link::COMMAND_WAIT_MS * 1000 - crate::boot_config::PERIOD_US;
 
 /// The tick's glue: clock, period timer, queues, watchdog.
 pub struct FwHost {
@@ -54,9 +47,6 @@ pub struct FwHost {
     /// The loop-rate capture ring (`crate::capture`), recorded every tick.
     capture: BoardCapture,
 }
-
-/// The capture ring of this board.
-pub type BoardCapture = hydra_core::runtime::Capture<'static, SLAVES>;
 
 impl TickHost<SLAVES, PRESSURES> for FwHost {
     #[inline(always)]
@@ -82,7 +72,7 @@ impl TickHost<SLAVES, PRESSURES> for FwHost {
     }
     #[inline(always)]
     fn reply(&mut self, r: Reply) {
-        crate::link::REPLY.signal(r);
+        REPLY.signal(r);
         // A full reply queue drops the reply; the command was applied regardless.
         let _ = self.reply_tx.enqueue(r);
     }
@@ -104,20 +94,6 @@ pub struct Tick {
     tl: TickLoop<LawRef, SLAVES, PRESSURES>,
     io: BoardIo,
     host: FwHost,
-}
-
-/// The channels between the tick and the host link.
-pub struct TickLinks {
-    /// Commands in.
-    pub cmd_rx: Consumer<'static, TickCommand>,
-    /// Replies out.
-    pub reply_tx: Producer<'static, Reply>,
-    /// Status snapshots out.
-    pub status_tx: Producer<'static, BoardStatus>,
-    /// Per-tick telemetry samples out.
-    pub sample_tx: Producer<'static, TickSample>,
-    /// The capture ring.
-    pub capture: BoardCapture,
 }
 
 /// The tick's state (≈ 9 KiB with the cam table) lives in `.bss`.

@@ -16,7 +16,7 @@ use embassy_stm32::gpio::Output;
 use embassy_stm32::mode::Blocking;
 use hydra_core::units::DacCode;
 
-use crate::board::DAC_RANGE;
+use crate::consts::DAC_RANGE;
 
 /// A converter channel that drives one proportional valve.
 pub trait ValveChannel {
@@ -90,7 +90,7 @@ impl<const S: usize> ValveBank<S> {
     }
 
     /// Writes every channel's code, clamped to the board's usable range
-    /// ([`crate::board::DAC_RANGE`]: beyond it the buffered output cannot follow).
+    /// ([`crate::consts::DAC_RANGE`]: beyond it the buffered output cannot follow).
     #[inline]
     pub fn write(&mut self, codes: &[DacCode; S]) {
         for (ch, &c) in self.ch.iter_mut().zip(codes.iter()) {
