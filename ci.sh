@@ -42,7 +42,7 @@ fi
 cargo clippy -p board-emu --all-targets --profile bench -- -D warnings
 
 step "clippy (thumbv7em: core + firmware + bench-m4)"
-RUSTFLAGS="-D warnings" cargo clippy -p hydra-core -p firmware -p bench-m4 --release --target "$TARGET" -- -D warnings
+RUSTFLAGS="-D warnings" cargo clippy -p hydra-core -p hydra-xy -p firmware -p bench-m4 --release --target "$TARGET" -- -D warnings
 # The bring-up build (the text console instead of the framed protocol) is built too, so it
 # cannot rot unseen.
 RUSTFLAGS="-D warnings" cargo clippy -p firmware --release --target "$TARGET" --features console -- -D warnings

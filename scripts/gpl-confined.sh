@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 fail=0
-for p in hydra-core hydra-plant host-sim tests firmware bench-m4; do
+for p in hydra-core hydra-xy hydra-plant host-sim tests firmware bench-m4; do
   if cargo tree -p "$p" --target all -e normal,build,dev --prefix none 2>/dev/null | grep -qE '^(unicorn-engine|board-emu)'; then
     echo "GPL confinement: $p links unicorn-engine or board-emu"; fail=1
   fi

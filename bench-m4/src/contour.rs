@@ -22,11 +22,11 @@
 
 use crate::harness::Figure;
 use core::hint::black_box;
-use hydra_core::contour::{
+use hydra_core::units::{PosUm, VelUmPerS};
+use hydra_xy::contour::{
     ContourEstimate, DefaultWindow, InterpCoeffs, InterpConfig, Interpolator, Parabola,
     ParabolaSpec, Reference, Xy,
 };
-use hydra_core::units::{PosUm, VelUmPerS};
 
 /// Feed, µm/s.
 const FEED_UM_PER_S: i32 = 200_000;

@@ -20,8 +20,8 @@
 
 use crate::harness::Figure;
 use core::hint::black_box;
-use hydra_core::npid::{ErrorLaw, FalConfig, FhanConfig, Npid, NpidCoeffs, NpidConfig};
 use hydra_core::units::{CmdLsb, PosUm};
+use hydra_xy::npid::{ErrorLaw, FalConfig, FhanConfig, Npid, NpidCoeffs, NpidConfig};
 
 /// Reference advance per period, raw `PosUm` (50 µm).
 const STEP_BITS: i32 = 50 << 8;

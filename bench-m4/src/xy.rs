@@ -23,14 +23,14 @@
 use crate::harness::Figure;
 use crate::npid::{axis_coeffs, contour_coeffs};
 use core::hint::black_box;
-use hydra_core::contour::{
+use hydra_core::units::{PosUm, VelUmPerS};
+use hydra_xy::contour::{
     ContourEstimate, ContourWindow, InterpCoeffs, InterpConfig, Interpolator, Parabola,
     ParabolaSpec, Reference, Xy,
 };
-use hydra_core::npid::{
+use hydra_xy::npid::{
     CrossCoupled, EstimatedXy, NpidCoeffs, VelocityFfCoeffs, VelocityFfConfig, XyCoeffs, XyPeriod,
 };
-use hydra_core::units::{PosUm, VelUmPerS};
 
 /// Ordinary points in the window (host-sim `WINDOW_N`).
 const N: usize = 64;

@@ -2,9 +2,9 @@
 //!
 //! `#![no_std]`, no allocation, no HAL. Everything that can be tested on the host lives
 //! here: master prediction, cam-table interpolation, the axis control laws, the
-//! master/slave follower (SPEC §A), the 7-phase S-curve (§B), contour-error estimation
-//! (§C), nonlinear PID and cross-coupled control (§D), the runtime state machine and the
-//! UART protocol.
+//! master/slave follower (SPEC §A), the 7-phase S-curve (§B), the runtime state machine
+//! and the UART protocol. (Contour-error estimation (§C) and the nonlinear PID with
+//! cross-coupled control (§D), which the valve board does not run, are `hydra-xy`.)
 //!
 //! Every fixed-point quantity has a documented unit, format, resolution and range: see
 //! [`units`] for the table. Configuration is validated once by a builder (`build`)
@@ -26,12 +26,10 @@
 extern crate std;
 
 pub mod axis;
-pub mod contour;
 pub mod dac;
 pub mod fixed_point;
 pub mod follower;
 pub mod master;
-pub mod npid;
 pub mod profile;
 pub mod protocol;
 pub mod runtime;

@@ -15,10 +15,10 @@
 //! at F — positive when P lies to the right of the direction of travel. Accuracy: the
 //! f64 rounding of µm coordinates below 10 m, about 10⁻⁹ µm.
 //!
-//! The paths are built from the same specification structs as `hydra_core::contour`,
+//! The paths are built from the same specification structs as `hydra_xy::contour`,
 //! with their exact (unquantised) parameters.
 
-use hydra_core::contour::{ArcSpec, LineSpec, ParabolaSpec};
+use hydra_xy::contour::{ArcSpec, LineSpec, ParabolaSpec};
 
 /// A path in `f64`, with the parameterisation of its `hydra_core` counterpart.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -2,10 +2,10 @@
 //! on both sides of a line, circle and parabola, against the `f64` ground truth.
 
 use host_sim::contour_truth::TruthPath;
-use hydra_core::contour::{
+use hydra_core::units::{PosUm, VelUmPerS};
+use hydra_xy::contour::{
     ArcSpec, ContourWindow, InterpConfig, Interpolator, LineSpec, ParabolaSpec, ParametricPath, Xy,
 };
-use hydra_core::units::{PosUm, VelUmPerS};
 
 type Win = ContourWindow<32, 63>;
 

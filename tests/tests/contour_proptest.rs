@@ -15,11 +15,11 @@
 //! fixed-point rounding (0.2 nm measured).
 
 use host_sim::contour_truth::TruthPath;
-use hydra_core::contour::{
+use hydra_core::units::{PosUm, VelUmPerS};
+use hydra_xy::contour::{
     max_bisection_steps, ArcSpec, ContourWindow, InterpConfig, Interpolator, OrdinaryPoint,
     ParabolaSpec, Param, ParametricPath, PosFine, RelUm, UnitQ30, Xy,
 };
-use hydra_core::units::{PosUm, VelUmPerS};
 use proptest::prelude::*;
 
 const H: usize = 63;

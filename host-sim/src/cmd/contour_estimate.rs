@@ -1,4 +1,4 @@
-//! `host-sim contour-estimate`: runs the fixed-point interpolator of `hydra_core::contour`
+//! `host-sim contour-estimate`: runs the fixed-point interpolator of `hydra_xy::contour`
 //! along a path, places actual points as a lagging servo would (behind the reference by
 //! up to K periods along the path, off it by up to ±E µm along the normal), and compares
 //! the adaptive estimator, the chord method and the tangent method with the exact signed
@@ -20,10 +20,10 @@
 
 use crate::contour_truth::TruthPath;
 use anyhow::{bail, Result};
-use hydra_core::contour::{
+use hydra_core::units::{PosUm, VelUmPerS};
+use hydra_xy::contour::{
     ArcSpec, ContourWindow, InterpConfig, Interpolator, LineSpec, ParabolaSpec, ParametricPath, Xy,
 };
-use hydra_core::units::{PosUm, VelUmPerS};
 use serde::Serialize;
 
 /// Ordinary points the command's window holds.

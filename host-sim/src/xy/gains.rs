@@ -1,7 +1,7 @@
 //! Gains of the four X–Y controllers (defaults = the tuned values of `docs/npid.md`).
 
 use anyhow::{anyhow, Result};
-use hydra_core::npid::{
+use hydra_xy::npid::{
     FalConfig, FhanConfig, NpidCoeffs, NpidConfig, PidCoeffs, PidConfig, VelocityFfCoeffs,
     VelocityFfConfig, XyCoeffs,
 };
@@ -49,7 +49,7 @@ pub struct FfGains {
     /// Fraction of the identified gains applied (0 = no feed-forward, 1 = full).
     pub scale: f64,
     /// Friction compensation: oil-column deflection under Coulomb friction D_c = F_c/k_h,
-    /// µm, `[X, Y]` (0 = off; see `hydra_core::npid::feedforward`).
+    /// µm, `[X, Y]` (0 = off; see `hydra_xy::npid::feedforward`).
     #[serde(default)]
     pub friction_um: [f64; 2],
     /// Reversal speed band v_s of the friction compensation, mm/s.

@@ -16,15 +16,15 @@ use super::gains::Gains;
 use super::{ControllerKind, XyScenario, RAMP_S, TS, WINDOW_H, WINDOW_N};
 use crate::contour_truth::TruthPath;
 use anyhow::Result;
-use hydra_core::contour::{
+use hydra_core::runtime::{ControlInputs, ControlOutputs, Controller};
+use hydra_core::units::{DacCode, PosUm, VelUmPerS};
+use hydra_xy::contour::{
     curvature_per_m, ContourWindow, InterpCoeffs, InterpConfig, Interpolator, ParametricPath,
 };
-use hydra_core::npid::{
+use hydra_xy::npid::{
     Ccc, Cnp, CrossCoupled, EstimatedXy, NpidCoeffs, PathFrame, PidCoeffs, VelocityFf,
     VelocityFfCoeffs, XyCoeffs, XyOutput,
 };
-use hydra_core::runtime::{ControlInputs, ControlOutputs, Controller};
-use hydra_core::units::{DacCode, PosUm, VelUmPerS};
 
 /// The controller of a run.
 enum Ctl {

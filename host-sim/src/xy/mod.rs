@@ -1,6 +1,6 @@
 //! The X–Y table scenario of seed 004: two hydraulic axes of `shared/PLANT.md` with
 //! deliberately mismatched dynamics, paths from the seed-003 interpolator at 1 ms, and
-//! four controllers from `hydra_core::npid`.
+//! four controllers from `hydra_xy::npid`.
 //!
 //! * **Plant.** X is the reference axis of PLANT.md (80/45 mm cylinder, 300 kg, 24 L/min
 //!   valve at 35 bar, 60 Hz spool). Y carries 1.5× the moving mass (450 kg) and a valve
@@ -15,7 +15,7 @@
 //!   a linear PID on the model contour error (Koren's CCC, line/osculating-circle model
 //!   at the reference point). `nccc`: nonlinear PIDs (TD + fal) on the axes and on the
 //!   model contour error (the seed's CNP). `nccc-est`: as `nccc` with ε from the seed-003
-//!   estimator instead of the model ([`hydra_core::npid::EstimatedXy`]).
+//!   estimator instead of the model ([`hydra_xy::npid::EstimatedXy`]).
 //! * **Measured.** Contour error = exact signed distance from the actual point to the
 //!   path ([`crate::contour_truth`]) at every sample; tracking errors = reference −
 //!   actual per axis. The disturbance peak is the largest |ε| within 1 s after the load
@@ -30,12 +30,12 @@ use crate::plant::{HydraulicAxis, Supply};
 use crate::sim::FaultEvent;
 use anyhow::{bail, Result};
 use gains::Gains;
-use hydra_core::contour::{ArcSpec, LineSpec, ParabolaSpec, ParametricPath};
 use hydra_core::runtime::{
     BootCause, Command, EncoderSample, Fault, MasterSource, Runtime, RuntimeConfig,
     Sample as RtSample,
 };
 use hydra_core::units::Counts;
+use hydra_xy::contour::{ArcSpec, LineSpec, ParabolaSpec, ParametricPath};
 use law::XyLaw;
 use serde::Serialize;
 
@@ -249,9 +249,9 @@ pub struct XyReport {
 
 /// The paths of the scenario as core paths and exact references.
 enum CorePath {
-    Line(hydra_core::contour::Line),
-    Arc(hydra_core::contour::Arc),
-    Parabola(hydra_core::contour::Parabola),
+    Line(hydra_xy::contour::Line),
+    Arc(hydra_xy::contour::Arc),
+    Parabola(hydra_xy::contour::Parabola),
 }
 
 fn build_path(s: &XyScenario) -> Result<(CorePath, TruthPath)> {

@@ -8,7 +8,7 @@
 //!
 //! **Fusion.** The power zone is one base-2 log/exp evaluation with β folded into the
 //! exponent: `term = 2^(α·log2|e_raw| + log2 β + 16 − α·f)` for an input in Q(f), the
-//! result directly in LSB Q16 ([`crate::fixed_point`]'s tables, relative error ≤ 1.3·10⁻⁴ as
+//! result directly in LSB Q16 ([`hydra_core::fixed_point`]'s tables, relative error ≤ 1.3·10⁻⁴ as
 //! `fal` alone; `log2 β` is exact to 6·10⁻⁸ in Q24). The linear zone (and α = 1) is one
 //! `smull` by the slope `k` as a 31-bit mantissa and a shift; the slope is formed at
 //! build time from the hot path's own power at δ, so the zones meet at ±δ. β = 0 skips
@@ -30,7 +30,7 @@
 //! saturates from one input LSB on) is stored as 2³¹ − 1: the same saturated values.
 
 use super::fal::FalCoeffs;
-use crate::fixed_point::{exp2_q24_sat_i32, log2_q24_u32};
+use hydra_core::fixed_point::{exp2_q24_sat_i32, log2_q24_u32};
 
 /// How a term is evaluated (chosen by [`TermCoeffs::new`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -170,7 +170,7 @@ impl TermCoeffs {
     #[inline(always)]
     fn linear(&self, e: i32) -> i32 {
         // |e·k_m| < 2^62; k_sh < 32.
-        crate::fixed_point::sat_i32(
+        hydra_core::fixed_point::sat_i32(
             i64::from(e)
                 .wrapping_mul(i64::from(self.k_m))
                 .wrapping_shr(self.k_sh & 31),

@@ -34,7 +34,7 @@
 
 use super::window::{ContourWindow, NO_HINT};
 use super::Xy;
-use crate::fixed_point::clamp_rel;
+use hydra_core::fixed_point::clamp_rel;
 
 /// |p − s|², each component saturated to ±`REL_LIMIT` (2^30) (Q24 µm², < 2^61).
 #[inline(always)]

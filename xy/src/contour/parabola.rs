@@ -19,7 +19,7 @@
 use super::path::{fine_bits, in_range, ParametricPath, PathError, PathPoint};
 use super::trig::{sin_cos_q62, turns_from_deg, ONE_Q62};
 use super::{Deriv, Param, PosFine, Xy};
-use crate::fixed_point::{mul_shr32_i64_small, mul_shr_i64, shr_round_i64, sq_mul_shr68};
+use hydra_core::fixed_point::{mul_shr32_i64_small, mul_shr_i64, shr_round_i64, sq_mul_shr68};
 
 /// Specification of a parabolic segment, engineering units.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -9,7 +9,7 @@
 //! zone keeps the gain finite at e = 0 (no chattering). `e` is in any unit (µm, µm/s,
 //! µm·s: the caller's choice) in Q16; the result is in unit^α, Q16.
 //!
-//! **Approximation.** `|e|^α` comes from [`crate::fixed_point`] (base-2 log/exp tables,
+//! **Approximation.** `|e|^α` comes from [`hydra_core::fixed_point`] (base-2 log/exp tables,
 //! relative error ≤ 1.3·10⁻⁴). The linear zone's slope is computed at build time as
 //! `k = δ^α/δ` from the *same* fixed-point `δ^α`, so both branches meet at ±δ to within
 //! the rounding of `k` (≤ 2⁻³⁰ relative): `fal` is continuous at ±δ by construction.
@@ -17,12 +17,12 @@
 //! **Cost.** `k` is stored as a 31-bit mantissa `k_m ∈ [2³⁰, 2³¹)` and a shift (`k =
 //! k_m·2^−k_sh`), so the linear zone is one bounded `i64` product (`|e| ≤ δ < 2³²` in
 //! Q16, `k_m < 2³¹`); α = 1 returns `e` without any arithmetic; the power runs on 32-bit
-//! table interpolations ([`crate::fixed_point`]).
+//! table interpolations ([`hydra_core::fixed_point`]).
 //!
 //! Ranges: 0 ≤ α ≤ 2, 2⁻¹⁰ ≤ δ ≤ 2¹⁵ (in the unit of `e`).
 
 use super::FalError;
-use crate::fixed_point::{mul_bounded_shr, pow_q16};
+use hydra_core::fixed_point::{mul_bounded_shr, pow_q16};
 
 /// `fal` parameters (validated by [`FalConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -34,7 +34,7 @@
 
 use super::fhan::{fhan_a, FhanCoeffs, FhanConfig, V_MAX_Q8};
 use super::TdError;
-use crate::units::{PosUm, VelUmPerS};
+use hydra_core::units::{PosUm, VelUmPerS};
 
 /// TD parameters in engineering units (validated by [`TdConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]

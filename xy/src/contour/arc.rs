@@ -15,7 +15,7 @@
 use super::path::{fine_bits, in_range, ParametricPath, PathError, PathPoint};
 use super::trig::{sin_cos_q62, turns_from_deg};
 use super::{Deriv, Param, PosFine, Xy};
-use crate::fixed_point::{mul_shr_i64, sat_i64, shr_round_i64};
+use hydra_core::fixed_point::{mul_shr_i64, sat_i64, shr_round_i64};
 
 /// Specification of a circular arc, engineering units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -146,11 +146,11 @@ impl ParametricPath for Arc {
             (tx.wrapping_neg(), ty.wrapping_neg())
         };
         // r″ = −(cos, sin)/R: Q62 · Q64 → Q126 → Q32.
-        let nx = sat_i64(crate::fixed_point::shr_round_i128(
+        let nx = sat_i64(hydra_core::fixed_point::shr_round_i128(
             (c as i128).wrapping_mul(self.inv_r_q64 as i128),
             94,
         ));
-        let ny = sat_i64(crate::fixed_point::shr_round_i128(
+        let ny = sat_i64(hydra_core::fixed_point::shr_round_i128(
             (s as i128).wrapping_mul(self.inv_r_q64 as i128),
             94,
         ));

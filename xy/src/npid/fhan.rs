@@ -12,9 +12,9 @@
 //! `a` scaled by `h0`, `fsg` switching functions) is the same function: the tests check
 //! one against the other in `f64`.
 //!
-//! **Formats (32-bit).** `x1`: µm in Q8 (`i32`, the bits of [`crate::units::PosUm`]:
+//! **Formats (32-bit).** `x1`: µm in Q8 (`i32`, the bits of [`hydra_core::units::PosUm`]:
 //! ±8.4 m, resolution 3.9·10⁻³ µm); `x2`: µm/s in Q8 (`i32`, the bits of
-//! [`crate::units::VelUmPerS`]), clamped on entry to ±[`V_MAX_UM_PER_S`] (4.2 m/s);
+//! [`hydra_core::units::VelUmPerS`]), clamped on entry to ±[`V_MAX_UM_PER_S`] (4.2 m/s);
 //! result µm/s² in Q8 (`i64`; |fhan| ≤ r ≤ 10⁹ µm/s²). `r` is an integer number of
 //! µm/s² (its rounding is < 5·10⁻⁴ relative for r ≥ 10³ µm/s²), `h0` a Q32 number of
 //! seconds (2.3·10⁻¹⁰ s), `1/h0` a Q14 number of 1/s from the same quantised `h0`,
@@ -22,7 +22,7 @@
 //! rounding of `y` — ≤ ½ LSB = 2·10⁻³ µm — moves fhan's linear zone by ≤ 10⁻³·r).
 //!
 //! **Square root.** `a0 = √(d² + 8·r·|y|)` is formed from the argument in Q6 (µm/s)²
-//! (`u64`: `64·d² + 2·r·|y_q8|` < 2⁶³ for the validated ranges) by [`crate::fixed_point`]'s
+//! (`u64`: `64·d² + 2·r·|y_q8|` < 2⁶³ for the validated ranges) by [`hydra_core::fixed_point`]'s
 //! table + one Newton step: relative error ≤ 2·10⁻⁸ (measured 0.9·10⁻⁸). `a0` is kept
 //! in Q8 as a `u32` saturated at 2³² − 1 (16.8 m/s): where it saturates, `(a0 − d)/2 ≥
 //! 1.75·2³⁰ − 1` exceeds `|x2| + d ≤ 1.5·2³⁰`, so `a` keeps the sign of `y` and `|a| > d`
@@ -34,7 +34,7 @@
 //! addition, the root a table lookup, a `umull` residual and one 32-bit `sdiv`.
 
 use super::TdError;
-use crate::fixed_point::sqrt_u64;
+use hydra_core::fixed_point::sqrt_u64;
 
 /// Largest |velocity| the TD state and `fhan` accept, µm/s (2²² µm/s ≈ 4.2 m/s: twice
 /// the fastest hydraulic axis this controller is meant for).

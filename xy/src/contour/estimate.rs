@@ -47,8 +47,8 @@
 use super::geom::{chord_dist, dot, rel, seg_dist, sub, Ends, SegDist};
 use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
-use crate::fixed_point::clamp_to_i32;
-use crate::units::PosUm;
+use hydra_core::fixed_point::clamp_to_i32;
+use hydra_core::units::PosUm;
 
 /// The result of one estimate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -86,7 +86,7 @@ impl ContourEstimate {
     /// ε in the controller's position format (`PosUm`, rounded to 3.9 nm).
     pub fn eps_pos_um(&self) -> PosUm {
         PosUm::from_bits(
-            crate::fixed_point::shr_round_i64(i64::from(self.eps_um.to_bits()), 4) as i32,
+            hydra_core::fixed_point::shr_round_i64(i64::from(self.eps_um.to_bits()), 4) as i32,
         )
     }
 }

@@ -59,7 +59,7 @@ pub use pid::{Pid, PidCoeffs, PidConfig};
 pub use td::{Td, TdCoeffs, TdConfig};
 pub use xy_loop::{EstimatedXy, XyPeriod};
 
-use crate::units::{CmdLsb, PosUm};
+use hydra_core::units::{CmdLsb, PosUm};
 
 /// A control law on one error channel.
 pub trait ErrorLaw {

@@ -43,8 +43,8 @@
 //! 48 µm over a 0.6 mm/s band, ≈ 0.05 otherwise: the friction term differentiates d and
 //! so amplifies v_ff's resolution by D_c/(v_s·h)).
 
-use crate::fixed_point::mul_shr;
-use crate::units::{CmdLsb, PosUm};
+use hydra_core::fixed_point::mul_shr;
+use hydra_core::units::{CmdLsb, PosUm};
 
 /// Feed-forward parameters in engineering units (validated by [`VelocityFfConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -25,8 +25,8 @@
 //! are formed in `i128` and saturated.
 
 use crate::contour::{UnitQ30, Xy};
-use crate::fixed_point::{mul64_shr, sat_i64};
 use fixed::types::I32F32;
+use hydra_core::fixed_point::{mul64_shr, sat_i64};
 
 /// Path geometry at the reference point: unit tangent and signed curvature.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

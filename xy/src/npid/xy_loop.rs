@@ -22,7 +22,7 @@ use super::contour_model::PathFrame;
 use super::feedforward::{VelocityFf, VelocityFfCoeffs};
 use super::npid::NpidCoeffs;
 use crate::contour::{ContourWindow, InterpCoeffs, Interpolator, ParametricPath, Reference, Xy};
-use crate::units::{CmdLsb, PosUm, VelUmPerS};
+use hydra_core::units::{CmdLsb, PosUm, VelUmPerS};
 
 /// Interpolator, estimation window and cross-coupled nonlinear PID of one X–Y pair.
 #[derive(Clone, Debug)]

@@ -36,7 +36,7 @@ use super::fal_term::TermCoeffs;
 use super::fhan::FhanConfig;
 use super::td::{Td, TdCoeffs, TdConfig};
 use super::{ErrorLaw, NpidError};
-use crate::units::{CmdLsb, PosUm};
+use hydra_core::units::{CmdLsb, PosUm};
 
 /// Nonlinear PID parameters in engineering units (validated by [`NpidConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -186,7 +186,7 @@ impl Npid {
         if !push {
             // Q8·Q32 = Q40, rounded to Q16 (`smlal` on 2^23): |e1·h| < 2^31·2^26, the sum
             // below 2^58; saturated to 32 bits (only |e1|·h > 32 767 µm·s does).
-            let de0 = crate::fixed_point::sat_i32(
+            let de0 = hydra_core::fixed_point::sat_i32(
                 i64::from(e1_q8)
                     .wrapping_mul(i64::from(c.td_ref.h_q32()))
                     .wrapping_add(1 << 23)

@@ -26,8 +26,8 @@ use super::contour_model::{contour_model, PathFrame};
 use super::npid::Npid;
 use super::pid::Pid;
 use super::{cmd_from_q16, q16_from_pos, ErrorLaw};
-use crate::fixed_point::mul64_shr;
-use crate::units::{CmdLsb, PosUm};
+use hydra_core::fixed_point::mul64_shr;
+use hydra_core::units::{CmdLsb, PosUm};
 
 /// Largest |command| of an axis, LSB Q16 (the 12-bit DAC's ±2047).
 const U_MAX_Q16: i64 = 2047 << 16;
@@ -99,7 +99,7 @@ fn distribute(u: CmdLsb, g_q30: i64, uc: CmdLsb) -> CmdLsb {
 /// [`distribute`].
 #[inline(always)]
 fn distribute_unit(u: CmdLsb, g_q30: i32, uc: CmdLsb) -> CmdLsb {
-    let corr = crate::fixed_point::mul_shr(g_q30, uc.to_bits(), 30);
+    let corr = hydra_core::fixed_point::mul_shr(g_q30, uc.to_bits(), 30);
     CmdLsb::from_bits(
         u.to_bits()
             .saturating_add(corr)

@@ -14,8 +14,8 @@ use super::estimate::{finish, u_at_foot, ContourEstimate};
 use super::geom::{rel, rel_sat};
 use super::window::{ContourWindow, OrdinaryPoint};
 use super::{PosFine, RelUm, UnitQ30, Xy};
-use crate::fixed_point::{clamp_to_i32, mul_shr_i32};
-use crate::units::PosUm;
+use hydra_core::fixed_point::{clamp_to_i32, mul_shr_i32};
+use hydra_core::units::PosUm;
 
 fn fine(p: Xy<PosUm>) -> Xy<i64> {
     Xy::new(

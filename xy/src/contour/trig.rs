@@ -18,7 +18,7 @@
 //! `f64` is below 10⁻¹⁵ (tests below): on a circle of radius 4 m that is 4·10⁻⁹ µm.
 //! Cost on a Cortex-M4: about 350 instructions (measured, `docs/contour.md`).
 
-use crate::fixed_point::{mul_shr_i64, sat_i64, shr_round_i128};
+use hydra_core::fixed_point::{mul_shr_i64, sat_i64, shr_round_i128};
 
 /// 1.0 in Q62.
 pub const ONE_Q62: i64 = 1 << 62;

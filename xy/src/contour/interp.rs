@@ -41,7 +41,7 @@
 //!
 //! Work per period: one full path evaluation, one normalisation of r′ (of the new point,
 //! kept for the next period's step), one curvature, one division by h + 1 (four 32-bit
-//! `udiv`s, [`crate::fixed_point`]'s `div_small`, only when h > 0), and per extra point one
+//! `udiv`s, [`hydra_core::fixed_point`]'s `div_small`, only when h > 0), and per extra point one
 //! position evaluation ([`ParametricPath::position`]) and two `i64×i32` products (the
 //! `i128` form only for a curvature term beyond 2^31); h ≤ min(h_max, H). Every product
 //! of the Taylor step and of κ takes a one-`smull` path when its operand fits 32 bits.
@@ -53,10 +53,10 @@ use super::geom::rel;
 use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath, PathPoint};
 use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, UnitQ30, Xy};
-use crate::fixed_point::{
+use hydra_core::fixed_point::{
     div_small, mul_shr30_i32_i64, mul_shr32_i64_i32, mul_shr_i64_by_u32, sat_i64,
 };
-use crate::units::{PosUm, VelUmPerS};
+use hydra_core::units::{PosUm, VelUmPerS};
 
 /// Largest advance per period, Q32.32 µm (65 536 µm).
 const MAX_STEP_Q32: i64 = 1 << 48;
@@ -235,8 +235,8 @@ impl Reference {
     /// The command position in the axes' format (`PosUm`, rounded to 3.9 nm).
     pub fn pos_um(&self) -> Xy<PosUm> {
         self.point.pos.map(|v| {
-            PosUm::from_bits(crate::fixed_point::clamp_to_i32(
-                crate::fixed_point::shr_round_i64(v.to_bits(), 4),
+            PosUm::from_bits(hydra_core::fixed_point::clamp_to_i32(
+                hydra_core::fixed_point::shr_round_i64(v.to_bits(), 4),
                 i32::MAX,
             ))
         })

@@ -14,8 +14,8 @@
 //! filtered derivative in LSB Q16, `λ` in Q24; errors µm Q16.
 
 use super::{cmd_from_q16, q16_from_pos, ErrorLaw, NpidError};
-use crate::fixed_point::{mul64_shr, sign};
-use crate::units::{CmdLsb, PosUm};
+use hydra_core::fixed_point::{mul64_shr, sign};
+use hydra_core::units::{CmdLsb, PosUm};
 
 /// Linear PID parameters (validated by [`PidConfig::build`]).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -31,14 +31,14 @@
 //! |---|---|---|---|---|
 //! | path parameter u | [`Param`] = `I32F32` | path unit (µm for the built-in paths) | 2.3·10⁻¹⁰ | ±2.1·10⁹ |
 //! | point on the path, window point, foot | [`PosFine`] = `I52F12` | µm | 0.244 nm | ±2.2·10⁹ m (paths validated to ±8.388 m) |
-//! | actual point P (input) | [`crate::units::PosUm`] = `I24F8` | µm | 3.9 nm | ±8.39 m |
+//! | actual point P (input) | [`hydra_core::units::PosUm`] = `I24F8` | µm | 3.9 nm | ±8.39 m |
 //! | relative vectors (extra points, chords, P − S), contour error ε | [`RelUm`] = `I20F12` | µm | 0.244 nm | ±524 mm (saturated at ±262 mm) |
 //! | r′, r″ | [`Deriv`] = `I32F32` | µm per unit of u (of u²) | 2.3·10⁻¹⁰ | ±2.1·10⁹ |
 //! | unit tangent / normal | [`UnitQ30`] = `I2F30` | 1 | 9.3·10⁻¹⁰ | ±2 |
 //! | sin, cos | `i64` Q2.62 | 1 | 2.2·10⁻¹⁹ (error < 10⁻¹⁵) | ±2 |
 //! | angle | `u32` Q0.32 | turn | 2^-32 turn = 1.46·10⁻⁹ rad | one turn, wrapping |
 //! | curvature κ (interpolator) | `i64` Q32.32 | 1/µm | 2.3·10⁻¹⁰ /µm | ±2.1·10⁹ |
-//! | feed v | [`crate::units::VelUmPerS`] = `I24F8` | µm/s | 3.9 nm/s | 0 … 8.39 m/s |
+//! | feed v | [`hydra_core::units::VelUmPerS`] = `I24F8` | µm/s | 3.9 nm/s | 0 … 8.39 m/s |
 //! | period Ts | `i64` Q24.40 | s | 9·10⁻¹³ s | 10 µs … 1 s |
 //! | Q | `i64` Q16.16 | s | 15 µs | 0 … 1000 s |
 //! | advance per period ΔS | `i64` Q32.32 | µm | 2.3·10⁻¹⁰ µm | 0 … 65 536 µm |
@@ -57,7 +57,7 @@
 //! # Per-tick use (no allocation, no float, no panic)
 //!
 //! ```
-//! use hydra_core::contour::{DefaultWindow, InterpConfig, Interpolator, ParabolaSpec, Xy};
+//! use hydra_xy::contour::{DefaultWindow, InterpConfig, Interpolator, ParabolaSpec, Xy};
 //! use hydra_core::units::{PosUm, VelUmPerS};
 //!
 //! let path = ParabolaSpec { vertex_um: [0.0, 0.0], p_um: 10_000.0, axis_deg: 0.0,

@@ -5,7 +5,7 @@
 //! two components fits an `i64` exactly and sums of two products saturate harmlessly.
 
 use super::Xy;
-use crate::fixed_point::{
+use hydra_core::fixed_point::{
     clamp_rel, clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, sqrt_round_u64,
 };
 

@@ -20,8 +20,10 @@
 //! accuracy can be no better than the points it is given.
 
 use super::{Deriv, Param, PosFine, Xy};
-use crate::fixed_point::{mul_shr30_i32_i64, mul_shr_i64_by_u32, normalize_no_len, shr_round_i128};
 use fixed::types::I32F32;
+use hydra_core::fixed_point::{
+    mul_shr30_i32_i64, mul_shr_i64_by_u32, normalize_no_len, shr_round_i128,
+};
 
 /// Largest |coordinate| of any point of a built-in path, µm (the range of `PosUm`).
 pub const MAX_COORD_UM: f64 = 8_388_607.0;
@@ -210,7 +212,10 @@ impl ParametricPath for Line {
     fn eval(&self, u: Param) -> PathPoint {
         let u = u.to_bits();
         let along = |a: i64| {
-            crate::fixed_point::sat_i64(shr_round_i128((u as i128).wrapping_mul(a as i128), 82))
+            hydra_core::fixed_point::sat_i64(shr_round_i128(
+                (u as i128).wrapping_mul(a as i128),
+                82,
+            ))
         };
         PathPoint {
             pos: Xy::new(
@@ -218,8 +223,8 @@ impl ParametricPath for Line {
                 PosFine::from_bits(self.origin.y.saturating_add(along(self.dir_q62.y))),
             ),
             d1: Xy::new(
-                Deriv::from_bits(crate::fixed_point::shr_round_i64(self.dir_q62.x, 30)),
-                Deriv::from_bits(crate::fixed_point::shr_round_i64(self.dir_q62.y, 30)),
+                Deriv::from_bits(hydra_core::fixed_point::shr_round_i64(self.dir_q62.x, 30)),
+                Deriv::from_bits(hydra_core::fixed_point::shr_round_i64(self.dir_q62.y, 30)),
             ),
             d2: Xy::new(Deriv::ZERO, Deriv::ZERO),
         }

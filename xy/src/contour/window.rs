@@ -18,7 +18,7 @@
 use core::cell::Cell;
 
 use super::{Param, PosFine, RelUm, UnitQ30, Xy};
-use crate::fixed_point::clamp_to_i32;
+use hydra_core::fixed_point::clamp_to_i32;
 
 /// Largest |relative coordinate| used by the estimator, raw Q20.12 (262 mm).
 pub(crate) const REL_LIMIT: i32 = 1 << 30;
