@@ -29,7 +29,7 @@ fn settings_survive_a_restart_exactly_and_every_path_reads_back() {
     let rows = list.as_array().expect("array");
     assert_eq!(
         rows.len(),
-        30 * 2 + 4,
+        31 * 2 + 4,
         "29 settings per slave, 4 board-wide"
     );
     for r in rows {

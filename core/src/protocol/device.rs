@@ -26,7 +26,7 @@ use super::msg::ParamId;
 use super::msg::{Nak, NakCode, StatusMsg};
 use super::overrides::ParamRecord;
 use super::params::{
-    apply_param, apply_saved_set, home_um, read_param, reference_offset_um, SlaveRefs,
+    apply_param, apply_saved_set, home_um, read_param, reference_offset_um, um_per_count, SlaveRefs,
 };
 use super::report::{
     command_nak, fill_status, motion_command, refused, state_code, REFUSED_LAW, REFUSED_NOT_SAFE,
@@ -140,9 +140,17 @@ where
     /// slave k).
     pub fn start<const P: usize>(
         &mut self,
-        coeffs: RuntimeCoeffs<S>,
+        mut coeffs: RuntimeCoeffs<S>,
         boot: BootCause,
     ) -> (Runtime<L, S, P>, u32) {
+        // The saved encoder scales go into the coefficients the runtime starts with (an
+        // absolute slave's offset is restored below in the scale it was saved in).
+        for (axis, k) in (0u8..).zip(self.boot_refs.scales.iter()) {
+            if let Some(k) = k {
+                // Checked when it was set; one the coefficients refuse is left out.
+                let _ = coeffs.set_um_per_count(axis, *k);
+            }
+        }
         let mut rt = Runtime::new(coeffs, self.pool.boot_law.take(), boot);
         let mut refused_mask = 0u32;
         for (axis, home) in (0u8..).zip(self.boot_refs.homes.iter()) {
@@ -337,6 +345,21 @@ where
             .map(|o| o.to_num())
     }
     fn get_param(&self, axis: u8, param: ParamId) -> Result<f32, Nak> {
+        if param == ParamId::UmPerCount {
+            let i = usize::from(axis);
+            let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
+            // The runtime's once it runs; before (boot) the one kept for it, or 1 µm.
+            return match self.glue.read(|rt| rt.um_per_count(axis)) {
+                Some(k) => k.ok_or(unknown),
+                None => self
+                    .st
+                    .boot_refs
+                    .scales
+                    .get(i)
+                    .map(|k| k.unwrap_or(1.0))
+                    .ok_or(unknown),
+            };
+        }
         if param == ParamId::HomeUm {
             let i = usize::from(axis);
             let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
@@ -379,6 +402,26 @@ where
     }
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
         let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);
+        if param == ParamId::UmPerCount {
+            let k = um_per_count(axis, value)?;
+            let slot = self
+                .st
+                .boot_refs
+                .scales
+                .get_mut(usize::from(axis))
+                .ok_or(Nak::with(
+                    NakCode::UnknownParam,
+                    u16::from(axis),
+                    param as u8,
+                ))?;
+            match self.glue.write(|rt| rt.set_um_per_count(axis, k)) {
+                Some(Err(CommandError::Busy)) => return Err(Nak::new(NakCode::NotIdle)),
+                Some(Err(_)) => return Err(range),
+                Some(Ok(())) | None => {}
+            }
+            *slot = Some(k);
+            return Ok(());
+        }
         if param == ParamId::HomeUm {
             let h = home_um(axis, value)?;
             let slot = self
@@ -721,6 +764,35 @@ mod tests {
         st2.boot_refs = refs;
         let (rt2, _) = st2.start::<0>(coeffs(), BootCause::Normal);
         assert_eq!(rt2.references().home_um()[0], PosUm::from_num(20_000));
+    }
+
+    /// The encoder scale is a setting: kept at boot and given to the runtime by
+    /// `start`, set in Idle afterwards, refused out of range (|x| < 0.001 too) naming
+    /// the parameter.
+    #[test]
+    fn the_encoder_scale_is_a_setting_before_and_after_the_runtime_starts() {
+        let mut st = device();
+        let mut g = Direct { rt: None };
+        let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
+            st: &mut st,
+            glue: &mut g,
+        };
+        assert_eq!(d.get_param(0, ParamId::UmPerCount), Ok(1.0));
+        d.set_param(0, ParamId::UmPerCount, 0.5).unwrap();
+        let (rt, _) = st.start::<0>(coeffs(), BootCause::Normal);
+        assert_eq!(rt.um_per_count(0), Some(0.5));
+        let mut g = Direct { rt: Some(rt) };
+        let mut d = BoardDevice::<_, _, _, 1, 8, 0> {
+            st: &mut st,
+            glue: &mut g,
+        };
+        d.set_param(0, ParamId::UmPerCount, -0.1).unwrap();
+        assert_eq!(d.get_param(0, ParamId::UmPerCount), Ok(-0.1));
+        let range = Nak::with(NakCode::ParamRange, 0, ParamId::UmPerCount as u8);
+        for k in [0.0, 0.0005, -2000.0, f32::INFINITY] {
+            assert_eq!(d.set_param(0, ParamId::UmPerCount, k), Err(range), "{k}");
+        }
+        assert_eq!(d.get_param(0, ParamId::UmPerCount), Ok(-0.1));
     }
 
     /// The gain backoff's level survives a law rebuild that keeps the axis'

@@ -47,7 +47,7 @@ pub use msg::{Nak, NakCode, ParamId, Request, Response};
 pub use overrides::{ParamOverrides, ParamRecord};
 pub use params::{
     apply_param, apply_param_set, apply_saved_set, home_um, read_param, reference_offset_um,
-    validate_params, SlaveRefs,
+    um_per_count, validate_params, SlaveRefs,
 };
 pub use store::{SlotHeader, Store, StoreError};
 

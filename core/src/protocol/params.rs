@@ -47,7 +47,11 @@ pub fn apply_param_set<const S: usize, const N: usize>(
     for r in records {
         if matches!(
             r.param,
-            ParamId::LinkTimeoutMs | ParamId::SlaveOffsetUm | ParamId::PeriodUs | ParamId::HomeUm
+            ParamId::LinkTimeoutMs
+                | ParamId::SlaveOffsetUm
+                | ParamId::PeriodUs
+                | ParamId::HomeUm
+                | ParamId::UmPerCount
         ) {
             continue;
         }
@@ -79,15 +83,32 @@ pub fn home_um(axis: u8, value: f32) -> Result<PosUm, Nak> {
     ))
 }
 
+/// An encoder scale ([`ParamId::UmPerCount`]) of slave `axis` from its wire value, µm per
+/// count: finite, 0.001 ≤ |x| ≤ 1000, else `ParamRange` naming the axis and the
+/// parameter.
+pub fn um_per_count(axis: u8, value: f32) -> Result<f32, Nak> {
+    let v = ParamId::UmPerCount.check(axis, value)?;
+    if v.abs() < 0.001 {
+        return Err(Nak::with(
+            NakCode::ParamRange,
+            u16::from(axis),
+            ParamId::UmPerCount as u8,
+        ));
+    }
+    Ok(v)
+}
+
 /// What a board keeps per slave beside the follower's configuration, restored with it
-/// at boot: the reference offset of an absolute slave and the home position (`None`:
-/// the board's default).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// at boot: the reference offset of an absolute slave, the home position and the
+/// encoder scale (`None`: the board's default).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SlaveRefs<const S: usize> {
     /// [`ParamId::SlaveOffsetUm`], µm.
     pub offsets: [Option<PosUm>; S],
     /// [`ParamId::HomeUm`], µm.
     pub homes: [Option<PosUm>; S],
+    /// [`ParamId::UmPerCount`], µm per count.
+    pub scales: [Option<f32>; S],
 }
 
 impl<const S: usize> SlaveRefs<S> {
@@ -95,12 +116,14 @@ impl<const S: usize> SlaveRefs<S> {
     pub const NONE: Self = Self {
         offsets: [None; S],
         homes: [None; S],
+        scales: [None; S],
     };
 }
 
 /// A saved set as a board applies it at boot: the follower parameters with
 /// [`apply_param_set`] and, per slave, the last [`ParamId::SlaveOffsetUm`]
-/// ([`reference_offset_um`]) and [`ParamId::HomeUm`] ([`home_um`]) into `refs`. All or
+/// ([`reference_offset_um`]), [`ParamId::HomeUm`] ([`home_um`]) and
+/// [`ParamId::UmPerCount`] ([`um_per_count`]) into `refs`. All or
 /// nothing for the caller, who passes copies and keeps them only on `Ok`.
 pub fn apply_saved_set<const S: usize, const N: usize>(
     cfg: &mut FollowerConfig<S>,
@@ -119,6 +142,9 @@ pub fn apply_saved_set<const S: usize, const N: usize>(
             }
             ParamId::HomeUm => {
                 *refs.homes.get_mut(i).ok_or(range)? = Some(home_um(r.axis, r.value)?);
+            }
+            ParamId::UmPerCount => {
+                *refs.scales.get_mut(i).ok_or(range)? = Some(um_per_count(r.axis, r.value)?);
             }
             _ => {}
         }

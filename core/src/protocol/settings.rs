@@ -7,7 +7,8 @@
 //! needs ([`crate::axis::PistonAreas`]),
 //! `axis/<n>/limits/<field>` for the table limits ([`crate::table::AxisLimits`]),
 //! `axis/<n>/reference_offset_um` for an absolute slave's reference,
-//! `axis/<n>/reference/home_um` for where homing references it, and board-wide
+//! `axis/<n>/reference/home_um` for where homing references it,
+//! `axis/<n>/encoder/um_per_count` for its encoder's scale, and board-wide
 //! `limits/master_speed_per_s`, `master/filter_bandwidth_hz`, `link/timeout_ms` and
 //! `period_us`. `<n>` is the 0-based slave.
 //!
@@ -114,6 +115,9 @@ pub enum ParamId {
     /// Where homing references the slave: its position at the reference edge (index or
     /// switch), µm. Takes effect at the next `motion home`.
     HomeUm = 34,
+    /// The slave encoder's scale, µm per count (0.001 ≤ |x| ≤ 1000; negative reverses
+    /// the count). Idle or Fault only; an incremental slave must be referenced again.
+    UmPerCount = 35,
 }
 
 /// Whether a parameter belongs to each slave or to the board.
@@ -292,6 +296,14 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
     )),
     p(P::HomeUm, A, "reference/home_um", "µm", -8.0e6, 8.0e6),
     p(
+        P::UmPerCount,
+        A,
+        "encoder/um_per_count",
+        "µm/count",
+        -1000.0,
+        1000.0,
+    ),
+    p(
         P::MasterSpeedPerS,
         B,
         "limits/master_speed_per_s",
@@ -320,7 +332,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 34;
+    pub const COUNT: usize = 35;
 
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
@@ -437,7 +449,7 @@ mod tests {
                 assert_eq!(id.info().id, id);
             }
         }
-        assert_eq!(all_paths(2).count(), 30 * 2 + 4);
+        assert_eq!(all_paths(2).count(), 31 * 2 + 4);
         for pp in all_paths(3) {
             let s = pp.to_string();
             let (axis, id) = parse_path(&s, 3).unwrap();
@@ -450,7 +462,7 @@ mod tests {
         let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
         paths.sort();
         paths.dedup();
-        assert_eq!(paths.len(), 64, "two parameters share a path");
+        assert_eq!(paths.len(), 66, "two parameters share a path");
     }
 
     #[test]

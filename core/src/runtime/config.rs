@@ -205,6 +205,37 @@ pub const PERIOD_MIN_US: u32 = 100;
 /// Longest control period the runtime accepts, µs (1 Hz).
 pub const PERIOD_MAX_US: u32 = 1_000_000;
 
+impl<const S: usize> RuntimeCoeffs<S> {
+    /// Slave `axis`' encoder scale, µm per count (the Q31.32 coefficient as `f32`).
+    pub fn um_per_count(&self, axis: u8) -> Option<f32> {
+        let k = *self.slave_scale_q32.get(usize::from(axis))?;
+        Some(I32F32::from_bits(k).to_num())
+    }
+
+    /// Changes slave `axis`' encoder scale to `um_per_count` (0.001 ≤ |x| ≤ 1000, as
+    /// [`RuntimeConfig::build`] requires; negative reverses the count) and its
+    /// plausibility limit with it, so the slave's top speed in µm/s stays what it was:
+    /// `limit' = ⌈limit · |k| / |k'|⌉` counts per tick (within one count of building
+    /// the configuration anew). `None` for an impossible scale, a missing slave or a
+    /// limit beyond [`super::MAX_STEP_LIMIT_COUNTS`]; nothing changes then.
+    pub fn set_um_per_count(&mut self, axis: u8, um_per_count: f32) -> Option<()> {
+        if !finite_in(um_per_count.abs(), 0.001, 1000.0) {
+            return None;
+        }
+        let i = usize::from(axis);
+        let old = I32F32::from_bits(*self.slave_scale_q32.get(i)?).to_num::<f64>();
+        let limit = *self.slave_step_limit.get(i)?;
+        let counts = f64::from(limit) * old.abs() / f64::from(um_per_count.abs());
+        let new_limit = ceil_u32(counts).max(1);
+        if new_limit > super::MAX_STEP_LIMIT_COUNTS {
+            return None;
+        }
+        *self.slave_scale_q32.get_mut(i)? = I32F32::saturating_from_num(um_per_count).to_bits();
+        *self.slave_step_limit.get_mut(i)? = new_limit;
+        Some(())
+    }
+}
+
 impl<const S: usize> RuntimeConfig<S> {
     /// Validates the configuration and converts it to per-tick integers.
     pub fn build(&self) -> Result<RuntimeCoeffs<S>, RuntimeConfigError> {

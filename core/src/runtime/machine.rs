@@ -463,6 +463,31 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
             .ok_or(CommandError::NoAxis { axis })
     }
 
+    /// Slave `axis`' encoder scale, µm per count.
+    pub fn um_per_count(&self, axis: u8) -> Option<f32> {
+        self.cfg.um_per_count(axis)
+    }
+
+    /// Changes slave `axis`' encoder scale, µm per count (Idle or Fault only: `Busy`
+    /// otherwise; `NoAxis` for a missing slave or a scale outside 0.001 … 1000 in
+    /// magnitude, [`RuntimeCoeffs::set_um_per_count`]). An incremental slave loses its
+    /// reference (its offset was in the old scale): Start is refused until it is
+    /// referenced again.
+    pub fn set_um_per_count(&mut self, axis: u8, um_per_count: f32) -> Result<(), CommandError> {
+        if !matches!(self.state, State::Idle | State::Fault) {
+            return Err(CommandError::Busy);
+        }
+        self.cfg
+            .set_um_per_count(axis, um_per_count)
+            .ok_or(CommandError::NoAxis { axis })?;
+        self.refs
+            .drop_incremental(axis)
+            .ok_or(CommandError::NoAxis { axis })?;
+        self.refresh_offsets();
+        self.status.reference = *self.refs.states();
+        Ok(())
+    }
+
     /// Restores a persisted reference offset of absolute slave `axis` (boot; Idle or
     /// Fault only; `NoAxis` for an incremental or missing slave).
     pub fn restore_reference_offset(

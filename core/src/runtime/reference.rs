@@ -94,6 +94,18 @@ impl<const S: usize> References<S> {
         Some(())
     }
 
+    /// Drops slave `axis`' reference if it is incremental (its offset no longer means
+    /// anything, e.g. after its encoder scale changed); an absolute slave keeps it.
+    /// `None` for no such axis.
+    pub fn drop_incremental(&mut self, axis: u8) -> Option<()> {
+        let i = usize::from(axis);
+        if *self.mode.get(i)? == ReferenceMode::Incremental {
+            *self.state.get_mut(i)? = RefState::Unreferenced;
+            *self.offset_um.get_mut(i)? = PosUm::ZERO;
+        }
+        Some(())
+    }
+
     /// Every slave's state.
     pub fn states(&self) -> &[RefState; S] {
         &self.state

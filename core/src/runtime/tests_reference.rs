@@ -239,3 +239,67 @@ fn dead_pressure_inputs_fault_only_when_required() {
         Some(Ok(()))
     );
 }
+
+/// A new encoder scale reads the same counts in the new unit, keeps the slave's top
+/// speed in µm/s (the count limit scales), drops an incremental slave's reference (its
+/// offset was in the old scale) and keeps an absolute one's; refused while moving and
+/// for an impossible scale, nothing changed.
+#[test]
+fn a_new_encoder_scale_reads_the_counts_anew_and_drops_an_incremental_reference() {
+    let mut r = rt(incremental());
+    let mut b = Board1 {
+        slaves: [1000, 2000],
+        ..Board1::default()
+    };
+    r.tick_io(
+        &mut b,
+        Some(Command::SetPosition {
+            axis: 0,
+            pos_um: PosUm::from_num(5000),
+        }),
+        false,
+    );
+    assert_eq!(r.status().reference[0], RefState::Referenced);
+    let limit0 = r.coeffs().slave_step_limit[0];
+    assert_eq!(r.set_um_per_count(0, 0.5), Ok(()));
+    assert_eq!(r.set_um_per_count(1, -2.0), Ok(()));
+    assert_eq!(r.um_per_count(0), Some(0.5));
+    assert_eq!(r.um_per_count(1), Some(-2.0));
+    // Twice the counts for the same top speed on slave 0.
+    assert_eq!(r.coeffs().slave_step_limit[0], 2 * limit0);
+    r.tick_io(&mut b, None, false);
+    assert_eq!(r.status().reference[0], RefState::Unreferenced);
+    assert_eq!(r.status().reference[1], RefState::Referenced);
+    assert_eq!(r.status().pos_um[0], PosUm::from_num(500));
+    assert_eq!(r.status().pos_um[1], PosUm::from_num(-4000));
+    assert_eq!(
+        r.tick_io(&mut b, Some(Command::Start), false),
+        Some(Err(CommandError::NotReferenced { axis: 0 }))
+    );
+    // Impossible scales and a missing slave: refused, the scale kept.
+    for k in [0.0, 0.0001, 1001.0, f32::NAN] {
+        assert_eq!(
+            r.set_um_per_count(0, k),
+            Err(CommandError::NoAxis { axis: 0 })
+        );
+    }
+    assert_eq!(
+        r.set_um_per_count(2, 1.0),
+        Err(CommandError::NoAxis { axis: 2 })
+    );
+    assert_eq!(r.um_per_count(0), Some(0.5));
+    // Not while following.
+    let mut r = rt(incremental());
+    let mut b = Board1::default();
+    r.tick_io(
+        &mut b,
+        Some(Command::SetPosition {
+            axis: 0,
+            pos_um: PosUm::from_num(0),
+        }),
+        false,
+    );
+    assert_eq!(r.tick_io(&mut b, Some(Command::Start), false), Some(Ok(())));
+    assert_eq!(r.set_um_per_count(0, 0.5), Err(CommandError::Busy));
+    assert_eq!(r.um_per_count(0), Some(1.0));
+}
