@@ -470,12 +470,17 @@ impl<C: Controller<S>, const S: usize, const P: usize> Runtime<C, S, P> {
 
     /// Changes slave `axis`' encoder scale, µm per count (Idle or Fault only: `Busy`
     /// otherwise; `NoAxis` for a missing slave or a scale outside 0.001 … 1000 in
-    /// magnitude, [`RuntimeCoeffs::set_um_per_count`]). An incremental slave loses its
-    /// reference (its offset was in the old scale): Start is refused until it is
-    /// referenced again.
+    /// magnitude, [`RuntimeCoeffs::set_um_per_count`]). An incremental slave whose scale
+    /// changes loses its reference (its offset was in the old scale): Start is refused
+    /// until it is referenced again. The scale in force set again changes nothing.
     pub fn set_um_per_count(&mut self, axis: u8, um_per_count: f32) -> Result<(), CommandError> {
         if !matches!(self.state, State::Idle | State::Fault) {
             return Err(CommandError::Busy);
+        }
+        // The scale in force again (a settings file sent back whole): nothing changes,
+        // and the reference stays.
+        if self.cfg.um_per_count(axis) == Some(um_per_count) {
+            return Ok(());
         }
         self.cfg
             .set_um_per_count(axis, um_per_count)

@@ -260,6 +260,10 @@ fn a_new_encoder_scale_reads_the_counts_anew_and_drops_an_incremental_reference(
         false,
     );
     assert_eq!(r.status().reference[0], RefState::Referenced);
+    // The scale in force, sent again (a settings file loaded back): the reference stays.
+    assert_eq!(r.set_um_per_count(0, 1.0), Ok(()));
+    r.tick_io(&mut b, None, false);
+    assert_eq!(r.status().reference[0], RefState::Referenced);
     let limit0 = r.coeffs().slave_step_limit[0];
     assert_eq!(r.set_um_per_count(0, 0.5), Ok(()));
     assert_eq!(r.set_um_per_count(1, -2.0), Ok(()));
