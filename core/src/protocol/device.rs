@@ -38,7 +38,7 @@ use crate::runtime::{
     State, Trigger, FAULT_HISTORY_LEN,
 };
 use crate::table::{CamTable, TableLimits};
-use crate::units::DacCode;
+use crate::units::{DacCode, PosUm};
 
 /// A law buffer: a pointer to a follower the runtime can run.
 pub trait LawBuffer<const S: usize, const N: usize>:
@@ -277,6 +277,27 @@ where
     fn active(&self) -> Option<&CamTable<S, N>> {
         (!self.st.active.is_empty()).then_some(&*self.st.active)
     }
+
+    /// A per-slave value the runtime holds once it runs (`live`); before (boot) the one
+    /// kept for it in `boot`, or `default` when none was set. `UnknownParam` for a slave
+    /// the board does not have.
+    fn runtime_or_boot<V: Copy>(
+        &self,
+        axis: u8,
+        param: ParamId,
+        live: impl FnOnce(&Runtime<L, S, P>) -> Option<V>,
+        boot: &[Option<V>; S],
+        default: V,
+    ) -> Result<V, Nak> {
+        let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
+        match self.glue.read(live) {
+            Some(v) => v.ok_or(unknown),
+            None => boot
+                .get(usize::from(axis))
+                .map(|v| v.unwrap_or(default))
+                .ok_or(unknown),
+        }
+    }
 }
 
 impl<L, T, G, const S: usize, const N: usize, const P: usize> Device<S, N>
@@ -345,60 +366,31 @@ where
             .map(|o| o.to_num())
     }
     fn get_param(&self, axis: u8, param: ParamId) -> Result<f32, Nak> {
-        if param == ParamId::UmPerCount {
-            let i = usize::from(axis);
-            let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
-            // The runtime's once it runs; before (boot) the one kept for it, or 1 µm.
-            return match self.glue.read(|rt| rt.um_per_count(axis)) {
-                Some(k) => k.ok_or(unknown),
-                None => self
-                    .st
-                    .boot_refs
-                    .scales
-                    .get(i)
-                    .map(|k| k.unwrap_or(1.0))
-                    .ok_or(unknown),
-            };
+        let refs = &self.st.boot_refs;
+        match param {
+            ParamId::UmPerCount => {
+                self.runtime_or_boot(axis, param, |rt| rt.um_per_count(axis), &refs.scales, 1.0)
+            }
+            ParamId::HomeUm => self
+                .runtime_or_boot(
+                    axis,
+                    param,
+                    |rt| rt.references().home_um().get(usize::from(axis)).copied(),
+                    &refs.homes,
+                    PosUm::ZERO,
+                )
+                .map(|h| h.to_num()),
+            ParamId::SlaveOffsetUm => self
+                .runtime_or_boot(
+                    axis,
+                    param,
+                    |rt| rt.references().offsets().get(usize::from(axis)).copied(),
+                    &refs.offsets,
+                    PosUm::ZERO,
+                )
+                .map(|o| o.to_num()),
+            _ => read_param(&self.st.fcfg, &self.st.limits, axis, param),
         }
-        if param == ParamId::HomeUm {
-            let i = usize::from(axis);
-            let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
-            // The runtime's once it runs; before (boot) the one kept for it.
-            let home = match self
-                .glue
-                .read(|rt| rt.references().home_um().get(i).copied())
-            {
-                Some(h) => h,
-                None => self
-                    .st
-                    .boot_refs
-                    .homes
-                    .get(i)
-                    .copied()
-                    .map(Option::unwrap_or_default),
-            };
-            return home.map(|h| h.to_num()).ok_or(unknown);
-        }
-        if param == ParamId::SlaveOffsetUm {
-            let i = usize::from(axis);
-            let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), param as u8);
-            // The runtime's offset once it runs; before (boot) the one kept for it.
-            let off = match self
-                .glue
-                .read(|rt| rt.references().offsets().get(i).copied())
-            {
-                Some(o) => o,
-                None => self
-                    .st
-                    .boot_refs
-                    .offsets
-                    .get(i)
-                    .copied()
-                    .map(Option::unwrap_or_default),
-            };
-            return off.map(|o| o.to_num()).ok_or(unknown);
-        }
-        read_param(&self.st.fcfg, &self.st.limits, axis, param)
     }
     fn set_param(&mut self, axis: u8, param: ParamId, value: f32) -> Result<(), Nak> {
         let range = Nak::with(NakCode::ParamRange, u16::from(axis), param as u8);

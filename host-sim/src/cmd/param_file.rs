@@ -23,8 +23,8 @@
 
 use super::param::{get, parse_value, resolve, set};
 use super::serial::Link;
-use crate::scenario::{Role, Scenario, Tuning};
-use hydra_core::protocol::settings::{all_paths, ParamPath};
+use crate::scenario::{Scenario, Tuning};
+use hydra_core::protocol::settings::{all_paths, ParamPath, Scope};
 use std::path::Path;
 
 /// One entry of a settings file, checked: the path and the value to send.
@@ -159,15 +159,15 @@ pub fn dump(link: &mut Link) -> anyhow::Result<String> {
     for pp in all_paths(axes).filter(|pp| !pp.id.info().read_only) {
         let v = get(link, pp)?;
         let i = pp.id.info();
-        let full = pp.to_string();
-        let line = format!("{:?} = {v} # {}", full, i.unit);
-        match full.strip_prefix(&format!("axis/{}/", pp.axis)) {
-            Some(rest) => {
+        // Per slave under `[axis.N]` by the path after `axis/N/`; board-wide ones whole.
+        let line = format!("{:?} = {v} # {}", i.path, i.unit);
+        match i.scope {
+            Scope::Axis => {
                 if let Some(l) = axis_lines.get_mut(usize::from(pp.axis)) {
-                    l.push(format!("{:?} = {v} # {}", rest, i.unit));
+                    l.push(line);
                 }
             }
-            None => board_lines.push(line),
+            Scope::Board => board_lines.push(line),
         }
     }
     let mut out = String::from("# host-sim param dump: `param load` takes it back.\n");
@@ -192,10 +192,8 @@ pub fn dump(link: &mut Link) -> anyhow::Result<String> {
 /// and are left out (named in a comment). The text is checked as `param load` checks a
 /// file before it is returned.
 pub fn from_tuning(s: &Scenario, t: &Tuning, first_slave: u8) -> anyhow::Result<String> {
-    let followers: Vec<&str> = s
-        .axes
-        .iter()
-        .filter(|a| a.role == Role::Follower)
+    let followers: Vec<&str> = crate::sim::control::followers(s)
+        .into_iter()
         .map(|a| a.name.as_str())
         .collect();
     let mut out = format!(
