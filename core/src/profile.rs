@@ -117,6 +117,7 @@ pub fn follower_config(clamp_lsb: u16) -> FollowerConfig<SLAVES> {
             dp_corner_hz: 5.0,
             osc_band_um: OSC_BAND_UM,
             ff_trim_tau_s: FF_TRIM_TAU_S,
+            backoff: crate::axis::BackoffSettings::DEFAULT,
         },
         mode: ControlMode::Feedforward,
         valve: ValveCal {

@@ -74,29 +74,23 @@
 //! whose 43 Hz ringing crosses the band at 1, and no machine oscillates.
 //!
 //! Formats: e, y, b µm `I24F8` raw; α Q31; the level's scale `I16F16` (Q16, ≤ 1).
+//!
+//! **Settings.** Every threshold above — f_hp, N, W, the settling, τ, the deepest level,
+//! the scales 0.36 and 0.75, the band margin 1.25 and the growth watch's 1/16 and three —
+//! is the default of a [`BackoffSettings`] field, per axis under `axis/<n>/backoff/…`
+//! (the band is `axis/<n>/osc_band_um`); the figures quoted here are those of the
+//! defaults. **Beside the law:** the detector sees only the following error's change
+//! and hands the law two scales; a level's scales are looked up once, at the cut that
+//! reaches it, so the tick multiplies by a stored value.
+
+mod settings;
+
+pub use settings::{BackoffField, BackoffSettings};
 
 use crate::fixed_point::mul_shr;
 
-/// The detector's high-pass corner, Hz.
-pub const HIGH_PASS_HZ: f64 = 10.0;
-/// Half-cycles across the band that make an oscillation.
-pub const HALF_CYCLES: u8 = 4;
-/// The window they must fall in, s.
-pub const WINDOW_S: f64 = 0.150;
-/// After a backoff, the time the raised band follows the oscillation up (the valve and
-/// the oil column carry it on for a cycle or two after the cut), s.
-pub const SETTLE_S: f64 = 0.100;
-/// The raised band's decay time constant after a backoff, s.
-pub const BAND_TAU_S: f64 = 0.5;
-/// The deepest level (0.15 of the set gain).
+/// The deepest level the scales can describe (`max_level` ≤ this).
 pub const MAX_LEVEL: u8 = 4;
-/// The proportional scale at each level, Q16: 1, 0.36, then 0.75× per level.
-const SCALE_Q16: [i32; MAX_LEVEL as usize + 1] = [65_536, 23_593, 17_695, 13_271, 9_953];
-
-/// The integral gain's scale at each level, Q16: min(1, 2.78·s) — the PI corner Ki/Kp
-/// rises at most to 1/0.36 of its set value (deeper, the integrator's own slow mode
-/// appeared: measured ≈ 6 Hz on the soft corners at levels 3 and 4 with Ki kept).
-const KI_SCALE_Q16: [i32; MAX_LEVEL as usize + 1] = [65_536, 65_536, 49_152, 36_864, 27_648];
 
 /// Why the backoff cannot be built (reported as the axis' `AxisConfigError::OscBand`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -107,6 +101,8 @@ pub enum BandError {
     /// A band on an axis whose law is not `Feedforward`: the paper's law and the
     /// traditional one are the baselines and run as published (as the active damping).
     Law,
+    /// A threshold of [`BackoffSettings`] out of its range.
+    Setting(BackoffField),
 }
 
 /// Validated coefficients. `OFF` (all zero): no detector, the law keeps its gains.
@@ -119,10 +115,24 @@ pub struct BackoffCoeffs {
     alpha_q31: i32,
     /// W in ticks (≥ 1).
     window_ticks: u16,
-    /// [`SETTLE_S`] in ticks (≥ 1).
+    /// The settling in ticks (≥ 1).
     settle_ticks: u16,
-    /// The raised band decays by 2^-shift per tick (τ = 2^shift·T ≈ [`BAND_TAU_S`]).
+    /// The raised band decays by 2^-shift per tick (τ = 2^shift·T ≈ `band_tau_ms`).
     decay_shift: u8,
+    /// N, the half-cycles that make an oscillation (2 … 16).
+    half_cycles: u8,
+    /// The deepest level (1 … [`MAX_LEVEL`]).
+    max_level: u8,
+    /// Growing half-cycles in a row that take the next level (1 … 16).
+    growth_half_cycles: u8,
+    /// `band_margin` − 1, Q16 (0 … 196 608): the raised band is peak + peak·this.
+    margin_q16: i32,
+    /// `growth`, Q16 (0 … 65 536).
+    growth_q16: i32,
+    /// The proportional scale at each level, Q16 (index 0: 65 536).
+    scale_q16: [i32; MAX_LEVEL as usize + 1],
+    /// The integrator step's scale at each level, Q16: min(1, step_scale^(level − 1)).
+    ki_scale_q16: [i32; MAX_LEVEL as usize + 1],
 }
 
 impl BackoffCoeffs {
@@ -133,31 +143,63 @@ impl BackoffCoeffs {
         window_ticks: 0,
         settle_ticks: 0,
         decay_shift: 0,
+        half_cycles: 0,
+        max_level: 0,
+        growth_half_cycles: 0,
+        margin_q16: 0,
+        growth_q16: 0,
+        scale_q16: [0; MAX_LEVEL as usize + 1],
+        ki_scale_q16: [0; MAX_LEVEL as usize + 1],
     };
 
-    /// Builds the detector for band `band_um` (0 = off; 0 … 10 000 µm) at the control
-    /// period `period_us` (checked by the caller to be 50 µs … 1 s).
-    pub fn build(band_um: f32, period_us: u32) -> Result<Self, BandError> {
+    /// Builds the detector for band `band_um` (0 = off; 0 … 10 000 µm) with the
+    /// thresholds `set` at the control period `period_us` (checked by the caller to be
+    /// 50 µs … 1 s). The thresholds are checked even with the band off, so a setting is
+    /// refused when it is written, not when the band is later switched on.
+    pub fn build(band_um: f32, set: &BackoffSettings, period_us: u32) -> Result<Self, BandError> {
         if !(band_um.is_finite() && (0.0..=10_000.0).contains(&band_um)) {
             return Err(BandError::Range);
         }
+        set.check().map_err(BandError::Setting)?;
         if band_um == 0.0 {
             return Ok(Self::OFF);
         }
         let t = f64::from(period_us) * 1e-6;
-        let alpha = 1.0 / (1.0 + 2.0 * core::f64::consts::PI * HIGH_PASS_HZ * t);
-        // Ticks: at 50 µs … 1 s, the window and the settling are 1 … 3 000 ticks.
-        let ticks = |s: f64| libm::ceil(s / t).clamp(1.0, f64::from(u16::MAX)) as u16;
+        let alpha = 1.0 / (1.0 + 2.0 * core::f64::consts::PI * f64::from(set.high_pass_hz) * t);
+        // Ticks: at 50 µs … 1 s, 10 s is at most 200 000 ticks, clamped to a u16.
+        let ticks = |ms: f32| {
+            libm::ceil(f64::from(ms) * 1e-3 / t).clamp(1.0, f64::from(u16::MAX)) as u16
+        };
+        let q16 = |x: f64| libm::round(x * 65_536.0) as i32;
+        let mut scale_q16 = [65_536; MAX_LEVEL as usize + 1];
+        let mut ki_scale_q16 = [65_536; MAX_LEVEL as usize + 1];
+        let (first, step) = (f64::from(set.first_scale), f64::from(set.step_scale));
+        let mut depth = 1.0; // step_scale^(level − 1)
+        for (s, k) in scale_q16.iter_mut().zip(ki_scale_q16.iter_mut()).skip(1) {
+            // 0.05^4 … 1: 0.4 … 65 536 in Q16, at least 1 LSB.
+            *s = q16(first * depth).max(1);
+            *k = q16(depth.min(1.0)).max(1);
+            depth *= step;
+        }
+        // Checked integers in range by `check`: the casts are exact.
         Ok(Self {
             // ≤ 10 000 µm · 256: far inside an i32; a band below 1/256 µm is 1 LSB.
             band: (libm::round(f64::from(band_um) * 256.0) as i32).max(1),
             // 0 < α < 1: below 2^31 in Q31.
             alpha_q31: (alpha * 2_147_483_648.0).min(2_147_483_647.0) as i32,
-            window_ticks: ticks(WINDOW_S),
-            settle_ticks: ticks(SETTLE_S),
-            // τ/T = 2^shift, rounded: 0 … 13 for 50 µs … 1 s (τ within 0.71 … 1.41 of
-            // 0.5 s at periods whose τ/T is not a power of two).
-            decay_shift: libm::round(libm::log2(BAND_TAU_S / t)).clamp(0.0, 20.0) as u8,
+            window_ticks: ticks(set.window_ms),
+            settle_ticks: ticks(set.settle_ms),
+            // τ/T = 2^shift, rounded (τ within 0.71 … 1.41 of the setting at periods whose
+            // τ/T is not a power of two).
+            decay_shift: libm::round(libm::log2(f64::from(set.band_tau_ms) * 1e-3 / t))
+                .clamp(0.0, 20.0) as u8,
+            half_cycles: set.half_cycles as u8,
+            max_level: set.max_level as u8,
+            growth_half_cycles: set.growth_half_cycles as u8,
+            margin_q16: q16(f64::from(set.band_margin) - 1.0),
+            growth_q16: q16(f64::from(set.growth)),
+            scale_q16,
+            ki_scale_q16,
         })
     }
 
@@ -199,6 +241,11 @@ pub struct BackoffState {
     hc_grew: [u8; 2],
     /// Whether the first half-cycle after the settling has ended (it is not judged).
     hc_whole: bool,
+    /// The proportional scale of `level`, Q16, set at the cut that reached it (read
+    /// only while `level` > 0: the tick multiplies, the lookup happens at the cut).
+    scale_q16: i32,
+    /// The integrator step's scale of `level`, Q16 (as `scale_q16`).
+    ki_scale_q16: i32,
 }
 
 impl BackoffState {
@@ -217,12 +264,16 @@ impl BackoffState {
         hc_last: [0; 2],
         hc_grew: [0; 2],
         hc_whole: false,
+        scale_q16: 65_536,
+        ki_scale_q16: 65_536,
     };
 
     /// Forgets the detector's history, keeping the level (a restart, a cleared fault).
     pub fn restart(&mut self) {
         *self = Self {
             level: self.level,
+            scale_q16: self.scale_q16,
+            ki_scale_q16: self.ki_scale_q16,
             ..Self::RESET
         };
     }
@@ -235,23 +286,21 @@ impl BackoffState {
     /// The proportional scale, Q16 (65 536 = the set gain).
     #[inline(always)]
     pub fn scale_q16(&self) -> i32 {
-        SCALE_Q16
-            .get(usize::from(self.level))
-            .copied()
-            .unwrap_or(9_953)
+        if self.level == 0 {
+            65_536
+        } else {
+            self.scale_q16
+        }
     }
 
-    /// `x` (an integrator step, any Q format) at this level: see `KI_SCALE_Q16`.
+    /// `x` (an integrator step, any Q format) at this level: min(1,
+    /// step_scale^(level − 1)) of it.
     #[inline(always)]
     pub fn scale_i(&self, x: i32) -> i32 {
-        if self.level < 2 {
+        if self.level == 0 {
             x
         } else {
-            let k = KI_SCALE_Q16
-                .get(usize::from(self.level))
-                .copied()
-                .unwrap_or(27_648);
-            mul_shr(x, k, 16)
+            mul_shr(x, self.ki_scale_q16, 16)
         }
     }
 
@@ -261,9 +310,15 @@ impl BackoffState {
         if self.level == 0 {
             x
         } else {
-            mul_shr(x, self.scale_q16(), 16)
+            mul_shr(x, self.scale_q16, 16)
         }
     }
+}
+
+/// `a` (≥ 0, µm `I24F8` raw) raised by the band margin: a + a·(margin − 1).
+#[inline(always)]
+fn raised(c: &BackoffCoeffs, a: i32) -> i32 {
+    a.saturating_add(mul_shr(a, c.margin_q16, 16))
 }
 
 /// One tick of the detector on the following error's change since the last tick,
@@ -284,7 +339,7 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
         // is smaller than the jump: neither is growth.
         st.settle = st.settle.saturating_sub(1);
         let a = st.y.saturating_abs();
-        st.env = st.env.max(a.saturating_add(a >> 2));
+        st.env = st.env.max(raised(c, a));
         if st.settle >= c.settle_ticks >> 1 {
             st.peak = st.peak.max(a);
         } else if a > st.peak {
@@ -301,7 +356,7 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
         st.side = 0;
         let grew = st.half_cycles != 0;
         st.half_cycles = 0;
-        if !grew || st.level >= MAX_LEVEL {
+        if !grew || st.level >= c.max_level {
             return false;
         }
         // The new band above the grown oscillation (`peak`: its last half-cycle).
@@ -311,7 +366,7 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
         st.env = st
             .env
             .saturating_sub(st.env.wrapping_shr(u32::from(c.decay_shift)).max(1));
-        if st.level > 0 && st.level < MAX_LEVEL && grows(c, st) {
+        if st.level > 0 && st.level < c.max_level && grows(c, st) {
             return cut(c, st);
         }
     }
@@ -343,7 +398,7 @@ pub fn observe(c: &BackoffCoeffs, st: &mut BackoffState, de: i32) -> bool {
         st.peak = st.y.saturating_abs();
     }
     st.half_cycles = st.half_cycles.saturating_add(1);
-    if st.half_cycles < HALF_CYCLES || st.level >= MAX_LEVEL {
+    if st.half_cycles < c.half_cycles || st.level >= c.max_level {
         return false;
     }
     cut(c, st)
@@ -388,13 +443,13 @@ fn grows(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
     };
     // The side's first whole half-cycle is the reference; each later one that outgrows
     // the last by 1/16 counts, any other starts the count again.
-    *grew = if *last != 0 && done.1 > last.saturating_add(*last >> 4) {
+    *grew = if *last != 0 && done.1 > last.saturating_add(mul_shr(*last, c.growth_q16, 16)) {
         grew.saturating_add(1)
     } else {
         0
     };
     *last = done.1;
-    if *grew < 3 {
+    if *grew < c.growth_half_cycles {
         return false;
     }
     // The new band above the grown half-cycle.
@@ -407,10 +462,13 @@ fn grows(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
 #[inline(always)]
 fn cut(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
     st.level = st.level.saturating_add(1);
+    let l = usize::from(st.level);
+    st.scale_q16 = c.scale_q16.get(l).copied().unwrap_or(65_536);
+    st.ki_scale_q16 = c.ki_scale_q16.get(l).copied().unwrap_or(65_536);
     st.half_cycles = 0;
     st.side = 0;
     st.window = 0;
-    st.env = st.peak.saturating_add(st.peak >> 2);
+    st.env = raised(c, st.peak);
     st.settle = c.settle_ticks;
     st.hc_side = 0;
     st.hc_peak = 0;

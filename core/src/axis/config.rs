@@ -5,7 +5,7 @@
 //! [`crate::units`] for a given control period T. The per-tick law
 //! ([`super::position`]) then never fails.
 
-use super::backoff::{BackoffCoeffs, BandError};
+use super::backoff::{BackoffCoeffs, BackoffSettings, BandError};
 use super::damping::{DampingCoeffs, DampingError, PistonAreas};
 use super::ff_trim::{FfTrimCoeffs, FfTrimError};
 use crate::units::CmdLsb;
@@ -86,6 +86,9 @@ pub struct PositionGains {
     /// only — on a Paper or NextNode axis it is refused
     /// (`AxisConfigError::FfTrim(FfTrimError::Law)`).
     pub ff_trim_tau_s: f32,
+    /// The gain backoff's thresholds ([`super::backoff::BackoffSettings`]; the
+    /// defaults unless set; they act while `osc_band_um` is not 0).
+    pub backoff: BackoffSettings,
 }
 
 impl Default for PositionGains {
@@ -105,6 +108,7 @@ impl Default for PositionGains {
             dp_corner_hz: 5.0,
             osc_band_um: 0.0,
             ff_trim_tau_s: 0.0,
+            backoff: BackoffSettings::DEFAULT,
         }
     }
 }
@@ -238,7 +242,7 @@ impl AxisConfig {
         if damping.is_on() && self.mode != ControlMode::Feedforward {
             return Err(E::Damping(DampingError::Law));
         }
-        let backoff = BackoffCoeffs::build(g.osc_band_um, period_us).map_err(E::OscBand)?;
+        let backoff = BackoffCoeffs::build(g.osc_band_um, &g.backoff, period_us).map_err(E::OscBand)?;
         if backoff.is_on() && self.mode != ControlMode::Feedforward {
             return Err(E::OscBand(BandError::Law));
         }

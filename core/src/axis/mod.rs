@@ -7,7 +7,7 @@ pub mod ff_trim;
 pub mod position;
 pub mod press;
 
-pub use backoff::{BackoffCoeffs, BackoffState, BandError};
+pub use backoff::{BackoffCoeffs, BackoffField, BackoffSettings, BackoffState, BandError};
 pub use config::{AxisCoeffs, AxisConfig, AxisConfigError, ControlMode, PositionGains};
 pub use damping::{DampingCoeffs, DampingError, DampingState, PistonAreas};
 pub use ff_trim::{FfTrimCoeffs, FfTrimError, FfTrimState};

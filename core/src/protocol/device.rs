@@ -34,6 +34,7 @@ use super::report::{
 use super::wire::Writer;
 use crate::follower::{Follower, FollowerConfig};
 use crate::runtime::{
+    Learned,
     BootCause, Capture, CaptureError, Command, CommandError, Controller, Runtime, RuntimeCoeffs,
     State, Trigger, FAULT_HISTORY_LEN,
 };
@@ -501,19 +502,19 @@ where
         // kept per tick in the status), read in the same critical section as the
         // status: one tick's picture.
         let read = self.glue.read(|rt| {
-            let mut learned = [(0u8, [65_536i32; 2]); S];
+            let mut learned = [Learned::NONE; S];
             for (i, l) in learned.iter_mut().enumerate() {
                 if let Some(law) = rt.law() {
-                    *l = (law.backoff_level(i), law.ff_trim_q16(i));
+                    *l = law.learned(i);
                 }
             }
             (*rt.status(), learned)
         });
         if let Some((st, learned)) = read {
             fill_status::<S, P>(&st, |c| self.glue.cycles_to_ns(c), out);
-            for (a, (level, trim)) in out.axes.iter_mut().zip(learned) {
-                a.backoff = level;
-                a.ff_trim = trim.map(ff_trim_e4);
+            for (a, l) in out.axes.iter_mut().zip(learned) {
+                a.backoff = l.backoff_level;
+                a.ff_trim = l.ff_trim_q16.map(ff_trim_e4);
             }
         }
     }
@@ -787,10 +788,6 @@ mod tests {
         assert_eq!(d.get_param(0, ParamId::UmPerCount), Ok(-0.1));
     }
 
-    /// The gain backoff's level survives a law rebuild that keeps the axis'
-    /// coefficients (a new table, a board-wide setting) and is gone after one that
-    /// changes them (a gain): what the axis learned about the machine is kept until the
-    /// engineer changes the axis.
     /// Status' trim: the ratio − 1 in 1/10 000, over the trim's whole range (0.5 … 2),
     /// rounded down; a ratio outside it saturates instead of wrapping.
     #[test]
@@ -804,6 +801,10 @@ mod tests {
         assert_eq!(super::ff_trim_e4(i32::MIN), i16::MIN);
     }
 
+    /// The gain backoff's level survives a law rebuild that keeps the axis'
+    /// coefficients (a new table, a board-wide setting) and is gone after one that
+    /// changes them (a gain, a backoff threshold): what the axis learned about the machine is kept until the
+    /// engineer changes the axis.
     #[test]
     fn a_rebuilt_law_keeps_the_backoff_level_unless_the_axis_changed() {
         use crate::follower::FollowerInputs;
@@ -822,7 +823,7 @@ mod tests {
                 .rt
                 .as_ref()
                 .and_then(|r| r.law())
-                .map_or(0, |l| l.backoff_level(0))
+                .map_or(0, |l| l.learned(0).backoff_level)
         };
         if let Some(law) = d.glue.rt.as_mut().and_then(|r| r.law_mut()) {
             for k in 0..400u32 {
@@ -846,6 +847,23 @@ mod tests {
         assert_eq!(level(&d), learned, "a new table keeps it");
         d.set_param(0, ParamId::MasterFilterHz, 6.0).unwrap();
         assert_eq!(level(&d), learned, "a board-wide setting keeps it");
+        // A threshold out of its range is refused by name and changes nothing.
+        let range = |id: ParamId| Err(Nak::with(NakCode::ParamRange, 0, id as u8));
+        for (id, v) in [
+            (ParamId::BackoffHalfCycles, 4.5),
+            (ParamId::BackoffMaxLevel, 5.0),
+            (ParamId::BackoffFirstScale, 0.0),
+            (ParamId::BackoffHighPassHz, f32::NAN),
+        ] {
+            assert_eq!(d.set_param(0, id, v), range(id), "{id:?} = {v}");
+        }
+        assert_eq!(level(&d), learned, "a refused threshold keeps it");
+        assert_eq!(d.get_param(0, ParamId::BackoffMaxLevel), Ok(4.0));
+        // A threshold of the axis: the set value again, the threshold in force.
+        d.set_param(0, ParamId::BackoffMaxLevel, 3.0).unwrap();
+        assert_eq!(level(&d), 0, "a changed threshold starts from the set value");
+        assert_eq!(d.get_param(0, ParamId::BackoffMaxLevel), Ok(3.0));
+        d.set_param(0, ParamId::OscBandUm, 4.0).unwrap();
         // A gain of the axis: the set value again.
         d.set_param(0, ParamId::KpLsbPerUm, 0.4).unwrap();
         assert_eq!(level(&d), 0, "a changed gain starts from the set value");

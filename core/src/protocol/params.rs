@@ -228,7 +228,10 @@ pub(super) fn assign_axis(a: &mut AxisConfig, param: ParamId, value: f32) -> boo
         ParamId::ValveInvert => v.invert = value != 0.0,
         // Checked an integer in 1 … 2047 by `ParamId::check`.
         ParamId::ValveClampLsb => v.clamp_lsb = value as u16,
-        _ => return false,
+        _ => match param.backoff_field() {
+            Some(f) => *g.backoff.get_mut(f) = value,
+            None => return false,
+        },
     }
     true
 }
@@ -282,7 +285,10 @@ pub fn read_param<const S: usize>(
         ParamId::MinUm => l.min_um.to_num(),
         ParamId::MaxUm => l.max_um.to_num(),
         ParamId::MaxSpeedUmPerS => l.max_speed_um_per_s.to_num(),
-        _ => return Err(unknown),
+        _ => match param.backoff_field() {
+            Some(f) => g.backoff.get(f),
+            None => return Err(unknown),
+        },
     })
 }
 
@@ -305,6 +311,7 @@ fn axis_error_param(e: AxisConfigError) -> ParamId {
         AxisConfigError::Valve(V::OverlapZone) => ParamId::ValveOverlapZoneLsb,
         AxisConfigError::Valve(V::Gain) => ParamId::ValveGainPos,
         AxisConfigError::Valve(V::Clamp) => ParamId::ValveClampLsb,
+        AxisConfigError::OscBand(crate::axis::BandError::Setting(f)) => ParamId::of_backoff_field(f),
         AxisConfigError::OscBand(_) => ParamId::OscBandUm,
         AxisConfigError::FfTrim(_) => ParamId::FfTrimTauS,
         AxisConfigError::Damping(D::Gain) => ParamId::DpGainLsbPerKn,

@@ -27,6 +27,7 @@
 //! filter below 0.2/T, the active table within the limits).
 
 use super::msg::{Nak, NakCode};
+use crate::axis::BackoffField;
 use core::fmt;
 
 /// Settable parameters (`SetParam.param`, `GetParam.param`). Values are `f32` in the
@@ -118,6 +119,28 @@ pub enum ParamId {
     /// The slave encoder's scale, µm per count (0.001 ≤ |x| ≤ 1000; negative reverses
     /// the count). Idle or Fault only; an incremental slave must be referenced again.
     UmPerCount = 35,
+    /// Gain backoff: the detector's high-pass corner, Hz (`axis::BackoffSettings`).
+    BackoffHighPassHz = 36,
+    /// Gain backoff: half-cycles across the band that make an oscillation (integer).
+    BackoffHalfCycles = 37,
+    /// Gain backoff: the window the half-cycles must fall in, ms.
+    BackoffWindowMs = 38,
+    /// Gain backoff: the settling after a cut, ms.
+    BackoffSettleMs = 39,
+    /// Gain backoff: the raised band's decay time constant, ms.
+    BackoffBandTauMs = 40,
+    /// Gain backoff: the deepest level (integer).
+    BackoffMaxLevel = 41,
+    /// Gain backoff: the proportional scale at the first level, ratio.
+    BackoffFirstScale = 42,
+    /// Gain backoff: the scale's factor at each further level, ratio.
+    BackoffStepScale = 43,
+    /// Gain backoff: the raised band over the oscillation's peak, ratio.
+    BackoffBandMargin = 44,
+    /// Gain backoff: the growth a half-cycle must show over the last, ratio.
+    BackoffGrowth = 45,
+    /// Gain backoff: growing half-cycles in a row that take the next level (integer).
+    BackoffGrowthHalfCycles = 46,
 }
 
 /// Whether a parameter belongs to each slave or to the board.
@@ -240,6 +263,24 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
     p(P::AreaBMm2, A, "cylinder/area_b_mm2", "mm²", 0.0, 1e6),
     p(P::OscBandUm, A, "osc_band_um", "µm", 0.0, 10_000.0),
     p(P::FfTrimTauS, A, "ff_trim_tau_s", "s", 0.0, 1000.0),
+    p(P::BackoffHighPassHz, A, "backoff/high_pass_hz", "Hz", 0.1, 1000.0),
+    int(p(P::BackoffHalfCycles, A, "backoff/half_cycles", "count", 2.0, 16.0)),
+    p(P::BackoffWindowMs, A, "backoff/window_ms", "ms", 1.0, 10_000.0),
+    p(P::BackoffSettleMs, A, "backoff/settle_ms", "ms", 0.0, 10_000.0),
+    p(P::BackoffBandTauMs, A, "backoff/band_tau_ms", "ms", 1.0, 100_000.0),
+    int(p(P::BackoffMaxLevel, A, "backoff/max_level", "count", 1.0, 4.0)),
+    p(P::BackoffFirstScale, A, "backoff/first_scale", "ratio", 0.05, 1.0),
+    p(P::BackoffStepScale, A, "backoff/step_scale", "ratio", 0.05, 1.0),
+    p(P::BackoffBandMargin, A, "backoff/band_margin", "ratio", 1.0, 4.0),
+    p(P::BackoffGrowth, A, "backoff/growth", "ratio", 0.0, 1.0),
+    int(p(
+        P::BackoffGrowthHalfCycles,
+        A,
+        "backoff/growth_half_cycles",
+        "count",
+        1.0,
+        16.0,
+    )),
     p(P::ValveNullLsb, A, "valve/null_lsb", "LSB", -500.0, 500.0),
     p(
         P::ValveOverlapPosLsb,
@@ -332,7 +373,35 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 35;
+    pub const COUNT: usize = 46;
+
+    /// The gain backoff threshold this parameter sets, if it is one.
+    pub fn backoff_field(self) -> Option<BackoffField> {
+        use BackoffField as F;
+        Some(match self {
+            P::BackoffHighPassHz => F::HighPassHz,
+            P::BackoffHalfCycles => F::HalfCycles,
+            P::BackoffWindowMs => F::WindowMs,
+            P::BackoffSettleMs => F::SettleMs,
+            P::BackoffBandTauMs => F::BandTauMs,
+            P::BackoffMaxLevel => F::MaxLevel,
+            P::BackoffFirstScale => F::FirstScale,
+            P::BackoffStepScale => F::StepScale,
+            P::BackoffBandMargin => F::BandMargin,
+            P::BackoffGrowth => F::Growth,
+            P::BackoffGrowthHalfCycles => F::GrowthHalfCycles,
+            _ => return None,
+        })
+    }
+
+    /// The parameter that sets the gain backoff threshold `f`.
+    pub fn of_backoff_field(f: BackoffField) -> Self {
+        PARAMS
+            .iter()
+            .map(|i| i.id)
+            .find(|id| id.backoff_field() == Some(f))
+            .unwrap_or(P::OscBandUm)
+    }
 
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
@@ -449,7 +518,7 @@ mod tests {
                 assert_eq!(id.info().id, id);
             }
         }
-        assert_eq!(all_paths(2).count(), 31 * 2 + 4);
+        assert_eq!(all_paths(2).count(), 42 * 2 + 4);
         for pp in all_paths(3) {
             let s = pp.to_string();
             let (axis, id) = parse_path(&s, 3).unwrap();
@@ -462,7 +531,18 @@ mod tests {
         let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
         paths.sort();
         paths.dedup();
-        assert_eq!(paths.len(), 66, "two parameters share a path");
+        assert_eq!(paths.len(), 88, "two parameters share a path");
+    }
+
+    /// The tree's range of each backoff threshold is the one the axis build enforces.
+    #[test]
+    fn backoff_ranges_are_the_axis_ones() {
+        for (f, lo, hi, integer) in crate::axis::BackoffSettings::RANGES {
+            let id = ParamId::of_backoff_field(f);
+            assert_eq!(id.backoff_field(), Some(f));
+            let i = id.info();
+            assert_eq!((i.min, i.max, i.integer), (lo, hi, integer), "{f:?}");
+        }
     }
 
     #[test]

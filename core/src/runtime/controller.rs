@@ -96,18 +96,32 @@ pub trait Controller<const S: usize> {
         None
     }
 
-    /// The gain backoff's level of slave `axis` (`crate::axis::backoff`; 0 = the set
-    /// gain, or a law without one). Read for the status report, not by the tick.
-    fn backoff_level(&self, _axis: usize) -> u8 {
-        0
+    /// What the law has learned about slave `axis` while running: its supervisors'
+    /// state ([`Learned`]). Read for the status report, not by the tick.
+    fn learned(&self, _axis: usize) -> Learned {
+        Learned::NONE
     }
+}
 
-    /// The feed-forward trim's ratios of slave `axis`, `[negative, positive]` feed-forward,
-    /// Q16 (65 536 = the calibrated gain, also for a law without the trim;
-    /// `crate::axis::ff_trim`). Read for the status report, not by the tick.
-    fn ff_trim_q16(&self, _axis: usize) -> [i32; 2] {
-        [65_536; 2]
-    }
+/// What a law learned about one slave while running, beside its set gains: the gain
+/// backoff's level (`crate::axis::backoff`) and the feed-forward trim's ratios
+/// (`crate::axis::ff_trim`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Learned {
+    /// The gain backoff's level: 0 = the set gain (also for a law without one).
+    pub backoff_level: u8,
+    /// The feed-forward trim's ratios, `[negative, positive]` feed-forward, Q16 (65 536 =
+    /// the calibrated gain, also for a law without the trim).
+    pub ff_trim_q16: [i32; 2],
+}
+
+impl Learned {
+    /// Nothing learned: the set gain, the calibrated feed-forward.
+    pub const NONE: Self = Self {
+        backoff_level: 0,
+        ff_trim_q16: [65_536; 2],
+    };
 }
 
 /// `Controller` for a pointer type `$p<C>` to a law `C`, forwarding every call.
@@ -147,12 +161,8 @@ macro_rules! forward_controller {
                 (**self).following_error_limit_um(axis)
             }
 
-            fn backoff_level(&self, axis: usize) -> u8 {
-                (**self).backoff_level(axis)
-            }
-
-            fn ff_trim_q16(&self, axis: usize) -> [i32; 2] {
-                (**self).ff_trim_q16(axis)
+            fn learned(&self, axis: usize) -> Learned {
+                (**self).learned(axis)
             }
         }
     };

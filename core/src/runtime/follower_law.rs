@@ -72,12 +72,11 @@ impl<const S: usize, const N: usize> Controller<S> for Follower<S, N> {
         Follower::following_error_limit_um(self, axis)
     }
 
-    fn backoff_level(&self, axis: usize) -> u8 {
-        Follower::backoff_level(self, axis)
-    }
-
-    fn ff_trim_q16(&self, axis: usize) -> [i32; 2] {
-        Follower::ff_trim_q16(self, axis)
+    fn learned(&self, axis: usize) -> super::Learned {
+        super::Learned {
+            backoff_level: Follower::backoff_level(self, axis),
+            ff_trim_q16: Follower::ff_trim_q16(self, axis),
+        }
     }
 }
 

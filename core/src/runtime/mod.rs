@@ -47,7 +47,7 @@ pub use config::{
     MasterSource, RuntimeCoeffs, RuntimeConfig, RuntimeConfigError, MAX_STEP_LIMIT_COUNTS,
     PERIOD_MAX_US, PERIOD_MIN_US,
 };
-pub use controller::{ControlInputs, ControlOutputs, Controller, LawFault};
+pub use controller::{ControlInputs, ControlOutputs, Controller, LawFault, Learned};
 pub use fault::{
     Fault, FaultEvent, FaultHistory, FaultKind, FaultRecord, FaultSet, FAULT_HISTORY_LEN,
 };

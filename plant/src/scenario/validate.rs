@@ -372,6 +372,7 @@ fn axis_error_key(e: AxisConfigError) -> &'static str {
         AxisConfigError::FollowingError => "following_error_um",
         AxisConfigError::Period => "period_us",
         AxisConfigError::OscBand(BandError::Range) => "osc_band_um",
+        AxisConfigError::OscBand(BandError::Setting(f)) => f.key(),
         AxisConfigError::OscBand(BandError::Law) => {
             "osc_band_um (gain backoff: controller feedforward only)"
         }

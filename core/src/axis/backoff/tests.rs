@@ -22,23 +22,23 @@ fn run(c: &BackoffCoeffs, st: &mut BackoffState, n: usize, e: impl Fn(f64) -> f6
 
 #[test]
 fn off_at_zero_and_refuses_a_bad_band() {
-    assert_eq!(BackoffCoeffs::build(0.0, 1000), Ok(BackoffCoeffs::OFF));
+    assert_eq!(BackoffCoeffs::build(0.0, &BackoffSettings::DEFAULT, 1000), Ok(BackoffCoeffs::OFF));
     assert!(!BackoffCoeffs::OFF.is_on());
     for bad in [-1.0, f32::NAN, f32::INFINITY, 10_001.0] {
         assert_eq!(
-            BackoffCoeffs::build(bad, 1000),
+            BackoffCoeffs::build(bad, &BackoffSettings::DEFAULT, 1000),
             Err(BandError::Range),
             "{bad}"
         );
     }
-    let c = BackoffCoeffs::build(4.0, 1000).unwrap();
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     assert!(c.is_on());
     assert_eq!(
         (c.band, c.window_ticks, c.settle_ticks, c.decay_shift),
         (1024, 150, 100, 9)
     );
     // A 1 s period: the windows are one tick each, never zero; the band decays at once.
-    let slow = BackoffCoeffs::build(4.0, 1_000_000).unwrap();
+    let slow = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1_000_000).unwrap();
     assert_eq!(
         (slow.window_ticks, slow.settle_ticks, slow.decay_shift),
         (1, 1, 0)
@@ -52,7 +52,7 @@ fn off_at_zero_and_refuses_a_bad_band() {
 /// 0.75× each.
 #[test]
 fn a_growing_oscillation_backs_off_level_by_level() {
-    let c = BackoffCoeffs::build(4.0, 1000).unwrap();
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     let mut st = BackoffState::RESET;
     let grow = |t: f64| (1.0 + 10.0 * t).powi(2) * (2.0 * core::f64::consts::PI * 25.0 * t).sin();
     let hits = run(&c, &mut st, 4000, grow);
@@ -68,6 +68,7 @@ fn a_growing_oscillation_backs_off_level_by_level() {
     }
     let mut lv = BackoffState::RESET;
     let full = lv.scale(1 << 20);
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     assert_eq!(full, 1 << 20);
     let want = [1.0, 0.36, 0.27, 0.2025, 0.1519];
     for w in want {
@@ -81,7 +82,8 @@ fn a_growing_oscillation_backs_off_level_by_level() {
             "level {}: Ki {si} vs {wi}",
             lv.level
         );
-        lv.level += 1;
+        lv.peak = 0;
+        cut(&c, &mut lv);
     }
 }
 
@@ -93,7 +95,7 @@ fn a_growing_oscillation_backs_off_level_by_level() {
 /// is not growth.
 #[test]
 fn a_decaying_oscillation_after_a_backoff_takes_no_further_level() {
-    let c = BackoffCoeffs::build(4.0, 1000).unwrap();
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     let w = 2.0 * core::f64::consts::PI * 25.0;
     let shape = |t: f64, tau: f64| {
         let a = if t < 0.202 {
@@ -164,7 +166,7 @@ fn a_decaying_oscillation_after_a_backoff_takes_no_further_level() {
 /// settling (peaks within 1/16) takes no level from the watch.
 #[test]
 fn an_oscillation_growing_after_the_settling_takes_the_next_level_early() {
-    let c = BackoffCoeffs::build(4.0, 1000).unwrap();
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     let w = 2.0 * core::f64::consts::PI * 25.0;
     let shape = |t: f64, grow: bool| {
         let a = if t < 0.202 {
@@ -197,7 +199,7 @@ fn an_oscillation_growing_after_the_settling_takes_the_next_level_early() {
 /// fallen below the slower-decaying mode, after 0.8 s.
 #[test]
 fn a_beating_decay_after_a_cut_takes_no_level_from_the_watch() {
-    let c = BackoffCoeffs::build(4.0, 1000).unwrap();
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     let pi2 = 2.0 * core::f64::consts::PI;
     let e = |t: f64| {
         if t < 0.202 {
@@ -217,7 +219,7 @@ fn a_beating_decay_after_a_cut_takes_no_level_from_the_watch() {
 /// single sharp step of 30 µm (a load bump). None backs off.
 #[test]
 fn tracking_errors_and_noise_do_not_back_off() {
-    let c = BackoffCoeffs::build(4.0, 1000).unwrap();
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     let cases: [(&str, &dyn Fn(f64) -> f64); 4] = [
         ("corner", &|t: f64| 50.0 * (1.0 - (-t / 0.05).exp())),
         ("ripple", &|t: f64| {
@@ -251,11 +253,11 @@ fn tracking_errors_and_noise_do_not_back_off() {
 fn off_never_acts_and_a_restart_keeps_the_level() {
     let mut st = BackoffState::RESET;
     let osc = |t: f64| 100.0 * (2.0 * core::f64::consts::PI * 25.0 * t).sin();
-    let off = BackoffCoeffs::build(0.0, 1000).unwrap();
+    let off = BackoffCoeffs::build(0.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     // The law never runs the detector when it is off; called anyway it must not act.
     assert_eq!(run(&off, &mut st, 1000, osc), Vec::<usize>::new());
     assert_eq!(st.level(), 0);
-    let c = BackoffCoeffs::build(4.0, 1000).unwrap();
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
     let mut st = BackoffState::RESET;
     assert_eq!(run(&c, &mut st, 100, osc).len(), 1);
     st.restart();
@@ -270,7 +272,7 @@ proptest! {
         seq in proptest::collection::vec(any::<i32>(), 1..400),
         band in 0.0f32..10_000.0, period in 50u32..1_000_000)
     {
-        let c = BackoffCoeffs::build(band, period).unwrap();
+        let c = BackoffCoeffs::build(band, &BackoffSettings::DEFAULT, period).unwrap();
         let mut st = BackoffState::RESET;
         for de in seq {
             observe(&c, &mut st, de);
@@ -279,4 +281,71 @@ proptest! {
             prop_assert!(s > 0);
         }
     }
+}
+
+/// The defaults give the scales, margin and growth of the module's description.
+#[test]
+fn the_default_settings_are_the_described_detector() {
+    let c = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
+    assert_eq!(c.scale_q16, [65_536, 23_593, 17_695, 13_271, 9_953]);
+    assert_eq!(c.ki_scale_q16, [65_536, 65_536, 49_152, 36_864, 27_648]);
+    assert_eq!((c.margin_q16, c.growth_q16), (16_384, 4_096));
+    assert_eq!(
+        (c.half_cycles, c.max_level, c.growth_half_cycles),
+        (4, MAX_LEVEL, 3)
+    );
+}
+
+/// Every threshold out of its range is refused by name, also with the band off (a
+/// setting is refused when written); an integer threshold refuses a fraction.
+#[test]
+fn a_bad_threshold_is_refused_by_name() {
+    for (f, lo, hi, integer) in BackoffSettings::RANGES {
+        let mut bad = [lo - 1.0, hi * 2.0 + 1.0, f32::NAN, f32::INFINITY].to_vec();
+        if integer {
+            bad.push(lo + 0.5);
+        }
+        for v in bad {
+            let mut s = BackoffSettings::DEFAULT;
+            *s.get_mut(f) = v;
+            for band in [0.0, 4.0] {
+                assert_eq!(
+                    BackoffCoeffs::build(band, &s, 1000),
+                    Err(BandError::Setting(f)),
+                    "{f:?} = {v}, band {band}"
+                );
+            }
+        }
+        let mut s = BackoffSettings::DEFAULT;
+        for v in [lo, hi] {
+            *s.get_mut(f) = v;
+            assert!(BackoffCoeffs::build(4.0, &s, 1000).is_ok(), "{f:?} = {v}");
+        }
+    }
+}
+
+/// The thresholds act: a shallower deepest level stops the cuts there, and more
+/// half-cycles per oscillation see the growing one later.
+#[test]
+fn the_thresholds_change_what_the_detector_does() {
+    let grow = |t: f64| (1.0 + 10.0 * t).powi(2) * (2.0 * core::f64::consts::PI * 25.0 * t).sin();
+    let default = BackoffCoeffs::build(4.0, &BackoffSettings::DEFAULT, 1000).unwrap();
+    let first = run(&default, &mut BackoffState::default(), 4000, grow)[0];
+    let shallow = BackoffSettings {
+        max_level: 2.0,
+        ..BackoffSettings::DEFAULT
+    };
+    let c = BackoffCoeffs::build(4.0, &shallow, 1000).unwrap();
+    let mut st = BackoffState::RESET;
+    assert_eq!(run(&c, &mut st, 4000, grow).len(), 2);
+    assert_eq!((st.level(), st.scale_q16()), (2, 17_695));
+    let patient = BackoffSettings {
+        half_cycles: 8.0,
+        window_ms: 300.0,
+        ..BackoffSettings::DEFAULT
+    };
+    let c = BackoffCoeffs::build(4.0, &patient, 1000).unwrap();
+    let later = run(&c, &mut BackoffState::default(), 4000, grow)[0];
+    // Four more half-cycles of a 25 Hz oscillation: 80 ms.
+    assert!((later - first).abs_diff(80) <= 5, "{first} → {later}");
 }
