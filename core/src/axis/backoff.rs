@@ -167,9 +167,8 @@ impl BackoffCoeffs {
         let t = f64::from(period_us) * 1e-6;
         let alpha = 1.0 / (1.0 + 2.0 * core::f64::consts::PI * f64::from(set.high_pass_hz) * t);
         // Ticks: at 50 µs … 1 s, 10 s is at most 200 000 ticks, clamped to a u16.
-        let ticks = |ms: f32| {
-            libm::ceil(f64::from(ms) * 1e-3 / t).clamp(1.0, f64::from(u16::MAX)) as u16
-        };
+        let ticks =
+            |ms: f32| libm::ceil(f64::from(ms) * 1e-3 / t).clamp(1.0, f64::from(u16::MAX)) as u16;
         let q16 = |x: f64| libm::round(x * 65_536.0) as i32;
         let mut scale_q16 = [65_536; MAX_LEVEL as usize + 1];
         let mut ki_scale_q16 = [65_536; MAX_LEVEL as usize + 1];
@@ -242,7 +241,9 @@ pub struct BackoffState {
     /// Whether the first half-cycle after the settling has ended (it is not judged).
     hc_whole: bool,
     /// The proportional scale of `level`, Q16, set at the cut that reached it (read
-    /// only while `level` > 0: the tick multiplies, the lookup happens at the cut).
+    /// only while `level` > 0: the tick multiplies, the lookup happens at the cut; 0
+    /// before the first cut, so the reset state stays all zero and a law buffer stays
+    /// in `.bss`, not a flash image).
     scale_q16: i32,
     /// The integrator step's scale of `level`, Q16 (as `scale_q16`).
     ki_scale_q16: i32,
@@ -264,8 +265,8 @@ impl BackoffState {
         hc_last: [0; 2],
         hc_grew: [0; 2],
         hc_whole: false,
-        scale_q16: 65_536,
-        ki_scale_q16: 65_536,
+        scale_q16: 0,
+        ki_scale_q16: 0,
     };
 
     /// Forgets the detector's history, keeping the level (a restart, a cleared fault).

@@ -242,7 +242,8 @@ impl AxisConfig {
         if damping.is_on() && self.mode != ControlMode::Feedforward {
             return Err(E::Damping(DampingError::Law));
         }
-        let backoff = BackoffCoeffs::build(g.osc_band_um, &g.backoff, period_us).map_err(E::OscBand)?;
+        let backoff =
+            BackoffCoeffs::build(g.osc_band_um, &g.backoff, period_us).map_err(E::OscBand)?;
         if backoff.is_on() && self.mode != ControlMode::Feedforward {
             return Err(E::OscBand(BandError::Law));
         }

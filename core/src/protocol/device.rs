@@ -34,9 +34,8 @@ use super::report::{
 use super::wire::Writer;
 use crate::follower::{Follower, FollowerConfig};
 use crate::runtime::{
-    Learned,
-    BootCause, Capture, CaptureError, Command, CommandError, Controller, Runtime, RuntimeCoeffs,
-    State, Trigger, FAULT_HISTORY_LEN,
+    BootCause, Capture, CaptureError, Command, CommandError, Controller, Learned, Runtime,
+    RuntimeCoeffs, State, Trigger, FAULT_HISTORY_LEN,
 };
 use crate::table::{CamTable, TableLimits};
 use crate::units::{DacCode, PosUm};
@@ -861,7 +860,11 @@ mod tests {
         assert_eq!(d.get_param(0, ParamId::BackoffMaxLevel), Ok(4.0));
         // A threshold of the axis: the set value again, the threshold in force.
         d.set_param(0, ParamId::BackoffMaxLevel, 3.0).unwrap();
-        assert_eq!(level(&d), 0, "a changed threshold starts from the set value");
+        assert_eq!(
+            level(&d),
+            0,
+            "a changed threshold starts from the set value"
+        );
         assert_eq!(d.get_param(0, ParamId::BackoffMaxLevel), Ok(3.0));
         d.set_param(0, ParamId::OscBandUm, 4.0).unwrap();
         // A gain of the axis: the set value again.

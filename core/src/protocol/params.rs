@@ -311,7 +311,9 @@ fn axis_error_param(e: AxisConfigError) -> ParamId {
         AxisConfigError::Valve(V::OverlapZone) => ParamId::ValveOverlapZoneLsb,
         AxisConfigError::Valve(V::Gain) => ParamId::ValveGainPos,
         AxisConfigError::Valve(V::Clamp) => ParamId::ValveClampLsb,
-        AxisConfigError::OscBand(crate::axis::BandError::Setting(f)) => ParamId::of_backoff_field(f),
+        AxisConfigError::OscBand(crate::axis::BandError::Setting(f)) => {
+            ParamId::of_backoff_field(f)
+        }
         AxisConfigError::OscBand(_) => ParamId::OscBandUm,
         AxisConfigError::FfTrim(_) => ParamId::FfTrimTauS,
         AxisConfigError::Damping(D::Gain) => ParamId::DpGainLsbPerKn,

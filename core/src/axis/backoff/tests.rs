@@ -22,7 +22,10 @@ fn run(c: &BackoffCoeffs, st: &mut BackoffState, n: usize, e: impl Fn(f64) -> f6
 
 #[test]
 fn off_at_zero_and_refuses_a_bad_band() {
-    assert_eq!(BackoffCoeffs::build(0.0, &BackoffSettings::DEFAULT, 1000), Ok(BackoffCoeffs::OFF));
+    assert_eq!(
+        BackoffCoeffs::build(0.0, &BackoffSettings::DEFAULT, 1000),
+        Ok(BackoffCoeffs::OFF)
+    );
     assert!(!BackoffCoeffs::OFF.is_on());
     for bad in [-1.0, f32::NAN, f32::INFINITY, 10_001.0] {
         assert_eq!(
