@@ -696,7 +696,12 @@ pub fn to_toml(t: &Tuning) -> String {
     // Each gain set as core's struct serialises it (f32 in its shortest decimal form,
     // which parses back to exactly the same f32).
     for (name, g) in &t.axes {
-        s.push_str(&format!("[tuning.axes.{name}]\n{}", gains_toml(g)));
+        // The nested backoff table serialises as `[backoff]`: its path is under the axis.
+        let g = gains_toml(g).replace(
+            "\n[backoff]\n",
+            &format!("\n[tuning.axes.{name}.backoff]\n"),
+        );
+        s.push_str(&format!("[tuning.axes.{name}]\n{g}"));
     }
     for (name, g) in &t.press {
         s.push_str(&format!("[tuning.press.{name}]\n{}", gains_toml(g)));
