@@ -685,6 +685,21 @@ fn gains_toml<T: serde::Serialize>(g: &T) -> String {
     toml::to_string(g).unwrap_or_else(|e| format!("# not serialisable: {e}\n"))
 }
 
+/// A gain set as the table `[path]`: core's struct as toml serialises it (f32 in its
+/// shortest decimal form, which parses back to exactly the same f32), its nested tables
+/// (`[backoff]`) moved under `path` (`[path.backoff]`).
+pub fn gains_table<T: serde::Serialize>(path: &str, g: &T) -> String {
+    let mut out = format!("[{path}]\n");
+    for line in gains_toml(g).lines() {
+        match line.strip_prefix('[') {
+            Some(sub) if line.ends_with(']') => out.push_str(&format!("[{path}.{sub}")),
+            _ => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    out
+}
+
 /// The TOML text of a gain set (what `--tune` prints).
 pub fn to_toml(t: &Tuning) -> String {
     let mut s = format!(
@@ -693,18 +708,11 @@ pub fn to_toml(t: &Tuning) -> String {
         t.period_us,
         num(t.master_filter_hz)
     );
-    // Each gain set as core's struct serialises it (f32 in its shortest decimal form,
-    // which parses back to exactly the same f32).
     for (name, g) in &t.axes {
-        // The nested backoff table serialises as `[backoff]`: its path is under the axis.
-        let g = gains_toml(g).replace(
-            "\n[backoff]\n",
-            &format!("\n[tuning.axes.{name}.backoff]\n"),
-        );
-        s.push_str(&format!("[tuning.axes.{name}]\n{g}"));
+        s.push_str(&gains_table(&format!("tuning.axes.{name}"), g));
     }
     for (name, g) in &t.press {
-        s.push_str(&format!("[tuning.press.{name}]\n{}", gains_toml(g)));
+        s.push_str(&gains_table(&format!("tuning.press.{name}"), g));
     }
     s
 }

@@ -866,7 +866,6 @@ mod tests {
             "a changed threshold starts from the set value"
         );
         assert_eq!(d.get_param(0, ParamId::BackoffMaxLevel), Ok(3.0));
-        d.set_param(0, ParamId::OscBandUm, 4.0).unwrap();
         // A gain of the axis: the set value again.
         d.set_param(0, ParamId::KpLsbPerUm, 0.4).unwrap();
         assert_eq!(level(&d), 0, "a changed gain starts from the set value");

@@ -213,12 +213,8 @@ pub fn from_tuning(s: &Scenario, t: &Tuning, first_slave: u8) -> anyhow::Result<
             .ok()
             .and_then(|k| k.checked_add(first_slave))
             .ok_or_else(|| anyhow::anyhow!("too many follower axes for slave {first_slave} on"))?;
-        // Under `[axis.<slave>]`, nested tables (the backoff's thresholds) included.
-        let gains = toml::Value::try_from(g).map_err(|e| anyhow::anyhow!("{name}'s gains: {e}"))?;
-        let axis = toml::Table::from_iter([(slave.to_string(), gains)]);
-        let root = toml::Table::from_iter([("axis".to_string(), toml::Value::Table(axis))]);
         out.push_str(&format!("\n# axis {slave}: {name}\n"));
-        out.push_str(&toml::to_string(&root).map_err(|e| anyhow::anyhow!("{name}'s gains: {e}"))?);
+        out.push_str(&crate::autotune::gains_table(&format!("axis.{slave}"), g));
     }
     for name in t.press.keys() {
         out.push_str(&format!(
@@ -255,6 +251,8 @@ mod tests {
             .find(|(pp, _)| pp.to_string() == "axis/0/kp_lsb_per_um")
             .unwrap();
         assert_eq!(kp.1, t.axes["tangent"].kp_lsb_per_um);
+        // f32 in its shortest decimal form.
+        assert!(text.contains("kp_lsb_per_um = 1.1\n"), "{text}");
         // The backoff's thresholds are board paths too.
         assert!(e
             .iter()
