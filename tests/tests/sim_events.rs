@@ -109,6 +109,23 @@ fn a_reset_encoder_latches_encoder_jump_on_its_axis() {
 }
 
 #[test]
+fn a_reset_encoder_on_the_side_press_faults_it_through_the_runtime() {
+    // The press runs inside the runtime: its encoder is extended and checked like a
+    // follower's, and its fault nulls every valve.
+    let r = run_with("tangent.toml", |s| {
+        s.events.encoder_lost = Some(EncoderLoss {
+            axis: "side_press".into(),
+            at_s: 2.0,
+            mode: EncoderLossMode::Reset,
+        })
+    });
+    let f = first_fault(&r, "encoder_jump", 2.0);
+    assert!(f.t_s < 2.0 + PERIOD_S + 1e-9, "{f:?}");
+    assert_eq!(f.axis.as_deref(), Some("side_press"), "{f:?}");
+    valves_null_within_one_tick(&r, &["tangent", "side_press"], f.t_s);
+}
+
+#[test]
 fn a_frozen_encoder_on_a_moving_axis_trips_the_following_error() {
     let r = run_with("tangent_alone.toml", |s| {
         s.events.encoder_lost = Some(EncoderLoss {
@@ -176,15 +193,16 @@ fn host_sim_run_with_an_estop_event_exits_3() {
 }
 
 #[test]
-fn an_event_naming_no_follower_is_refused_with_its_key() {
+fn an_event_naming_no_axis_is_refused_with_its_key() {
     let mut s = Scenario::load(&scenarios().join("tangent.toml")).unwrap();
     s.events.encoder_lost = Some(EncoderLoss {
-        axis: "side_press".into(),
+        axis: "side_pres".into(),
         at_s: 1.0,
         mode: EncoderLossMode::Freeze,
     });
     let e = s.validate().unwrap_err().to_string();
     assert!(e.contains("events.encoder_lost.axis"), "{e}");
+    assert!(e.contains("side_press"), "the axes are listed: {e}");
 }
 
 #[test]

@@ -238,7 +238,24 @@ pub fn cylinder_force(c: &PressCoeffs, pa: PressureBar, pb: PressureBar) -> Forc
     )))
 }
 
+impl PressCoeffs {
+    /// The code that puts the press valve's spool at its null.
+    pub fn null_code(&self) -> DacCode {
+        self.valve.null_code()
+    }
+}
+
 impl PressState {
+    /// The approach's position error x_ref − `x`, µm, while it approaches (0 under force
+    /// control and before the first tick).
+    pub fn approach_error_um(&self, x: PosUm) -> PosUm {
+        if self.phase == PressPhase::Approach && self.started {
+            PosUm::from_bits(self.x_ref.saturating_sub(x.to_bits()))
+        } else {
+            PosUm::ZERO
+        }
+    }
+
     /// One control tick.
     pub fn tick(
         &mut self,

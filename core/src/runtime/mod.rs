@@ -9,7 +9,7 @@
 //! - [`fault`]: fault causes and their 16-bit codes (table there);
 //! - [`config`]: limits in engineering units → per-tick integers;
 //! - [`controller`]: the trait the control law implements; [`follower_law`]: the SPEC §A
-//!   follower behind it;
+//!   follower behind it; [`press_law`]: force axes beside it;
 //! - [`io`]: the traits a board implements (encoders, pressures, E-stop, valves);
 //! - [`encoder`]: 16 → 32-bit counter extension and the plausibility check;
 //! - [`tick`]: the board's per-period entry point ([`TickLoop::run`]) both boards call;
@@ -28,6 +28,7 @@ pub mod follower_law;
 pub mod io;
 pub mod machine;
 pub mod manual;
+pub mod press_law;
 pub mod pressure;
 pub mod reference;
 pub mod stall;
@@ -56,6 +57,7 @@ pub use machine::{
     BootCause, Command, CommandError, HoldReason, Runtime, Sample, State, Status, TickOutputs,
 };
 pub use manual::{ManualKind, MotionError, MotionLimits, JOG_DEADMAN_US};
+pub use press_law::{NoSuchSlave, PressAxes};
 pub use reference::{RefState, ReferenceMode, References};
 pub use test_move::{TestError, TestMove, TestProfile, TestSpec};
 pub use tick::{

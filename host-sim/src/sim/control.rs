@@ -1,39 +1,45 @@
-//! The controllers of a run, built from the scenario: the core's [`Follower`] for the
-//! table-following axes — run inside the core's [`Runtime`] by the firmware's tick,
-//! [`TickLoop::run`], over a [`SampledBoard`], so its fault rules (E-stop, following
-//! error, encoder plausibility, master stall, pressure health) are live and a latched
-//! fault puts the valves at null — and the core's press law for the force axes.
+//! The controllers of a run, built from the scenario, inside the core's [`Runtime`] run
+//! by the firmware's tick, [`TickLoop::run`], over a [`SampledBoard`]: the core's
+//! [`Follower`] for the table-following axes and the press law for the force axes, one
+//! law ([`PressAxes`]) over every axis of the scenario — so the fault rules (E-stop,
+//! following error, encoder plausibility, master stall, pressure health) are live on
+//! every axis and a latched fault puts every valve at null.
 //!
-//! The follower is generic over the number of slave axes `S`; the simulator supports 1 to
-//! [`MAX_FOLLOWERS`] follower axes through one monomorphisation each, behind the
-//! object-safe [`FollowerDyn`]. Tables hold up to [`TABLE_CAPACITY`] nodes.
+//! The law is generic over the number of slave axes `S`; the simulator supports 1 to
+//! [`MAX_AXES`] axes through one monomorphisation each, behind the object-safe
+//! [`FollowerDyn`]. Runtime slave `i` is the scenario's axis `i`. Tables hold up to
+//! [`TABLE_CAPACITY`] nodes.
 
 use super::board::{SampledBoard, SimHost, CYCLES_PER_US};
 use crate::camfile::CamCsv;
 use crate::scenario::gains::{follower_config, press_config};
 use crate::scenario::{AxisCfg, Controller, Role, Scenario, ScenarioError, Tuning};
-use hydra_core::axis::{PressCoeffs, PressOutput, PressState};
+use hydra_core::axis::{PressCoeffs, PressOutput};
 use hydra_core::follower::{Follower, FollowerError};
 use hydra_core::master::EdgeReading;
 use hydra_core::runtime::{
-    BootCause, Command, CommandError, EncoderSample, FaultRecord, Runtime, RuntimeConfig, State,
-    TickLoop, MAX_STEP_LIMIT_COUNTS,
+    BootCause, Command, CommandError, EncoderSample, FaultRecord, PressAxes, Runtime,
+    RuntimeConfig, State, TickLoop, MAX_STEP_LIMIT_COUNTS,
 };
 use hydra_core::table::{AxisLimits, CamTable, Node, TableError, TableLimits};
 use hydra_core::units::{Counts, DacCode, Master, MasterRate, PosUm, PressureBar, VelUmPerS};
 
 /// Largest number of nodes of a simulated table.
 pub const TABLE_CAPACITY: usize = 4096;
-/// Largest number of follower axes of a scenario.
-pub const MAX_FOLLOWERS: usize = 4;
-/// The runtime's pressure inputs: chambers A and B of each of up to [`MAX_FOLLOWERS`]
-/// follower axes (slave k on inputs 2k, 2k + 1, as on the board).
-const PRESSURES: usize = 2 * MAX_FOLLOWERS;
+/// Largest number of axes (followers and force axes) of a scenario.
+pub const MAX_AXES: usize = 4;
+/// The runtime's pressure inputs: chambers A and B of each of up to [`MAX_AXES`] axes
+/// (slave k on inputs 2k, 2k + 1, as on the board).
+const PRESSURES: usize = 2 * MAX_AXES;
 /// A queued command older than this when the tick takes it is dropped, µs (a simulated
 /// tick takes its command at once: only the firmware's rule, kept).
 const MAX_COMMAND_AGE_US: u32 = 50_000;
+/// The inner follower's own following-error limit on a force axis, µm (its largest): the
+/// follower's output there is discarded, and its latched fault would null the axis'
+/// manual moves. The runtime's limit (the gain set's) still applies.
+const PRESS_INNER_FE_LIMIT_UM: f32 = 1e6;
 
-/// What one runtime tick of the followers gives the simulator.
+/// What one runtime tick gives the simulator.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FollowerTick {
     /// The follower's filtered master estimate, master counts.
@@ -55,9 +61,9 @@ pub struct Reading<'a> {
     pub master: i64,
     /// The master's edge timer, if the board has one.
     pub master_edges: Option<EdgeReading>,
-    /// Each follower's encoder count.
+    /// Each axis' encoder count.
     pub slaves: &'a [i64],
-    /// Each follower's chamber A and B pressure, bar.
+    /// Each axis' chamber A and B pressure, bar.
     pub pressures: &'a [[PressureBar; 2]],
     /// The E-stop chain is open.
     pub estop: bool,
@@ -65,26 +71,29 @@ pub struct Reading<'a> {
     pub pressure_live: bool,
 }
 
-/// The followers of a run inside the runtime, whatever the number of axes.
+/// The law of a run inside the runtime, whatever the number of axes.
 pub trait FollowerDyn: Send {
     /// One control period, one [`TickLoop::run`] (the firmware's tick) over the board
     /// inputs `r`: valve codes (the nulls unless controlling) and the targets X(θ_f(k))
     /// (µm) out. The first tick starts the runtime (Start).
     fn tick(&mut self, r: &Reading, dac: &mut [DacCode], target: &mut [PosUm]) -> FollowerTick;
 
-    /// |target − position| of follower `j` at the last tick, µm (the value a
+    /// |target − position| of axis `j` at the last tick, µm (the value a
     /// following-error fault trips on).
     fn error_um(&self, j: usize) -> f64;
 
-    /// The gain backoff's level of follower `j` (core `axis::backoff`; 0 = the set gain).
+    /// The gain backoff's level of axis `j` (core `axis::backoff`; 0 = the set gain).
     fn backoff_level(&self, j: usize) -> u8;
 
-    /// The feed-forward trim's ratios of follower `j`, `[negative, positive]` feed-forward
+    /// The feed-forward trim's ratios of axis `j`, `[negative, positive]` feed-forward
     /// (core `axis::ff_trim`; 1 = the calibrated gain).
     fn ff_trim(&self, j: usize) -> [f64; 2];
+
+    /// Force axis `j`'s press output of the last tick (`None`: not a force axis).
+    fn press(&self, j: usize) -> Option<PressOutput>;
 }
 
-type Law<const S: usize> = Box<Follower<S, TABLE_CAPACITY>>;
+type Law<const S: usize> = Box<PressAxes<Follower<S, TABLE_CAPACITY>, S>>;
 
 struct Rt<const S: usize> {
     tl: TickLoop<Law<S>, S, PRESSURES>,
@@ -127,7 +136,9 @@ impl<const S: usize> FollowerDyn for Rt<S> {
         }
         target.copy_from_slice(&st.target_um);
         FollowerTick {
-            master_estimate: rt.law().map_or(Master::ZERO, |l| l.master_estimate().pos),
+            master_estimate: rt
+                .law()
+                .map_or(Master::ZERO, |l| l.law().master_estimate().pos),
             enable: self.io.enable,
             state: st.state,
             fault: st.fault,
@@ -140,15 +151,25 @@ impl<const S: usize> FollowerDyn for Rt<S> {
     }
 
     fn backoff_level(&self, j: usize) -> u8 {
-        self.tl.runtime().law().map_or(0, |l| l.backoff_level(j))
+        self.learned(j).backoff_level
     }
 
     fn ff_trim(&self, j: usize) -> [f64; 2] {
+        self.learned(j).ff_trim_q16.map(|r| f64::from(r) / 65_536.0)
+    }
+
+    fn press(&self, j: usize) -> Option<PressOutput> {
+        self.tl.runtime().law().and_then(|l| l.press_output(j))
+    }
+}
+
+impl<const S: usize> Rt<S> {
+    fn learned(&self, j: usize) -> hydra_core::runtime::Learned {
+        use hydra_core::runtime::Controller as _;
         self.tl
             .runtime()
             .law()
-            .map_or([65_536; 2], |l| l.ff_trim_q16(j))
-            .map(|r| f64::from(r) / 65_536.0)
+            .map_or(hydra_core::runtime::Learned::NONE, |l| l.learned(j))
     }
 }
 
@@ -166,7 +187,8 @@ pub fn followers(s: &Scenario) -> Vec<&AxisCfg> {
 }
 
 /// Builds the core's table from the CSV (master in degrees → master counts of the
-/// scenario's master encoder; slaves mm → µm) and validates it against the axes: stroke,
+/// scenario's master encoder; slaves mm → µm; a force axis' column is its start position
+/// `x0_mm`, the press law driving it) and validates it against the axes: stroke,
 /// and the slope against each axis' full-opening speed at the fastest master speed
 /// (nominal speed plus ripple), building it in place in `dst` (a 4 096-row table is
 /// 160 KiB: never on the stack). Errors name the CSV line.
@@ -175,21 +197,23 @@ fn build_table<const S: usize>(
     csv: &CamCsv,
     dst: &mut CamTable<S, TABLE_CAPACITY>,
 ) -> Result<(), ScenarioError> {
-    let axes = followers(s);
-    let cols: Vec<&[f64]> = axes
+    let axes: Vec<&AxisCfg> = s.axes.iter().collect();
+    let n = csv.master.len();
+    let cols: Vec<std::borrow::Cow<[f64]>> = axes
         .iter()
-        .map(|a| {
-            csv.column(&a.name).ok_or_else(|| {
+        .map(|a| match a.role {
+            Role::Force => Ok(vec![a.x0_mm.unwrap_or(0.0); n].into()),
+            Role::Follower => csv.column(&a.name).map(Into::into).ok_or_else(|| {
                 invalid(
                     format!("axis.{}.name", a.name),
                     &a.name,
                     "no column of that name in the table",
                 )
-            })
+            }),
         })
         .collect::<Result<_, _>>()?;
     let res = s.master.resolution_deg;
-    let nodes: Vec<Node<S>> = (0..csv.master.len())
+    let nodes: Vec<Node<S>> = (0..n)
         .map(|j| {
             let mut slave_um = [PosUm::ZERO; S];
             for (o, c) in slave_um.iter_mut().zip(&cols) {
@@ -273,8 +297,17 @@ fn build<const S: usize>(
     // The table and the law are built in place on the heap (no large value on the stack).
     let mut table: Box<CamTable<S, TABLE_CAPACITY>> = Box::new(CamTable::empty());
     build_table::<S>(s, csv, &mut table)?;
-    let cfg = follower_config::<S>(s, t, controller, period_us)?;
-    let mut f: Box<Follower<S, TABLE_CAPACITY>> = Box::new(Follower::unconfigured());
+    let mut cfg = follower_config::<S>(s, t, controller, period_us)?;
+    let fe_limits = cfg.axes.map(|a| a.gains.following_error_um);
+    let mut presses = [None; S];
+    for ((p, c), a) in presses.iter_mut().zip(cfg.axes.iter_mut()).zip(&s.axes) {
+        if a.role == Role::Force {
+            *p = Some(press_coeffs(a, t, period_us)?);
+            c.gains.following_error_um = PRESS_INNER_FE_LIMIT_UM;
+        }
+    }
+    let mut law: Law<S> = Box::new(PressAxes::new(Follower::unconfigured()));
+    let f = law.law_mut();
     f.configure(&cfg).map_err(|e| match e {
         FollowerError::MasterFilter(_) => invalid(
             format!(
@@ -293,14 +326,18 @@ fn build<const S: usize>(
                 "tuning[{}@{}us].axes.{}",
                 t.controller.name(),
                 t.period_us,
-                followers(s)[axis].name
+                s.axes[axis].name
             ),
             format!("{error:?}"),
             format!("rejected at the run's period of {period_us} µs"),
         ),
     })?;
     f.load_table(&table);
-    let rc = runtime_config::<S>(s, &cfg.axes.map(|a| a.gains.following_error_um), period_us);
+    for (i, p) in presses.into_iter().enumerate() {
+        law.set_press(i, p)
+            .map_err(|e| invalid("axis".into(), e.axis, "no such runtime slave"))?;
+    }
+    let rc = runtime_config::<S>(s, &fe_limits, period_us);
     let coeffs = rc.build().map_err(|e| {
         invalid(
             "runtime".into(),
@@ -308,7 +345,7 @@ fn build<const S: usize>(
             format!("the runtime's configuration at {period_us} µs"),
         )
     })?;
-    let rt = Runtime::new(coeffs, Some(f), BootCause::Normal);
+    let rt = Runtime::new(coeffs, Some(law), BootCause::Normal);
     Ok(Box::new(Rt::<S> {
         tl: TickLoop::new(rt, CYCLES_PER_US, MAX_COMMAND_AGE_US),
         io: SampledBoard::new(EncoderSample {
@@ -323,7 +360,7 @@ fn build<const S: usize>(
     }))
 }
 
-/// The runtime's configuration for the follower axes of `s`: each slave's encoder scale,
+/// The runtime's configuration for the axes of `s`: each slave's encoder scale,
 /// its following-error limit (the gain set's `following_error_um`), an encoder step
 /// plausible up to 4× the axis' full-opening no-load speed, the master's up to 4× its
 /// fastest speed (nominal + ripple) — both capped by the runtime's step limit of 16 383
@@ -350,7 +387,7 @@ pub fn runtime_config<const S: usize>(
     rc.master_max_speed_counts_per_s = (4.0 * peak).max(1000.0).min(cap_per_s) as f32;
     // A force axis' law depends on the pressures: stale ones are a fault.
     rc.pressure_required = s.axes.iter().any(|a| a.role == Role::Force);
-    for (j, a) in followers(s).iter().enumerate().take(S) {
+    for (j, a) in s.axes.iter().enumerate().take(S) {
         rc.slave_um_per_count[j] = a.sensors.encoder_um as f32;
         let p = a.plant(s.supply(), a.cylinder.stroke_mm * 0.5e-3);
         let v = p
@@ -362,7 +399,8 @@ pub fn runtime_config<const S: usize>(
     rc
 }
 
-/// The follower of a run (`None` if the scenario has no follower axis).
+/// The law of a run over every axis of `s`, inside its runtime (`None` if the scenario
+/// has no axis).
 pub fn build_follower(
     s: &Scenario,
     csv: &CamCsv,
@@ -370,7 +408,7 @@ pub fn build_follower(
     controller: Controller,
     period_us: u32,
 ) -> Result<Option<Box<dyn FollowerDyn>>, ScenarioError> {
-    let f = match followers(s).len() {
+    let f = match s.axes.len() {
         0 => return Ok(None),
         1 => build::<1>(s, csv, t, controller, period_us)?,
         2 => build::<2>(s, csv, t, controller, period_us)?,
@@ -380,51 +418,34 @@ pub fn build_follower(
             return Err(invalid(
                 "axis".into(),
                 n,
-                format!("at most {MAX_FOLLOWERS} follower axes are supported"),
+                format!("at most {MAX_AXES} axes are supported"),
             ))
         }
     };
     Ok(Some(f))
 }
 
-/// A force axis' controller.
-#[derive(Clone, Debug)]
-pub struct Press {
-    coeffs: PressCoeffs,
-    state: PressState,
-}
-
-impl Press {
-    /// Builds the press law of a force axis with the gain set's gains (or the defaults).
-    pub fn new(a: &AxisCfg, t: &Tuning, period_us: u32) -> Result<Self, ScenarioError> {
-        let g = t.press.get(&a.name).cloned().unwrap_or_default();
-        let cfg = press_config(a, &g).ok_or_else(|| {
-            invalid(
-                format!("axis.{}.press", a.name),
-                "missing",
-                "a force axis needs [axis.press]",
-            )
-        })?;
-        let coeffs = cfg.build(period_us).map_err(|e| {
-            invalid(
-                format!(
-                    "tuning[{}@{}us].press.{}",
-                    t.controller.name(),
-                    t.period_us,
-                    a.name
-                ),
-                format!("{e:?}"),
-                format!("rejected at the run's period of {period_us} µs"),
-            )
-        })?;
-        Ok(Self {
-            coeffs,
-            state: PressState::default(),
-        })
-    }
-
-    /// One control tick from the position (µm) and the two pressure readings (bar).
-    pub fn tick(&mut self, x: PosUm, pa: PressureBar, pb: PressureBar) -> PressOutput {
-        self.state.tick(&self.coeffs, x, pa, pb)
-    }
+/// The press law's coefficients of force axis `a` with the gain set's gains (or the
+/// defaults) at `period_us`.
+fn press_coeffs(a: &AxisCfg, t: &Tuning, period_us: u32) -> Result<PressCoeffs, ScenarioError> {
+    let g = t.press.get(&a.name).cloned().unwrap_or_default();
+    let cfg = press_config(a, &g).ok_or_else(|| {
+        invalid(
+            format!("axis.{}.press", a.name),
+            "missing",
+            "a force axis needs [axis.press]",
+        )
+    })?;
+    cfg.build(period_us).map_err(|e| {
+        invalid(
+            format!(
+                "tuning[{}@{}us].press.{}",
+                t.controller.name(),
+                t.period_us,
+                a.name
+            ),
+            format!("{e:?}"),
+            format!("rejected at the run's period of {period_us} µs"),
+        )
+    })
 }

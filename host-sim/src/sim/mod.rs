@@ -4,14 +4,15 @@
 //!
 //! 1. **Sample** at `t_k`: the master angle through its encoder (`round(θ/0.001°)`
 //!    counts) and, with the board's edge timer (`master.edge_timer_hz`, default 1 MHz),
-//!    the newest rising A edge since `t_{k−1}` with its time (`crate::plant::edges`:
-//!    the runtime then feeds the law the master below one count), every axis position through its linear encoder, the force axes' two
-//!    chamber pressures through the 12-bit ADC.
-//! 2. **Compute**: the follower, inside the core's runtime, one [`hydra_core::runtime::TickLoop::run`]
-//!    per period as the firmware's tick ([`board`]: Start at the first period; the
-//!    scenario's `[events]` drive the E-stop, encoder and pressure inputs; the fault rules
-//!    live: a latched fault unpowers every valve, `u` = 0 from the next period, and is
-//!    reported in [`RunReport::faults`]), and each press law return valve codes.
+//!    the newest rising A edge since `t_{k−1}` with its time (`crate::plant::edges`: the
+//!    runtime then feeds the law the master below one count), every axis' position
+//!    through its linear encoder and its two chamber pressures through the 12-bit ADC.
+//! 2. **Compute**: one [`hydra_core::runtime::TickLoop::run`] per period, the firmware's
+//!    tick ([`board`]: Start at the first period; the scenario's `[events]` drive the
+//!    E-stop, encoder and pressure inputs; the fault rules live: a latched fault
+//!    unpowers every valve, `u` = 0 from the next period, and is reported in
+//!    [`RunReport::faults`]). Its law is the follower for the table axes and the press
+//!    law for the force axes (`hydra_core::runtime::PressAxes`): valve codes out.
 //! 3. **Apply** one period later: the codes computed at `t_k` drive the valves from
 //!    `t_{k+1}` to `t_{k+2}` (one period of computation delay); during period 0 the valves
 //!    are at null. The DAC holds each code: `u = n/2047`.
@@ -44,7 +45,7 @@ pub mod probe;
 use crate::camfile::{interpolate, CamCsv};
 use crate::plant::{valve_command, HydraulicAxis, MasterProfile, PressureAdc};
 use crate::scenario::{Controller, Role, Scenario, ScenarioError};
-use control::{build_follower, Press, Reading};
+use control::{build_follower, Reading};
 use hydra_core::axis::PressPhase;
 use hydra_core::units::{DacCode, PosUm, PressureBar};
 use std::time::Instant;
@@ -195,10 +196,9 @@ impl RunReport {
     }
 }
 
-/// Per force axis bookkeeping.
+/// Per force axis bookkeeping (its law runs inside the runtime).
 #[derive(Clone, Debug)]
 struct PressRt {
-    law: Press,
     f_ref_n: f64,
     phase: PressPhase,
     switch_s: Option<f64>,
@@ -254,7 +254,6 @@ pub fn run_probed(
         .map(|a| table.column(&a.name).unwrap_or(&[]))
         .collect();
     let mut follower = build_follower(&sc, table, tuning, spec.controller, spec.period_us)?;
-    let nf = follower_cfgs.len();
 
     // Plants and sensors, in scenario order (crate::machine: followers start on the table
     // at the master's start).
@@ -271,7 +270,6 @@ pub fn run_probed(
             Role::Force => {
                 press_idx.push(i);
                 presses.push(PressRt {
-                    law: Press::new(a, tuning, spec.period_us)?,
                     f_ref_n: 0.0,
                     phase: PressPhase::Approach,
                     switch_s: None,
@@ -283,6 +281,7 @@ pub fn run_probed(
         }
     }
     let n_axes = plants.len();
+    let nf = follower_idx.len();
 
     let mut trace = trace_steps.map(|_| {
         let mut cols = vec![
@@ -321,17 +320,16 @@ pub fn run_probed(
 
     let mut u_now = vec![0.0f64; n_axes]; // applied this period
     let mut u_next = vec![0.0f64; n_axes]; // computed at this period's sample
-    let mut enc = vec![0i64; nf];
-    let mut chambers = vec![[PressureBar::ZERO; 2]; nf];
-    let mut dac = vec![DacCode::NULL; nf];
-    let mut ctrl_target = vec![PosUm::ZERO; nf];
+                                           // Per runtime slave (scenario axis).
+    let mut enc = vec![0i64; n_axes];
+    let mut chambers = vec![[PressureBar::ZERO; 2]; n_axes];
+    let mut dac = vec![DacCode::NULL; n_axes];
+    let mut ctrl_target = vec![PosUm::ZERO; n_axes];
     let mut faults: Vec<FaultEvent> = Vec::new();
     let mut valves_null_s = None;
     let mut start_refused = None;
-    let mut osc: Vec<Reversals> = vec![Reversals::default(); nf];
+    let mut osc: Vec<Reversals> = vec![Reversals::default(); n_axes];
     let mut master_est_deg = 0.0;
-    // The runtime's valve power (always on without a follower: no runtime to cut it).
-    let mut powered = true;
     let mut err_stats = vec![ErrorStat::default(); nf];
     let mut peak = vec![0.0f64; n_axes];
     let mut cursors = vec![0usize; nf];
@@ -350,13 +348,11 @@ pub fn run_probed(
                 let counts = |t: f64| master.angle_deg(t) / menc.resolution;
                 tm.reading(counts, t_k - period_s, t_k)
             });
-            for (j, &i) in follower_idx.iter().enumerate() {
+            for (i, a) in sc.axes.iter().enumerate() {
                 let true_count = encoders[i].count(plants[i].x_m());
-                enc[j] = sc
-                    .events
-                    .encoder_count(&sc.axes[i].name, t_k, true_count, enc[j]);
-                osc[j].add(plants[i].v_m_per_s());
-                chambers[j] = adc_bar(&adcs[i], plants[i].pressures_pa());
+                enc[i] = sc.events.encoder_count(&a.name, t_k, true_count, enc[i]);
+                osc[i].add(plants[i].v_m_per_s());
+                chambers[i] = adc_bar(&adcs[i], plants[i].pressures_pa());
             }
             let reading = Reading {
                 master: m,
@@ -367,11 +363,21 @@ pub fn run_probed(
                 pressure_live: sc.events.pressure_live(t_k),
             };
             let o = f.tick(&reading, &mut dac, &mut ctrl_target);
-            powered = o.enable;
             master_est_deg = o.master_estimate.to_num::<f64>() * sc.master.resolution_deg;
-            for (j, &i) in follower_idx.iter().enumerate() {
+            for (u, d) in u_next.iter_mut().zip(&dac) {
                 // Not controlling: the valves are unpowered and their spools centre.
-                u_next[i] = valve_command(dac[j].get(), o.enable);
+                *u = valve_command(d.get(), o.enable);
+            }
+            for (p, &i) in presses.iter_mut().zip(&press_idx) {
+                let Some(o) = f.press(i) else { continue };
+                let c = o.cmd_lsb.to_num::<f64>();
+                if o.phase == PressPhase::Force && p.phase == PressPhase::Approach {
+                    p.switch_s = Some(t_k);
+                    p.jump_lsb = (c - p.last_cmd).abs();
+                }
+                p.phase = o.phase;
+                p.f_ref_n = o.force_ref_n.to_num::<f64>();
+                p.last_cmd = c;
             }
             if let Some(p) = probe.filter(|_| o.enable) {
                 if let Some(&i) = follower_idx.get(p.follower) {
@@ -390,7 +396,7 @@ pub fn run_probed(
                         code: r.fault.code(),
                         name: r.fault.name(),
                         axis: axis
-                            .and_then(|a| follower_cfgs.get(usize::from(a)))
+                            .and_then(|a| sc.axes.get(usize::from(a)))
                             .map(|a| a.name.clone()),
                         tick: r.tick,
                         t_s: t_k,
@@ -403,22 +409,6 @@ pub fn run_probed(
                     });
                 }
             }
-        }
-        for (p, &i) in presses.iter_mut().zip(&press_idx) {
-            let counts = encoders[i].count(plants[i].x_m());
-            let x = PosUm::saturating_from_num(encoders[i].value(counts) * 1e6);
-            let [pa, pb] = adc_bar(&adcs[i], plants[i].pressures_pa());
-            let o = p.law.tick(x, pa, pb);
-            let c = o.cmd_lsb.to_num::<f64>();
-            if o.phase == PressPhase::Force && p.phase == PressPhase::Approach {
-                p.switch_s = Some(t_k);
-                p.jump_lsb = (c - p.last_cmd).abs();
-            }
-            p.phase = o.phase;
-            p.f_ref_n = o.force_ref_n.to_num::<f64>();
-            p.last_cmd = c;
-            // One valve-power enable for every valve of the board (the runtime's).
-            u_next[i] = valve_command(o.dac.get(), powered);
         }
         // 3–4. integrate the period with the codes computed one period ago
         if valves_null_s.is_none() && !faults.is_empty() && u_now.iter().all(|&u| u == 0.0) {
@@ -463,12 +453,12 @@ pub fn run_probed(
                                 plants[i].x_m() * 1e3,
                                 e_um,
                                 u_now[i],
-                                ctrl_target[fj].to_num::<f64>() * 1e-3,
+                                ctrl_target[i].to_num::<f64>() * 1e-3,
                                 follower
                                     .as_ref()
-                                    .map_or(0.0, |f| f64::from(f.backoff_level(fj))),
+                                    .map_or(0.0, |f| f64::from(f.backoff_level(i))),
                             ]);
-                            r.extend(follower.as_ref().map_or([1.0; 2], |f| f.ff_trim(fj)));
+                            r.extend(follower.as_ref().map_or([1.0; 2], |f| f.ff_trim(i)));
                         }
                         fj += 1;
                     }
@@ -537,7 +527,7 @@ pub fn run_probed(
     }
     let oscillation = follower_cfgs
         .iter()
-        .zip(&osc)
+        .zip(follower_idx.iter().map(|&i| &osc[i]))
         .zip(&columns)
         .map(|((a, r), col)| Oscillation {
             axis: a.name.clone(),
@@ -550,8 +540,9 @@ pub fn run_probed(
             ),
         })
         .collect();
-    let backoff_levels = (0..follower_cfgs.len())
-        .map(|j| follower.as_ref().map_or(0, |f| f.backoff_level(j)))
+    let backoff_levels = follower_idx
+        .iter()
+        .map(|&i| follower.as_ref().map_or(0, |f| f.backoff_level(i)))
         .collect();
     Ok(RunReport {
         scenario: s.name().to_string(),

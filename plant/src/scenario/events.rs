@@ -25,7 +25,7 @@ pub struct EventsCfg {
     /// force axis) latches `pressure_input`; otherwise the law keeps the last live
     /// pressures and the run goes on.
     pub pressure_lost_at_s: Option<f64>,
-    /// A follower axis' encoder lost.
+    /// An axis' encoder lost (a follower's or a force axis').
     pub encoder_lost: Option<EncoderLoss>,
 }
 
@@ -56,8 +56,8 @@ pub enum EncoderLossMode {
 }
 
 impl EventsCfg {
-    /// Checks the times and that the encoder names a follower axis (`followers`).
-    pub fn validate(&self, followers: &[&str]) -> Result<(), ScenarioError> {
+    /// Checks the times and that the encoder names an axis of the scenario (`axes`).
+    pub fn validate(&self, axes: &[&str]) -> Result<(), ScenarioError> {
         let time = |key: &str, t: f64| {
             if t.is_finite() && (0.0..=1e6).contains(&t) {
                 Ok(())
@@ -73,11 +73,11 @@ impl EventsCfg {
         }
         if let Some(e) = &self.encoder_lost {
             time("events.encoder_lost.at_s", e.at_s)?;
-            if !followers.contains(&e.axis.as_str()) {
+            if !axes.contains(&e.axis.as_str()) {
                 return Err(invalid(
                     "events.encoder_lost.axis",
                     &e.axis,
-                    format!("no follower axis of that name (followers: {followers:?})"),
+                    format!("no axis of that name (axes: {axes:?})"),
                 ));
             }
         }

@@ -10,8 +10,7 @@
 //! (`host_sim::autotune`).
 
 use super::{
-    AxisCfg, Controller, PositionGains, PredictorCfg, PressGains, Role, Scenario, ScenarioError,
-    Tuning,
+    AxisCfg, Controller, PositionGains, PredictorCfg, PressGains, Scenario, ScenarioError, Tuning,
 };
 use hydra_core::axis::{AxisConfig, PistonAreas, PressConfig};
 use hydra_core::follower::FollowerConfig;
@@ -67,8 +66,9 @@ pub fn press_config(axis: &AxisCfg, g: &PressGains) -> Option<PressConfig> {
     })
 }
 
-/// The follower configuration (`S` follower axes, in scenario order) for a gain set
-/// used at `period_us`.
+/// The follower configuration (`S` axes, in scenario order) for a gain set used at
+/// `period_us`. A force axis gets its `[tuning.axes.<name>]` gains if the set has them
+/// (the defaults otherwise): the position law that jogs and moves it by hand.
 pub fn follower_config<const S: usize>(
     s: &Scenario,
     t: &Tuning,
@@ -88,8 +88,7 @@ pub fn follower_config<const S: usize>(
         },
         ..FollowerConfig::default()
     };
-    let followers = s.axes.iter().filter(|a| a.role == Role::Follower);
-    for (slot, a) in cfg.axes.iter_mut().zip(followers) {
+    for (slot, a) in cfg.axes.iter_mut().zip(&s.axes) {
         let g = t.axes.get(&a.name).cloned().unwrap_or_default();
         *slot = axis_config(a, &g, controller);
     }

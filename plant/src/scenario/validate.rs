@@ -125,13 +125,8 @@ impl Scenario {
                 d.validate(&format!("axis.{}.drift", a.name))?;
             }
         }
-        let followers: Vec<&str> = self
-            .axes
-            .iter()
-            .filter(|a| a.role == Role::Follower)
-            .map(|a| a.name.as_str())
-            .collect();
-        self.events.validate(&followers)?;
+        let axes: Vec<&str> = self.axes.iter().map(|a| a.name.as_str()).collect();
+        self.events.validate(&axes)?;
         validate_tuning(self)
     }
 }
