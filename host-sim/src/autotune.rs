@@ -61,9 +61,16 @@ use crate::scenario::{
     AxisCfg, Controller, PositionGains, PredictorCfg, PressGains, Role, Scenario, ScenarioError,
     Tuning,
 };
+use crate::sim::board::{tick_loop, SampledBoard, SimHost, CYCLES_PER_US};
 use crate::sim::{run as simulate, RunSpec};
-use hydra_core::axis::{position_law, AxisConfig, ControlMode, PosRef, PosState};
-use hydra_core::units::{DacCode, PosUm};
+use hydra_core::axis::{AxisConfig, ControlMode};
+use hydra_core::runtime::{
+    BootCause, Command, EncoderSample, MasterSource, Runtime, RuntimeConfig,
+};
+use hydra_core::units::{Counts, DacCode, PosUm};
+use step_law::{StepLaw, STEP_DELAY_TICKS};
+
+mod step_law;
 use std::collections::BTreeMap;
 
 /// Largest position step of the test, µm.
@@ -118,12 +125,15 @@ pub struct StepTest {
     pub late_um: f64,
     /// The proportional gain tested, LSB/µm.
     pub kp: f64,
+    /// The runtime latched a fault during the test (the loop diverged).
+    pub faulted: bool,
 }
 
 impl StepTest {
     /// Whether the response decays (see the module docs).
     pub fn stable(&self) -> bool {
-        !(self.late_um > 0.5 * self.early_um && self.late_um > 10.0 + 1.0 / self.kp)
+        let growing = self.late_um > 0.5 * self.early_um && self.late_um > 10.0 + 1.0 / self.kp;
+        !(self.faulted || growing)
     }
 }
 
@@ -147,7 +157,10 @@ impl Span {
 }
 
 /// A step of the position reference (`min(500 µm, 500 LSB/Kp)`) with P-only control of
-/// `mode` at `period_us`.
+/// `mode` at `period_us`: the [`StepLaw`] inside the runtime, one `TickLoop::run` per
+/// period over the axis' encoder (the firmware's tick), its valve codes acting from the
+/// next period. A fault the runtime latches (a diverging loop's `encoder_jump` at a long
+/// period) counts as unstable.
 pub fn step_test(
     s: &Scenario,
     axis: &AxisCfg,
@@ -155,6 +168,11 @@ pub fn step_test(
     period_us: u32,
     kp: f64,
 ) -> Result<StepTest, ScenarioError> {
+    let invalid = |value: String, reason: String| ScenarioError::Invalid {
+        key: format!("axis.{}", axis.name),
+        value,
+        reason,
+    };
     let cfg = AxisConfig {
         gains: PositionGains {
             kp_lsb_per_um: kp as f32,
@@ -172,11 +190,9 @@ pub fn step_test(
         valve: axis.calibration,
         areas: crate::scenario::gains::piston_areas(axis),
     };
-    let c = cfg.build(period_us).map_err(|e| ScenarioError::Invalid {
-        key: format!("axis.{}", axis.name),
-        value: format!("{e:?}"),
-        reason: format!("step test at Kp = {kp}"),
-    })?;
+    let c = cfg
+        .build(period_us)
+        .map_err(|e| invalid(format!("{e:?}"), format!("step test at Kp = {kp}")))?;
     let x0_m = test_position_m(axis);
     let mut plant: HydraulicAxis = axis.plant(s.supply(), x0_m);
     let enc = axis.encoder();
@@ -187,22 +203,62 @@ pub fn step_test(
     let duration = (60.0 * t).max(10.0 * tau).clamp(0.5, 300.0);
     let n = (duration / t).ceil() as u64;
     let x_ref0 = enc.value(enc.count(x0_m)) * 1e6;
-    let mut st = PosState::default();
+    let x_ref1 = x_ref0 + STEP_UM.min(STEP_LSB / kp);
+    let law = StepLaw::new(
+        c,
+        PosUm::saturating_from_num(x_ref0),
+        PosUm::saturating_from_num(x_ref1),
+    );
+    let rc = RuntimeConfig::<1> {
+        period_us,
+        master_source: MasterSource::Time,
+        slave_um_per_count: [axis.sensors.encoder_um as f32],
+        slave_max_speed_um_per_s: [crate::sim::control::plausible_speed_um_per_s(
+            s, axis, period_us,
+        )],
+        following_error_limit_um: [1e6],
+        ..RuntimeConfig::default()
+    };
+    let coeffs = rc
+        .build()
+        .map_err(|e| invalid(format!("{e:?}"), format!("the runtime at {period_us} µs")))?;
+    let mut tl = tick_loop(Runtime::<_, 1, 2>::new(
+        coeffs,
+        Some(law),
+        BootCause::Normal,
+    ));
+    let mut host = SimHost::default();
+    host.queue(Command::Start);
+    let count = |p: &HydraulicAxis| {
+        let c = enc.count(p.x_m());
+        Counts(c.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32)
+    };
+    let mut io = SampledBoard::<1, 2>::new(EncoderSample {
+        master: Counts(0),
+        slaves: [count(&plant)],
+        master_edges: None,
+    });
+    let period_ns = period_us.saturating_mul(CYCLES_PER_US);
     let mut u_now = 0.0;
     let (mut early, mut late) = (Span::EMPTY, Span::EMPTY);
+    let mut faulted = false;
     for k in 0..n {
-        let x_ref = if k < 3 {
+        let x_ref = if k < u64::from(STEP_DELAY_TICKS) {
             x_ref0
         } else {
-            x_ref0 + STEP_UM.min(STEP_LSB / kp)
+            x_ref1
         };
-        let x = PosUm::saturating_from_num(enc.value(enc.count(plant.x_m())) * 1e6);
-        let r = PosRef {
-            x_ref_um: PosUm::saturating_from_num(x_ref),
-            ..PosRef::default()
-        };
-        let u = position_law(&c, &mut st, &r, x);
-        let u_next = valve_command(c.valve.output(u).get(), true);
+        io.enc.slaves = [count(&plant)];
+        tl.run(&mut io, &mut host);
+        host.now_ns = host.now_ns.wrapping_add(period_ns);
+        if let Some(Some(e)) = host.take_refusal() {
+            return Err(invalid(
+                format!("{e:?}"),
+                "the runtime refused Start".into(),
+            ));
+        }
+        faulted |= tl.runtime().status().fault.is_some();
+        let u_next = valve_command(io.codes[0].get(), io.enable);
         for _ in 0..steps {
             plant.step(u_now, h);
         }
@@ -219,6 +275,7 @@ pub fn step_test(
         early_um: early.amplitude(),
         late_um: late.amplitude(),
         kp,
+        faulted,
     })
 }
 

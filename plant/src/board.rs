@@ -8,13 +8,23 @@
 //! µs), wrapping `u32`.
 
 use hydra_core::runtime::{
-    Command, CommandError, EncoderInput, EncoderSample, PressureInput, Reply, SafetyInput, Status,
-    TickCommand, TickHost, TickSample, ValveOutput,
+    Command, CommandError, Controller, EncoderInput, EncoderSample, PressureInput, Reply, Runtime,
+    SafetyInput, Status, TickCommand, TickHost, TickLoop, TickSample, ValveOutput,
 };
 use hydra_core::units::{DacCode, PressureBar};
 
 /// Cycles of the simulated clock per µs (it counts ns).
 pub const CYCLES_PER_US: u32 = 1000;
+/// A queued command older than this when the tick takes it is dropped, µs (a simulated
+/// tick takes its command at once: the firmware's rule, kept).
+pub const MAX_COMMAND_AGE_US: u32 = 50_000;
+
+/// The firmware's tick around `rt` on the simulated clock ([`SimHost`]).
+pub fn tick_loop<C: Controller<S>, const S: usize, const P: usize>(
+    rt: Runtime<C, S, P>,
+) -> TickLoop<C, S, P> {
+    TickLoop::new(rt, CYCLES_PER_US, MAX_COMMAND_AGE_US)
+}
 
 /// The inputs the run's sensors read at the period's sample instant, and the outputs the
 /// tick wrote.

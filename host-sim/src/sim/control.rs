@@ -31,9 +31,6 @@ pub const MAX_AXES: usize = 4;
 /// The runtime's pressure inputs: chambers A and B of each of up to [`MAX_AXES`] axes
 /// (slave k on inputs 2k, 2k + 1, as on the board).
 const PRESSURES: usize = 2 * MAX_AXES;
-/// A queued command older than this when the tick takes it is dropped, µs (a simulated
-/// tick takes its command at once: only the firmware's rule, kept).
-const MAX_COMMAND_AGE_US: u32 = 50_000;
 /// The inner follower's own following-error limit on a force axis, µm (its largest): the
 /// follower's output there is discarded, and its latched fault would null the axis'
 /// manual moves. The runtime's limit (the gain set's) still applies.
@@ -347,7 +344,7 @@ fn build<const S: usize>(
     })?;
     let rt = Runtime::new(coeffs, Some(law), BootCause::Normal);
     Ok(Box::new(Rt::<S> {
-        tl: TickLoop::new(rt, CYCLES_PER_US, MAX_COMMAND_AGE_US),
+        tl: super::board::tick_loop(rt),
         io: SampledBoard::new(EncoderSample {
             master: Counts(0),
             slaves: [Counts(0); S],
@@ -379,9 +376,7 @@ pub fn runtime_config<const S: usize>(
         following_error_limit_um: *following_error_um,
         ..RuntimeConfig::default()
     };
-    // The runtime's 16-bit count extension bounds a plausible step (counts per tick): at
-    // long periods the 4× margin is capped there.
-    let cap_per_s = f64::from(MAX_STEP_LIMIT_COUNTS) * 0.999e6 / f64::from(period_us.max(1));
+    let cap_per_s = step_cap_counts_per_s(period_us);
     let m = &s.master;
     let peak = m.speed_deg_per_s.abs() * (1.0 + m.ripple.abs()) / m.resolution_deg;
     rc.master_max_speed_counts_per_s = (4.0 * peak).max(1000.0).min(cap_per_s) as f32;
@@ -389,14 +384,26 @@ pub fn runtime_config<const S: usize>(
     rc.pressure_required = s.axes.iter().any(|a| a.role == Role::Force);
     for (j, a) in s.axes.iter().enumerate().take(S) {
         rc.slave_um_per_count[j] = a.sensors.encoder_um as f32;
-        let p = a.plant(s.supply(), a.cylinder.stroke_mm * 0.5e-3);
-        let v = p
-            .no_load_speed_m_per_s(true)
-            .max(p.no_load_speed_m_per_s(false));
-        let cap_um_per_s = cap_per_s * a.sensors.encoder_um;
-        rc.slave_max_speed_um_per_s[j] = (4.0 * v * 1e6).max(1000.0).min(cap_um_per_s) as f32;
+        rc.slave_max_speed_um_per_s[j] = plausible_speed_um_per_s(s, a, period_us);
     }
     rc
+}
+
+/// The runtime's 16-bit count extension bounds a plausible step: counts per second at
+/// `period_us` just below [`MAX_STEP_LIMIT_COUNTS`] per tick.
+fn step_cap_counts_per_s(period_us: u32) -> f64 {
+    f64::from(MAX_STEP_LIMIT_COUNTS) * 0.999e6 / f64::from(period_us.max(1))
+}
+
+/// The fastest plausible encoder speed of axis `a`, µm/s: 4× its full-opening no-load
+/// speed (at least 1 mm/s), capped by the runtime's step limit at `period_us`.
+pub fn plausible_speed_um_per_s(s: &Scenario, a: &AxisCfg, period_us: u32) -> f32 {
+    let p = a.plant(s.supply(), a.cylinder.stroke_mm * 0.5e-3);
+    let v = p
+        .no_load_speed_m_per_s(true)
+        .max(p.no_load_speed_m_per_s(false));
+    let cap_um_per_s = step_cap_counts_per_s(period_us) * a.sensors.encoder_um;
+    (4.0 * v * 1e6).max(1000.0).min(cap_um_per_s) as f32
 }
 
 /// The law of a run over every axis of `s`, inside its runtime (`None` if the scenario

@@ -26,13 +26,13 @@ pub mod law;
 pub mod tune;
 
 use crate::contour_truth::TruthPath;
-use crate::plant::{HydraulicAxis, Supply};
+use crate::plant::{valve_command, HydraulicAxis, Supply};
+use crate::sim::board::{tick_loop, SampledBoard, SimHost, CYCLES_PER_US};
 use crate::sim::FaultEvent;
 use anyhow::{bail, Result};
 use gains::Gains;
 use hydra_core::runtime::{
     BootCause, Command, EncoderSample, Fault, MasterSource, Runtime, RuntimeConfig,
-    Sample as RtSample,
 };
 use hydra_core::units::Counts;
 use hydra_xy::contour::{ArcSpec, LineSpec, ParabolaSpec, ParametricPath};
@@ -362,7 +362,19 @@ fn run<P: ParametricPath>(
     let coeffs = rc
         .build()
         .map_err(|e| anyhow::anyhow!("the runtime's configuration: {e:?}"))?;
-    let mut rt = Runtime::<_, 2, 0>::new(coeffs, Some(law), BootCause::Normal);
+    // The firmware's tick over the two axes' sampled inputs (no pressure inputs).
+    let mut tl = tick_loop(Runtime::<_, 2, 0>::new(
+        coeffs,
+        Some(law),
+        BootCause::Normal,
+    ));
+    let mut host = SimHost::default();
+    let mut io = SampledBoard::<2, 0>::new(EncoderSample {
+        master: Counts(0),
+        slaves: [Counts(0); 2],
+        master_edges: None,
+    });
+    let period_ns = 1000 * CYCLES_PER_US;
     let mut pending = [0.0f64; 2];
     let mut trace = Vec::new();
     let mut faults: Vec<FaultEvent> = Vec::new();
@@ -382,20 +394,16 @@ fn run<P: ParametricPath>(
         // Sample: 1 µm encoders on both axes (path coordinates).
         let actual = [(ax.x_m() - ORIGIN_M) * 1e6, (ay.x_m() - ORIGIN_M) * 1e6];
         let enc = |v: f64| Counts(v.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32);
-        let sample = RtSample {
-            enc: EncoderSample {
-                master: Counts(0),
-                slaves: [enc(actual[0]), enc(actual[1])],
-                master_edges: None,
-            },
-            pressure_bar: [],
-            estop: false,
-            overrun: false,
-        };
-        let out = rt.step(&sample, (k == 0).then_some(Command::Start));
-        if let Some(Err(e)) = out.reply {
+        io.enc.slaves = [enc(actual[0]), enc(actual[1])];
+        if k == 0 {
+            host.queue(Command::Start);
+        }
+        tl.run(&mut io, &mut host);
+        host.now_ns = host.now_ns.wrapping_add(period_ns);
+        if let Some(Some(e)) = host.take_refusal() {
             bail!("the runtime refused Start: {e:?}");
         }
+        let rt = tl.runtime();
         let st = rt.status();
         if let Some(r) = st.fault {
             if faults.last().map(|l| (l.code, l.tick)) != Some((r.fault.code(), r.tick)) {
@@ -427,8 +435,8 @@ fn run<P: ParametricPath>(
         let near = truth.nearest(actual);
         let nrm = truth.left_normal(near.u);
         // What the valves get: the DAC codes while the runtime powers them, else 0.
-        let codes = if out.enable {
-            [f64::from(out.dac[0].get()), f64::from(out.dac[1].get())]
+        let codes = if io.enable {
+            io.codes.map(|c| f64::from(c.get()))
         } else {
             [0.0; 2]
         };
@@ -446,7 +454,7 @@ fn run<P: ParametricPath>(
         }
         // Plant: the code written now acts from the next period.
         let applied = pending;
-        pending = [codes[0] / 2047.0, codes[1] / 2047.0];
+        pending = io.codes.map(|c| valve_command(c.get(), io.enable));
         if let Some((n, t0)) = s.disturbance {
             ax.cylinder.load_n = if t >= t0 { n } else { 0.0 };
         }
