@@ -133,6 +133,6 @@ impl Figure for NpidTrack {
 
     /// The command stays inside the DAC range without saturating.
     fn healthy(&self) -> bool {
-        self.out.abs() < CmdLsb::from_num(2047)
+        self.out.saturating_abs() < CmdLsb::from_num(2047)
     }
 }

@@ -23,7 +23,7 @@
 use crate::harness::Figure;
 use crate::npid::{axis_coeffs, contour_coeffs};
 use core::hint::black_box;
-use hydra_core::units::{PosUm, VelUmPerS};
+use hydra_core::units::{CmdLsb, PosUm, VelUmPerS};
 use hydra_xy::contour::{
     ContourEstimate, ContourWindow, InterpCoeffs, InterpConfig, Interpolator, Parabola,
     ParabolaSpec, Reference, Xy,
@@ -185,7 +185,10 @@ impl Figure for XyEstimated {
         self.out.is_some_and(|p| {
             p.reference.advanced
                 && !p.reference.finished
-                && p.output.command.iter().all(|u| u.abs() < 2047)
+                && p.output
+                    .command
+                    .iter()
+                    .all(|u| u.saturating_abs() < CmdLsb::from_num(2047))
         })
     }
 }

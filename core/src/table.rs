@@ -308,7 +308,7 @@ impl<const S: usize, const N: usize> CamTable<S, N> {
     /// limits: positions within range, slopes within the axis top speed at the master top
     /// speed. Rows count in increasing master order.
     pub fn check_limits(&self, limits: &TableLimits<S>) -> Result<(), TableError> {
-        if limits.master_speed_per_s <= 0 {
+        if limits.master_speed_per_s <= MasterRate::ZERO {
             return Err(TableError::MasterSpeed);
         }
         // Same order as building: node 0, then per segment its end node and its slope.
@@ -610,7 +610,7 @@ fn build_segments<const S: usize>(
     if nodes.len() > capacity {
         return Err(TableError::TooManyNodes { capacity });
     }
-    if limits.master_speed_per_s <= 0 {
+    if limits.master_speed_per_s <= MasterRate::ZERO {
         return Err(TableError::MasterSpeed);
     }
     let (first, rest) = nodes.split_first().ok_or(TableError::TooFewNodes)?;

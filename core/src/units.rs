@@ -2,9 +2,11 @@
 //!
 //! `IaFb` is a two's-complement fixed-point number with `a` integer and `b` fractional
 //! bits (the `fixed` crate's types): resolution 2^-b, range [−2^(a−1), 2^(a−1) − 2^-b].
-//! Position, velocity and force share the format `I24F8` but are three types
-//! ([`PosUm`], [`VelUmPerS`], [`ForceN`]: `repr(transparent)` newtypes, free at run
-//! time), so one is never passed where another is expected.
+//! Quantities that share a format are distinct types (`repr(transparent)` newtypes, free
+//! at run time), so one is never passed where another is expected: position, velocity
+//! and force (`I24F8`: [`PosUm`], [`VelUmPerS`], [`ForceN`]), master position and speed
+//! (`I48F16`: [`Master`], [`MasterRate`]), valve command and pressure (`I16F16`:
+//! [`CmdLsb`], [`PressureBar`]).
 //! Names carry units (`_um`, `_mdeg`, `_per_s`, `_lsb`, `_n`, `_bar`).
 //!
 //! | quantity | type | unit | resolution | range | why it cannot overflow |
@@ -12,19 +14,19 @@
 //! | slave position, target, error | [`PosUm`] (newtype over `I24F8`) | µm | 3.9 nm | ±8.39 m | strokes ≤ 8 m validated in the table and axis scale; differences saturate |
 //! | slave velocity (feed-forward) | [`VelUmPerS`] (newtype over `I24F8`) | µm/s | 3.9 nm/s | ±8.39 m/s | product saturates to the range |
 //! | slave acceleration | [`AccUmPerS2`] = `I32F0` | µm/s² | 1 µm/s² | ±2147 m/s² | product saturates |
-//! | master position (count of the master encoder, or a time master's tick) | [`Master`] = `I48F16` | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; the filter, predictor and in-segment test work modulo 2^64 raw (`wrapping_*`: a wrapping counter is followed through the wrap) |
+//! | master position (count of the master encoder, or a time master's tick) | [`Master`] (newtype over `I48F16`) | master count (mdeg for the rotary table) | 1/65536 count | ±1.4e14 counts | prediction in difference form; the filter, predictor and in-segment test work modulo 2^64 raw (`wrapping_*`: a wrapping counter is followed through the wrap) |
 //! | master edge time, sample time | `u32` | edge-timer tick (1 µs on the board) | 1 tick | wrapping 2^32 (differences only; a 16-bit timer extended by [`crate::runtime::encoder::Extender16`]) | only differences below 2^15 ticks (interval) and 2^16 (age) are used ([`crate::master::EdgeEstimator`]) |
 //! | sub-count fraction (age / edge interval) | `u32` Q16 | 1 | 1.5e-5 | [0, 2) | age ≤ 2·interval < 2^16 ticks: `age << 16` < 2^32 |
-//! | master speed | [`MasterRate`] = `I48F16` | counts/s | 1.5e-5 counts/s | ±1.4e14 | derived from the filter state by one shift |
+//! | master speed | [`MasterRate`] (newtype over `I48F16`) | counts/s | 1.5e-5 counts/s | ±1.4e14 | derived from the filter state by one shift |
 //! | master-filter velocity per tick | `I32F32` (`i64`) | counts/tick | 2.3e-10 | ±2^31 | residual clamped to ±2^14 counts before the gain product; saturating adds |
 //! | master-filter acceleration per tick | `I0F32` (`i32`) | counts/tick² | 2.3e-10 | ±0.5 (±5·10⁵ counts/s² at 1 kHz) | saturating add |
 //! | master-filter gains g, 2k / h | `i32` Q1.31 / Q2.30 | 1 | 4.7e-10 / 9.3e-10 | (0, 1) / (0, 1.5) | validated; products with the `i32` residual < 2^61 |
 //! | segment fraction | `u32` Q0.32 | 1 | 2.3e-10 | [0, 1) | product < 2^64 by construction (see [`crate::table`]) |
 //! | segment rate (master speed / segment length) | `i32` Q16.16 | segments/s | 1.5e-5 | ±32768 | saturated |
-//! | valve command before the DAC | [`CmdLsb`] = `I16F16` | DAC LSB | 1.5e-5 LSB | ±32768 LSB | every term saturates; clamped to ±2047 before output |
+//! | valve command before the DAC | [`CmdLsb`] (newtype over `I16F16`) | DAC LSB | 1.5e-5 LSB | ±32768 LSB | every term saturates; clamped to ±2047 before output |
 //! | valve DAC code | [`DacCode`] | LSB of the 12-bit DAC, 0 = null | 1 LSB | [−2047, 2047] | clamped |
 //! | encoder count | [`Counts`] | count | 1 | ±2^31 | 16-bit timers extended with wrapping differences |
-//! | chamber pressure | [`PressureBar`] = `I16F16` | bar | 1.5e-5 bar | ±32768 bar | ADC 0–250 bar |
+//! | chamber pressure | [`PressureBar`] (newtype over `I16F16`) | bar | 1.5e-5 bar | ±32768 bar | ADC 0–250 bar |
 //! | cylinder force | [`ForceN`] (newtype over `I24F8`) | N | 3.9 mN | ±8.39 MN | p · A ≤ 250 bar · 0.05 m² = 1.25 MN |
 //! | proportional gain `kp` | `I16F16` | LSB/µm | 1.5e-5 | ±32768 | validated |
 //! | integral gain per tick `ki·T` | `I8F24` | LSB/(µm·tick) | 6e-8 | ±128 | validated |
@@ -43,15 +45,6 @@ use fixed::types::{I16F16, I24F8, I32F0, I48F16};
 
 /// Slave acceleration in µm/s² (`I32F0`).
 pub type AccUmPerS2 = I32F0;
-/// Master position in master counts (`I48F16`). For the rotary table one count is
-/// 0.001° (so the value is in mdeg); for a time master one count is one period tick.
-pub type Master = I48F16;
-/// Master speed in master counts per second (`I48F16`).
-pub type MasterRate = I48F16;
-/// Valve command in DAC LSB before output conversion (`I16F16`).
-pub type CmdLsb = I16F16;
-/// Chamber pressure in bar (`I16F16`).
-pub type PressureBar = I16F16;
 
 /// A quantity with its own type over a fixed-point format: it converts like the format
 /// (`from_num`, `from_bits`, `to_num`, …) but is never mixed with another quantity of the
@@ -72,6 +65,8 @@ macro_rules! quantity {
             pub const MAX: Self = Self(<$inner>::MAX);
             /// The smallest value.
             pub const MIN: Self = Self(<$inner>::MIN);
+            /// The resolution: the smallest positive value.
+            pub const DELTA: Self = Self(<$inner>::DELTA);
 
             /// From the raw bits of the format.
             #[inline(always)]
@@ -179,6 +174,41 @@ macro_rules! quantity {
         }
     };
 }
+
+quantity!(
+    /// Master position in master counts (`I48F16`: 1/65536 count, ±1.4e14 counts). For
+    /// the rotary table one count is 0.001° (so the value is in mdeg); for a time master
+    /// one count is one period tick.
+    Master(I48F16, i64, fixed::types::U48F16)
+);
+
+quantity!(
+    /// Master speed in master counts per second (`I48F16`): its own type, not a
+    /// [`Master`] position — this does not compile:
+    ///
+    /// ```compile_fail
+    /// use hydra_core::units::{Master, MasterRate};
+    /// let m: Master = MasterRate::from_num(60_000);
+    /// ```
+    MasterRate(I48F16, i64, fixed::types::U48F16)
+);
+
+quantity!(
+    /// Valve command in DAC LSB before output conversion (`I16F16`).
+    CmdLsb(I16F16, i32, fixed::types::U16F16)
+);
+
+quantity!(
+    /// Chamber pressure in bar (`I16F16`): its own type, not a [`CmdLsb`] — this does
+    /// not compile:
+    ///
+    /// ```compile_fail
+    /// use hydra_core::units::{CmdLsb, PressureBar};
+    /// fn command(u: CmdLsb) {}
+    /// command(PressureBar::from_num(210));
+    /// ```
+    PressureBar(I16F16, i32, fixed::types::U16F16)
+);
 
 quantity!(
     /// Slave position, target or error in µm (`I24F8`: 3.9 nm resolution, ±8.39 m).

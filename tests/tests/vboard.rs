@@ -70,7 +70,7 @@ fn a_command_is_one_tick_of_the_timeline_and_start_needs_references() {
     for _ in 0..600 {
         b.tick(&mut |_| ());
         let m = b.runtime().expect("booted").status().master;
-        fractional += usize::from(m.frac() != 0);
+        fractional += usize::from(m.get().frac() != 0);
     }
     assert!(
         fractional > 300,

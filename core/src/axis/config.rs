@@ -8,7 +8,6 @@
 use super::backoff::{BackoffCoeffs, BackoffSettings, BandError};
 use super::damping::{DampingCoeffs, DampingError, PistonAreas};
 use super::ff_trim::{FfTrimCoeffs, FfTrimError};
-use crate::units::CmdLsb;
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
 use fixed::types::{I0F32, I16F16, I24F8, I8F24};
 
@@ -271,7 +270,7 @@ impl AxisConfig {
             ki_tick,
             kd_tick: fit::<I16F16>(kd / t, E::Kd)?.to_bits(),
             i_zone,
-            i_limit: fit::<CmdLsb>(ilim, E::ILimit)?.to_bits(),
+            i_limit: fit::<fixed::types::I16F16>(ilim, E::ILimit)?.to_bits(),
             kv_pos: fit::<I8F24>(kvp, E::Kv)?.to_bits(),
             kv_neg: fit::<I8F24>(kvn, E::Kv)?.to_bits(),
             ka: fit::<I0F32>(ka, E::Ka)?.to_bits(),

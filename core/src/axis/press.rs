@@ -395,7 +395,7 @@ mod tests {
                 let prev: PressOutput = last.unwrap();
                 assert_eq!(prev.phase, PressPhase::Approach);
                 // the command moves only by one integral step (e_F = 0 at the switch)
-                assert!((o.cmd_lsb - prev.cmd_lsb).abs() < CmdLsb::from_num(0.5));
+                assert!((o.cmd_lsb - prev.cmd_lsb).saturating_abs() < CmdLsb::from_num(0.5));
             }
             last = Some(o);
         }

@@ -91,7 +91,7 @@ fn holds_final_position_after_the_end() {
     assert!(o.end_of_table);
     assert!((o.target_um[0].to_num::<f64>() - last).abs() < 0.01);
     // at the final position the command is only the integrator's (tiny)
-    assert!(o.cmd_lsb[0].abs() < CmdLsb::from_num(1));
+    assert!(o.cmd_lsb[0].saturating_abs() < CmdLsb::from_num(1));
 }
 
 #[test]
@@ -577,7 +577,7 @@ fn replaced_table_gives_a_fresh_followers_outputs() {
             fresh.tick(&inputs(m.floor(), x)),
         );
         assert_eq!(a, b, "tick {k}");
-        moved |= a.cmd_lsb[0].abs() > CmdLsb::from_num(10);
+        moved |= a.cmd_lsb[0].saturating_abs() > CmdLsb::from_num(10);
     }
     assert!(moved, "the feed-forward acted");
 }

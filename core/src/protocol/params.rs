@@ -337,7 +337,7 @@ pub fn validate_params<const S: usize, const N: usize>(
         let (a, p) = set.unwrap_or((u8::try_from(axis).unwrap_or(u8::MAX), field));
         Nak::with(NakCode::ParamRange, u16::from(a), p as u8)
     };
-    if lim.master_speed_per_s <= 0 {
+    if lim.master_speed_per_s <= MasterRate::ZERO {
         return Err(nak(0, ParamId::MasterSpeedPerS));
     }
     if cfg.master_filter.build(cfg.period_us).is_err() {

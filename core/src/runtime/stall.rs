@@ -96,7 +96,7 @@ mod tests {
         // 1 count per 10 ticks: 5 counts in 50 ticks < 10 → stall within 100 ticks.
         let mut stalled = false;
         for k in 0..100 {
-            stalled |= s.update(Master::from_num(k) / 10, 10, 50);
+            stalled |= s.update(Master::from_num(f64::from(k) / 10.0), 10, 50);
         }
         assert!(stalled);
     }

@@ -177,7 +177,7 @@ mod tests {
             ..lim
         };
         assert_eq!(
-            MasterMove::plan(Master::ZERO, Master::ONE, &bad, 0.001),
+            MasterMove::plan(Master::ZERO, Master::from_num(1), &bad, 0.001),
             Err(ScurveError::Jerk)
         );
     }

@@ -328,7 +328,7 @@ mod tests {
         let mut n = Npid::at_rest(PosUm::ZERO);
         for _ in 0..5000 {
             let u = n.track(&c, PosUm::from_num(1e6), PosUm::ZERO);
-            assert!(u.abs() <= CmdLsb::from_num(300));
+            assert!(u.saturating_abs() <= CmdLsb::from_num(300));
         }
         // The integral stopped growing while the output was at its limit.
         assert!(n.e0_q16.abs() <= c.e0_max_q16);
