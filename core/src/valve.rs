@@ -13,7 +13,7 @@
 //! offset at which the spool is really centred. A critically lapped valve (the reference
 //! machine) has zero overlap, unit gains and zero null.
 
-use crate::fixed_point::{clamp_sym, mul_shr};
+use crate::fixed_point::{clamp_sym, mul_shr_floor_sat};
 use crate::units::{CmdLsb, DacCode};
 use fixed::types::I8F24;
 
@@ -183,13 +183,14 @@ impl ValveCoeffs {
         let y = if self.linear {
             u
         } else if u >= self.zone {
-            self.ov_pos.saturating_add(mul_shr(u, self.gain_pos, 24))
+            self.ov_pos
+                .saturating_add(mul_shr_floor_sat(u, self.gain_pos, 24))
         } else if u <= self.zone.wrapping_neg() {
-            mul_shr(u, self.gain_neg, 24).saturating_sub(self.ov_neg)
+            mul_shr_floor_sat(u, self.gain_neg, 24).saturating_sub(self.ov_neg)
         } else if u >= 0 {
-            mul_shr(u, self.slope_pos, 24)
+            mul_shr_floor_sat(u, self.slope_pos, 24)
         } else {
-            mul_shr(u, self.slope_neg, 24)
+            mul_shr_floor_sat(u, self.slope_neg, 24)
         };
         let y = if self.invert { y.saturating_neg() } else { y };
         CmdLsb::from_bits(clamp_sym(y.saturating_add(self.null), self.clamp))

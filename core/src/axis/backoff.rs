@@ -87,7 +87,7 @@ mod settings;
 
 pub use settings::{BackoffField, BackoffSettings};
 
-use crate::fixed_point::mul_shr;
+use crate::fixed_point::mul_shr_floor_sat;
 
 /// The deepest level the scales can describe (`max_level` ≤ this).
 pub const MAX_LEVEL: u8 = 4;
@@ -301,7 +301,7 @@ impl BackoffState {
         if self.level == 0 {
             x
         } else {
-            mul_shr(x, self.ki_scale_q16, 16)
+            mul_shr_floor_sat(x, self.ki_scale_q16, 16)
         }
     }
 
@@ -311,7 +311,7 @@ impl BackoffState {
         if self.level == 0 {
             x
         } else {
-            mul_shr(x, self.scale_q16, 16)
+            mul_shr_floor_sat(x, self.scale_q16, 16)
         }
     }
 }
@@ -319,7 +319,7 @@ impl BackoffState {
 /// `a` (≥ 0, µm `I24F8` raw) raised by the band margin: a + a·(margin − 1).
 #[inline(always)]
 fn raised(c: &BackoffCoeffs, a: i32) -> i32 {
-    a.saturating_add(mul_shr(a, c.margin_q16, 16))
+    a.saturating_add(mul_shr_floor_sat(a, c.margin_q16, 16))
 }
 
 /// One tick of the detector on the following error's change since the last tick,
@@ -444,11 +444,12 @@ fn grows(c: &BackoffCoeffs, st: &mut BackoffState) -> bool {
     };
     // The side's first whole half-cycle is the reference; each later one that outgrows
     // the last by 1/16 counts, any other starts the count again.
-    *grew = if *last != 0 && done.1 > last.saturating_add(mul_shr(*last, c.growth_q16, 16)) {
-        grew.saturating_add(1)
-    } else {
-        0
-    };
+    *grew =
+        if *last != 0 && done.1 > last.saturating_add(mul_shr_floor_sat(*last, c.growth_q16, 16)) {
+            grew.saturating_add(1)
+        } else {
+            0
+        };
     *last = done.1;
     if *grew < c.growth_half_cycles {
         return false;

@@ -154,7 +154,7 @@ impl FfTrimState {
     pub fn apply(&self, ff: i32) -> i32 {
         let d = self.d_q30.get(usize::from(ff > 0)).copied().unwrap_or(0);
         // |ff| ≤ 2^31, |d| ≤ 2^30: the product is below 2^61; ff·d saturates at ±2^31.
-        ff.saturating_add(crate::fixed_point::mul_shr(ff, d, 30))
+        ff.saturating_add(crate::fixed_point::mul_shr_floor_sat(ff, d, 30))
     }
 
     /// One tick's transfer from the integrator `integ` (`I16F16` LSB raw) into the trim
@@ -178,7 +178,7 @@ impl FfTrimState {
             .saturating_add(dd)
             .clamp(i64::from(D_MIN), i64::from(D_MAX)) as i32;
         // What the trim took, (new − d)·ff in Q30: |new − d| < 2^31, |ff| ≤ 2^31.
-        let took = crate::fixed_point::mul_shr(new.wrapping_sub(*d), ff, 30);
+        let took = crate::fixed_point::mul_shr_floor_sat(new.wrapping_sub(*d), ff, 30);
         *d = new;
         took
     }

@@ -19,13 +19,13 @@
 //! U  = clamp(U + ΔU, ±clamp)
 //! ```
 //!
-//! Every product is a 32×32→64-bit multiply and a shift ([`crate::fixed_point::mul_shr`]); every
+//! Every product is a 32×32→64-bit multiply and a shift ([`crate::fixed_point::mul_shr_floor_sat`]); every
 //! sum saturates. The command then goes through the valve output stage
 //! ([`crate::valve::ValveCoeffs::output`]).
 
 use super::backoff::BackoffState;
 use super::config::{AxisCoeffs, ControlMode};
-use crate::fixed_point::{clamp_sym, mul_shr, sat_i32};
+use crate::fixed_point::{clamp_sym, mul_shr_floor_sat, sat_i32};
 use crate::units::{AccUmPerS2, CmdLsb, DacCode, PosUm, VelUmPerS};
 
 /// What the follower computed for one axis this tick.
@@ -159,7 +159,8 @@ pub(crate) fn paper_law_bits(c: &AxisCoeffs, st: &mut PosState, e: i32) -> i32 {
     // e (Q8) · gain (Q16) = Q24 → >> 8 = Q16;  e (Q8) · gain (Q24) = Q32 → >> 16 = Q16.
     let de = e.saturating_sub(e1);
     let dde = de.saturating_sub(e1.saturating_sub(e2));
-    let mut du = mul_shr(de, c.kp, 8).saturating_add(mul_shr(dde, c.kd_tick, 8));
+    let mut du =
+        mul_shr_floor_sat(de, c.kp, 8).saturating_add(mul_shr_floor_sat(dde, c.kd_tick, 8));
     if e.saturating_abs() <= c.i_zone {
         du = du.saturating_add(integ_step(c, e));
     }

@@ -14,7 +14,7 @@
 //! Formats: pressure `I16F16` bar, force `I24F8` N, chamber force gain A/10 N/bar
 //! `I16F16` (A in mm²), force gains `I8F24` LSB/N and LSB/(N·tick).
 
-use crate::fixed_point::{clamp_sym, mul_shr};
+use crate::fixed_point::{clamp_sym, mul_shr_floor_sat};
 use crate::units::{CmdLsb, DacCode, ForceN, PosUm, PressureBar, VelUmPerS};
 use crate::valve::{ValveCal, ValveCalError, ValveCoeffs};
 use fixed::types::{I16F16, I8F24};
@@ -231,11 +231,13 @@ pub struct PressOutput {
 #[inline]
 pub fn cylinder_force(c: &PressCoeffs, pa: PressureBar, pb: PressureBar) -> ForceN {
     // Q16·Q16 = Q32 → >> 24 = Q8.
-    ForceN::from_bits(mul_shr(pa.to_bits(), c.ka, 24).saturating_sub(mul_shr(
-        pb.to_bits(),
-        c.kb,
-        24,
-    )))
+    ForceN::from_bits(
+        mul_shr_floor_sat(pa.to_bits(), c.ka, 24).saturating_sub(mul_shr_floor_sat(
+            pb.to_bits(),
+            c.kb,
+            24,
+        )),
+    )
 }
 
 impl PressCoeffs {
@@ -300,7 +302,7 @@ impl PressState {
                     c.v_app.wrapping_neg()
                 };
                 let e = self.x_ref.saturating_sub(x.to_bits());
-                mul_shr(e, c.kp, 8).saturating_add(mul_shr(v, c.kv, 16))
+                mul_shr_floor_sat(e, c.kp, 8).saturating_add(mul_shr_floor_sat(v, c.kv, 16))
             }
             PressPhase::Force => {
                 let (lo, hi) = if c.f_set >= self.f_ref {
@@ -315,8 +317,11 @@ impl PressState {
                 };
                 self.f_ref = stepped.clamp(lo, hi);
                 let e = self.f_ref.saturating_sub(f);
-                let p = mul_shr(e, c.kp_f, 16);
-                let cand = clamp_sym(self.integ.saturating_add(mul_shr(e, c.ki_f, 16)), clamp);
+                let p = mul_shr_floor_sat(e, c.kp_f, 16);
+                let cand = clamp_sym(
+                    self.integ.saturating_add(mul_shr_floor_sat(e, c.ki_f, 16)),
+                    clamp,
+                );
                 let u_try = p.saturating_add(cand);
                 let winding = (u_try > clamp && cand > self.integ)
                     || (u_try < clamp.wrapping_neg() && cand < self.integ);

@@ -1,10 +1,14 @@
 //! Fixed-point helpers, in one place: every algorithm of the crate forms its products,
 //! shifts, saturations, square roots and powers here.
 //!
+//! Grouped by operation; each name says how it rounds (`floor`: toward −∞, `round`: to
+//! nearest) and whether it saturates (`sat`):
+//!
 //! | file | what | formats |
 //! |---|---|---|
-//! | [`saturate`] | saturation to `i32`/`i64`, 32×32 → 64-bit products with a shift (truncating, rounding), the 64×64 product with its 32-bit fast path, symmetric clamps | raw `i32`/`i64` of any `IaFb` |
-//! | [`products`] | rounding shifts, `i64` products through 32-bit multiplies (Cortex-M4 `smull`/`umull`), high halves of 64×64 products, division by a small integer, clamps to `i32` | `i64` positions, Q0.64 fractions |
+//! | [`saturate`] | saturation to `i32`/`i64` (`sat_*`) and clamps to a limit (`clamp_*`) | raw `i32`/`i64` of any `IaFb` |
+//! | [`floor`] | products shifted toward −∞ (`mul_shr_floor_sat`, `mul64_shr_floor_sat`), high halves of 64×64 products, signed shifts, division by a small integer, bit length | raw `i32`/`i64`, Q0.64 fractions |
+//! | [`round`] | shifts and products rounded to nearest (`shr_round_*`, `mul_shr_round_sat`, `mul64_shr_round_sat`, the 32-bit-multiply forms of the `i64` products) | `i64` positions, Q30 unit vectors |
 //! | [`unit_vector`] | 1/√x and the normalisation of a vector to a unit vector and a length | Q2.30 unit vectors |
 //! | [`sqrt_pow`] | the square root, base-2 logarithm and exponential, the power \|x\|^α | Q24 logarithms, Q30 tables, Q16 results |
 //!
@@ -19,12 +23,14 @@
 //! root"); [`unit_vector::rsqrt_q30`] is the reciprocal square root the vector normalisation
 //! needs (no division).
 
-pub mod products;
+pub mod floor;
+pub mod round;
 pub mod saturate;
 pub mod sqrt_pow;
 pub mod unit_vector;
 
-pub use products::*;
+pub use floor::*;
+pub use round::*;
 pub use saturate::*;
 pub use sqrt_pow::*;
 pub use unit_vector::*;

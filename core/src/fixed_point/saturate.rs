@@ -1,9 +1,7 @@
-//! Fixed-point primitives: widening products with an explicit shift, and saturation.
+//! Saturation and clamps: a wide value brought back to a narrower range, never wrapped.
 //!
-//! The control path multiplies two 32-bit raw values into an `i64` (exact, since
-//! |a·b| ≤ 2^62), shifts the product back to the result's format and saturates it to 32
-//! bits. On a Cortex-M4 that is `smull` plus a shift and `ssat`-like clamp: a handful of
-//! instructions, never a library call.
+//! `sat_*` saturate to a type's range, `clamp_*` to a given limit. On a Cortex-M4 each is
+//! a compare and a select (or `ssat`); none calls a library routine.
 
 /// Saturates an `i64` to the `i32` range.
 #[inline(always)]
@@ -41,49 +39,6 @@ pub const fn sat_i64(x: i128) -> i64 {
     }
 }
 
-/// `(a · b) >> s` for two `i64`, exact (arithmetic shift: rounds toward −∞) and
-/// saturated to `i64`; `s` ≤ 126. When both operands fit an `i32` (the common case:
-/// gains and sines in Q30/Q24, commands in LSB Q16) and `s` < 64 the product is a single
-/// `smull`; otherwise it is formed in an `i128` — a library routine on a Cortex-M4, so
-/// keep operands that need it out of per-axis hot paths.
-#[inline(always)]
-pub const fn mul64_shr(a: i64, b: i64, s: u32) -> i64 {
-    let (a32, b32) = (a as i32, b as i32);
-    if s < 64 && a32 as i64 == a && b32 as i64 == b {
-        // |a·b| ≤ 2^62: exact in an i64, and the shifted value cannot leave the range.
-        (a32 as i64).wrapping_mul(b32 as i64).wrapping_shr(s)
-    } else {
-        mul64_shr_wide(a, b, s)
-    }
-}
-
-/// [`mul64_shr`] always through the `i128` product (its reference).
-#[inline(always)]
-pub const fn mul64_shr_wide(a: i64, b: i64, s: u32) -> i64 {
-    sat_i64((a as i128).wrapping_mul(b as i128).wrapping_shr(s))
-}
-
-/// `(a · b) >> shift`, saturated to `i32` (arithmetic shift: rounds toward −∞).
-/// `shift` must be below 64 (it is a constant at every call site).
-#[inline(always)]
-pub const fn mul_shr(a: i32, b: i32, shift: u32) -> i32 {
-    // |a·b| ≤ 2^62: the product cannot overflow an i64.
-    sat_i32((a as i64).wrapping_mul(b as i64).wrapping_shr(shift))
-}
-
-/// `(a · b) >> shift` with rounding to nearest, saturated to `i32`.
-#[inline(always)]
-pub const fn mul_shr_round(a: i32, b: i32, shift: u32) -> i32 {
-    let p = (a as i64).wrapping_mul(b as i64);
-    let half = if shift == 0 {
-        0
-    } else {
-        1i64.wrapping_shl(shift.wrapping_sub(1))
-    };
-    // p + half cannot overflow: |p| ≤ 2^62 and half ≤ 2^62.
-    sat_i32(p.wrapping_add(half).wrapping_shr(shift))
-}
-
 /// Clamps `x` to `[-limit, limit]` (`limit ≥ 0`).
 #[inline(always)]
 pub const fn clamp_sym(x: i32, limit: i32) -> i32 {
@@ -96,34 +51,68 @@ pub const fn clamp_sym(x: i32, limit: i32) -> i32 {
     }
 }
 
+/// Saturates an `i64` to `[-lim, lim]` and returns it as `i32` (`0 ≤ lim ≤ i32::MAX`).
+#[inline(always)]
+pub const fn clamp_to_i32(x: i64, lim: i32) -> i32 {
+    let l = lim as i64;
+    if x > l {
+        lim
+    } else if x < l.wrapping_neg() {
+        lim.wrapping_neg()
+    } else {
+        x as i32
+    }
+}
+
+/// Saturates an `i64` to ±2^30 (the estimator's relative-vector limit, `REL_LIMIT`)
+/// and returns it as `i32`; equal to `clamp_to_i32(x, 1 << 30)` with one range test
+/// (x + 2^30 < 2^31 unsigned: an add with carry and one `orrs` on a Cortex-M4) on the
+/// common in-range path. The saturating branch is a separate cold function so that the
+/// compiler keeps the single test instead of turning the whole into a branch-free
+/// 64-bit min/max (four 64-bit compares, 11 instructions per component).
+#[inline(always)]
+pub const fn clamp_rel(x: i64) -> i32 {
+    if (x.wrapping_add(1 << 30) as u64) >> 31 == 0 {
+        x as i32
+    } else {
+        clamp_rel_out_of_range(x)
+    }
+}
+
+/// The saturating branch of [`clamp_rel`] (x outside ±2^30).
+#[cold]
+#[inline(never)]
+const fn clamp_rel_out_of_range(x: i64) -> i32 {
+    if x < 0 {
+        -(1 << 30)
+    } else {
+        1 << 30
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::*;
-    use proptest::prelude::*;
+    use crate::fixed_point::*;
 
     #[test]
-    fn saturates() {
-        assert_eq!(mul_shr(i32::MAX, i32::MAX, 0), i32::MAX);
-        assert_eq!(mul_shr(i32::MIN, i32::MAX, 0), i32::MIN);
-        assert_eq!(mul_shr(i32::MIN, i32::MIN, 62), 1);
-        assert_eq!(mul_shr(3, 5, 1), 7);
-        assert_eq!(mul_shr_round(3, 5, 1), 8);
-        assert_eq!(mul_shr(-3, 5, 1), -8);
-        assert_eq!(clamp_sym(10, 4), 4);
-        assert_eq!(clamp_sym(-10, 4), -4);
-    }
-
-    proptest! {
-        #[test]
-        fn sat_matches_clamp(x: i64) {
-            prop_assert_eq!(i64::from(sat_i32(x)), x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)));
-        }
-
-        #[test]
-        fn matches_wide_reference(a: i32, b: i32, shift in 0u32..63) {
-            let exact = (i128::from(a) * i128::from(b)) >> shift;
-            let want = exact.clamp(i128::from(i32::MIN), i128::from(i32::MAX));
-            prop_assert_eq!(i128::from(mul_shr(a, b, shift)), want);
+    fn sat_i64_is_the_clamp() {
+        for x in [
+            0i128,
+            1,
+            -1,
+            i128::from(i64::MAX),
+            i128::from(i64::MAX) + 1,
+            i128::from(i64::MIN),
+            i128::from(i64::MIN) - 1,
+            i128::MAX,
+            i128::MIN,
+            1 << 100,
+            -(1 << 100),
+            (1 << 64) + 5,
+            -(1 << 64) + 5,
+        ] {
+            let clamped = x.clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64;
+            assert_eq!(sat_i64(x), clamped, "{x}");
         }
     }
 }

@@ -28,7 +28,7 @@
 //! **Products on a 32-bit CPU.** An `i128` product is a library routine on the
 //! Cortex-M4 (≈ 40 instructions plus the saturation); an `i64 × i64` product that is
 //! known not to overflow is three instructions (`umull`, 2 × `mla`), an `i32 × i32 →
-//! i64` product one (`smull`). [`crate::fixed_point::mul64_shr`] takes the `smull` path whenever both
+//! i64` product one (`smull`). [`crate::fixed_point::mul64_shr_floor_sat`] takes the `smull` path whenever both
 //! operands fit 32 bits and keeps the exact `i128` path (with saturation) otherwise; the
 //! hot paths of the TD, `fhan` and the NPID use [`mul_bounded_shr`] where the ranges
 //! documented at each call site bound the product below 2⁶³.
@@ -374,8 +374,8 @@ mod tests {
             for &b in &vals {
                 for s in [0, 1, 16, 24, 30, 40, 62] {
                     assert_eq!(
-                        crate::fixed_point::mul64_shr(a, b, s),
-                        crate::fixed_point::mul64_shr_wide(a, b, s),
+                        crate::fixed_point::mul64_shr_floor_sat(a, b, s),
+                        crate::fixed_point::mul64_shr_floor_sat_wide(a, b, s),
                         "{a} {b} {s}"
                     );
                 }
@@ -403,9 +403,9 @@ mod tests {
         assert_eq!(exp2_q24(i32::MIN / 4, 16), 0);
         assert_eq!(crate::fixed_point::sat_i64(i128::MAX), i64::MAX);
         assert_eq!(
-            crate::fixed_point::mul64_shr(i64::MAX, i64::MAX, 0),
+            crate::fixed_point::mul64_shr_floor_sat(i64::MAX, i64::MAX, 0),
             i64::MAX
         );
-        assert_eq!(crate::fixed_point::mul64_shr(-3, 5, 1), -8);
+        assert_eq!(crate::fixed_point::mul64_shr_floor_sat(-3, 5, 1), -8);
     }
 }

@@ -9,7 +9,7 @@
 //!
 //! Every helper saturates instead of overflowing and never panics; no division.
 
-use super::products::shr_round_i64;
+use super::round::shr_round_i64;
 use super::saturate::sat_i64;
 
 /// Initial guesses of 1/√x for x ∈ [i/16, (i+1)/16), i = 4 … 31, Q2.30 (relative

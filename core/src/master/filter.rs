@@ -25,7 +25,7 @@
 //! residual is saturated to ±2^15 counts (±2^31 raw, an `i32`) before the gain products,
 //! so every product is below 2^62; a saturated residual is reported as a master jump.
 
-use crate::fixed_point::{mul_shr, sat_i32};
+use crate::fixed_point::{mul_shr_floor_sat, sat_i32};
 use crate::units::{Master, MasterRate};
 
 /// Filter configuration in engineering units.
@@ -244,7 +244,7 @@ impl MasterFilter {
             .wrapping_add(i64::from(self.acc))
             .wrapping_add(r64.wrapping_mul(i64::from(c.h_q30)) >> 14);
         self.vel = clamp_vel(vel);
-        self.acc = self.acc.saturating_add(mul_shr(r, c.k2_q31, 15));
+        self.acc = self.acc.saturating_add(mul_shr_floor_sat(r, c.k2_q31, 15));
         jump
     }
 
@@ -300,7 +300,7 @@ impl MasterFilter {
     /// counts/tick (Q16) · ticks/s (Q16) = Q32 → >> 24 = Q8.
     #[inline(always)]
     fn rate_q8(&self, c: &MasterFilterCoeffs, v_q16: i32) -> i32 {
-        mul_shr(v_q16, c.tps_q16, 24)
+        mul_shr_floor_sat(v_q16, c.tps_q16, 24)
     }
 
     /// The acceleration in counts/s², Q24.8 (saturated): counts/tick² (Q32) · ticks/s (Q16)
@@ -308,7 +308,7 @@ impl MasterFilter {
     #[inline(always)]
     fn acc_q8(&self, c: &MasterFilterCoeffs) -> i32 {
         let a1 = ((i64::from(self.acc).wrapping_mul(i64::from(c.tps_q16))) >> 32) as i32;
-        mul_shr(a1, c.tps_q16, 24)
+        mul_shr_floor_sat(a1, c.tps_q16, 24)
     }
 
     /// The same estimate in the public formats (`I48F16` for all three quantities).

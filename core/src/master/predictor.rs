@@ -14,7 +14,7 @@
 //! an error ≤ 2^-17 count).
 
 use super::MasterEstimate;
-use crate::fixed_point::mul64_shr;
+use crate::fixed_point::mul64_shr_floor_sat;
 use crate::units::{Master, MasterRate};
 
 /// Which 3-point extrapolation the predictor uses.
@@ -118,8 +118,12 @@ impl Predictor {
         MasterEstimate {
             pos: Master::from_bits(t0),
             // counts/tick (Q16) · ticks/s (Q16) >> 16 = counts/s (Q16); twice for /T².
-            rate_per_s: MasterRate::from_bits(mul64_shr(d1, tps, 16)),
-            acc_per_s2: MasterRate::from_bits(mul64_shr(mul64_shr(dd, tps, 16), tps, 16)),
+            rate_per_s: MasterRate::from_bits(mul64_shr_floor_sat(d1, tps, 16)),
+            acc_per_s2: MasterRate::from_bits(mul64_shr_floor_sat(
+                mul64_shr_floor_sat(dd, tps, 16),
+                tps,
+                16,
+            )),
         }
     }
 

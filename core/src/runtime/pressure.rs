@@ -9,7 +9,7 @@
 //! [`PressureBar`] (`I16F16`). The reference transducers read 0–250 bar over the
 //! 12-bit ADC's full scale (0 … 4095).
 
-use crate::fixed_point::mul_shr;
+use crate::fixed_point::mul_shr_floor_sat;
 use crate::units::PressureBar;
 use fixed::types::I8F24;
 
@@ -91,7 +91,7 @@ impl PressureScale {
         let code_q4 = i32::try_from(code_q4).unwrap_or(i32::MAX);
         let d_q4 = code_q4.saturating_sub(self.code_lo.saturating_mul(16));
         // d (Q.4) · g (Q.24) >> 12 = bar in Q.16; |d·g| < 2^17·2^31.
-        let p = mul_shr(d_q4, self.gain_q24, 12);
+        let p = mul_shr_floor_sat(d_q4, self.gain_q24, 12);
         PressureBar::from_bits(p).saturating_add(self.bar_lo)
     }
 }

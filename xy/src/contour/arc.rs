@@ -15,7 +15,7 @@
 use super::path::{fine_bits, in_range, ParametricPath, PathError, PathPoint};
 use super::trig::{sin_cos_q62, turns_from_deg};
 use super::{Deriv, Param, PosFine, Xy};
-use hydra_core::fixed_point::{mul_shr_i64, sat_i64, shr_round_i64};
+use hydra_core::fixed_point::{mul64_shr_round_sat, sat_i64, shr_round_i64};
 
 /// Specification of a circular arc, engineering units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -107,16 +107,16 @@ impl Arc {
     /// c + R·(cos, sin): R (Q12) · cos (Q62) → Q12.
     fn on_circle(&self, s: i64, c: i64) -> Xy<PosFine> {
         Xy::new(
-            PosFine::from_bits(
-                self.center
-                    .x
-                    .saturating_add(mul_shr_i64(self.radius, c, 62)),
-            ),
-            PosFine::from_bits(
-                self.center
-                    .y
-                    .saturating_add(mul_shr_i64(self.radius, s, 62)),
-            ),
+            PosFine::from_bits(self.center.x.saturating_add(mul64_shr_round_sat(
+                self.radius,
+                c,
+                62,
+            ))),
+            PosFine::from_bits(self.center.y.saturating_add(mul64_shr_round_sat(
+                self.radius,
+                s,
+                62,
+            ))),
         )
     }
 }

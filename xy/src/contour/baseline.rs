@@ -14,7 +14,7 @@ use super::estimate::{finish, u_at_foot, ContourEstimate};
 use super::geom::{rel, rel_sat};
 use super::window::{ContourWindow, OrdinaryPoint};
 use super::{PosFine, RelUm, UnitQ30, Xy};
-use hydra_core::fixed_point::{clamp_to_i32, mul_shr_i32};
+use hydra_core::fixed_point::{clamp_to_i32, mul_shr_round_i64};
 use hydra_core::units::PosUm;
 
 fn fine(p: Xy<PosUm>) -> Xy<i64> {
@@ -29,7 +29,7 @@ pub fn tangent_error(reference: &OrdinaryPoint, p: Xy<PosUm>) -> RelUm {
     let w = rel_sat(fine(p), reference.pos.map(PosFine::to_bits));
     let t = reference.tangent.map(UnitQ30::to_bits);
     // perp = t × w (> 0: P left); ε = −perp.
-    let perp = mul_shr_i32(t.x, w.y, 30).saturating_sub(mul_shr_i32(t.y, w.x, 30));
+    let perp = mul_shr_round_i64(t.x, w.y, 30).saturating_sub(mul_shr_round_i64(t.y, w.x, 30));
     RelUm::from_bits(clamp_to_i32(perp.wrapping_neg(), i32::MAX))
 }
 

@@ -6,7 +6,7 @@
 
 use super::Xy;
 use hydra_core::fixed_point::{
-    clamp_rel, clamp_to_i32, mul_shr_i32, normalize, shr_round_i64, sqrt_round_u64,
+    clamp_rel, clamp_to_i32, mul_shr_round_i64, normalize, shr_round_i64, sqrt_round_u64,
 };
 
 /// `a − b`, saturated to ±`REL_LIMIT` (2^30 LSB).
@@ -122,8 +122,10 @@ pub(crate) fn chord_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>, ends: Ends) 
         Some(u) => (Xy::new(u.ux, u.uy), u.len),
         None => (fallback, 0),
     };
-    let along = mul_shr_i32(unit.x, w.x, 30).saturating_add(mul_shr_i32(unit.y, w.y, 30));
-    let perp = mul_shr_i32(unit.x, w.y, 30).saturating_sub(mul_shr_i32(unit.y, w.x, 30));
+    let along =
+        mul_shr_round_i64(unit.x, w.x, 30).saturating_add(mul_shr_round_i64(unit.y, w.y, 30));
+    let perp =
+        mul_shr_round_i64(unit.x, w.y, 30).saturating_sub(mul_shr_round_i64(unit.y, w.x, 30));
     let beyond = len != 0 && ((open_start && along < 0) || (open_end && along > len));
     // |along| ≤ |w|·(1 + 10⁻⁸) < 2^31 and 0 ≤ len ≤ |d| < 2^31 (components within
     // ±2^30): both fit an i32, so the clamp to [0, len] is a 32-bit one.
@@ -134,8 +136,8 @@ pub(crate) fn chord_dist(w: Xy<i32>, d: Xy<i32>, fallback: Xy<i32>, ends: Ends) 
         (
             perp.saturating_abs(),
             Xy::new(
-                clamp_rel(mul_shr_i32(unit.x, along32, 30)),
-                clamp_rel(mul_shr_i32(unit.y, along32, 30)),
+                clamp_rel(mul_shr_round_i64(unit.x, along32, 30)),
+                clamp_rel(mul_shr_round_i64(unit.y, along32, 30)),
             ),
         )
     } else if len == 0 || along <= 0 {
@@ -195,8 +197,10 @@ mod tests {
             Some(u) => (Xy::new(u.ux, u.uy), u.len),
             None => (fallback, 0),
         };
-        let along = mul_shr_i32(unit.x, w.x, 30).saturating_add(mul_shr_i32(unit.y, w.y, 30));
-        let perp = mul_shr_i32(unit.x, w.y, 30).saturating_sub(mul_shr_i32(unit.y, w.x, 30));
+        let along =
+            mul_shr_round_i64(unit.x, w.x, 30).saturating_add(mul_shr_round_i64(unit.y, w.y, 30));
+        let perp =
+            mul_shr_round_i64(unit.x, w.y, 30).saturating_sub(mul_shr_round_i64(unit.y, w.x, 30));
         let beyond = len != 0 && ((open_start && along < 0) || (open_end && along > len));
         let (dist, foot) = if beyond {
             // |along| ≤ |w| < 2^31·√2: saturate to i32 for the foot (≥ ±262 mm: a window
@@ -205,8 +209,8 @@ mod tests {
             (
                 perp.saturating_abs(),
                 Xy::new(
-                    clamp_rel(mul_shr_i32(unit.x, along32, 30)),
-                    clamp_rel(mul_shr_i32(unit.y, along32, 30)),
+                    clamp_rel(mul_shr_round_i64(unit.x, along32, 30)),
+                    clamp_rel(mul_shr_round_i64(unit.y, along32, 30)),
                 ),
             )
         } else if len == 0 || along <= 0 {
@@ -219,8 +223,8 @@ mod tests {
             (
                 perp.saturating_abs(),
                 Xy::new(
-                    clamp_rel(mul_shr_i32(unit.x, along32, 30)),
-                    clamp_rel(mul_shr_i32(unit.y, along32, 30)),
+                    clamp_rel(mul_shr_round_i64(unit.x, along32, 30)),
+                    clamp_rel(mul_shr_round_i64(unit.y, along32, 30)),
                 ),
             )
         };

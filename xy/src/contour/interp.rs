@@ -54,7 +54,7 @@ use super::path::{curvature_q32_per_um, deriv_frame, DerivFrame, ParametricPath,
 use super::window::{clamp_pos, ContourWindow, OrdinaryPoint};
 use super::{Param, PosFine, UnitQ30, Xy};
 use hydra_core::fixed_point::{
-    div_small, mul_shr30_i32_i64, mul_shr32_i64_i32, mul_shr_i64_by_u32, sat_i64,
+    div_small, mul_shr30_round_i32_i64, mul_shr32_round_i64_i32, mul_shr_round_i64_by_u32, sat_i64,
 };
 use hydra_core::units::{PosUm, VelUmPerS};
 
@@ -185,30 +185,30 @@ impl Taylor {
     /// The expansion at a point (one normalisation of r′, three products).
     #[inline(always)]
     pub(crate) fn at(p: &PathPoint, f: &DerivFrame) -> Self {
-        let tdot = mul_shr30_i32_i64(f.ux, p.d2.x.to_bits())
-            .saturating_add(mul_shr30_i32_i64(f.uy, p.d2.y.to_bits()));
+        let tdot = mul_shr30_round_i32_i64(f.ux, p.d2.x.to_bits())
+            .saturating_add(mul_shr30_round_i32_i64(f.uy, p.d2.y.to_bits()));
         Taylor {
             inv_q30: f.inv_q30,
             // (û·r″)(Q32)·(1/|r′|)(Q30)/2 → Q32.
-            c_q32: mul_shr_i64_by_u32(tdot, f.inv_q30, 31),
+            c_q32: mul_shr_round_i64_by_u32(tdot, f.inv_q30, 31),
         }
     }
 
     /// a = s/|r′| for an arc length `s` (Q32 µm), Q32 units of u.
     pub(crate) fn first(&self, s: i64) -> i64 {
-        mul_shr_i64_by_u32(s, self.inv_q30, 30)
+        mul_shr_round_i64_by_u32(s, self.inv_q30, 30)
     }
 
     /// Δu = a − a²·c for a first-order step `a` (Q32). Where the second-order term would
     /// reverse the step (an arc longer than the radius of curvature) the first-order step
     /// is used.
     pub(crate) fn du(&self, a: i64) -> i64 {
-        // Two `i64 × i32` products (`mul_shr32_i64_i32`): |c| < 2^31 for any path within
+        // Two `i64 × i32` products (`mul_shr32_round_i64_i32`): |c| < 2^31 for any path within
         // the contract (c ≤ |r″|/(2|r′|)), and a·c/2^32 = Δu's relative curvature term,
         // far below 2^31 for a step shorter than the radius of curvature; the exact
         // `i128` form otherwise.
-        let ac = mul_shr32_i64_i32(a, self.c_q32);
-        let du = a.saturating_sub(mul_shr32_i64_i32(a, ac));
+        let ac = mul_shr32_round_i64_i32(a, self.c_q32);
+        let du = a.saturating_sub(mul_shr32_round_i64_i32(a, ac));
         if du > 0 {
             du
         } else {

@@ -19,7 +19,9 @@
 use super::path::{fine_bits, in_range, ParametricPath, PathError, PathPoint};
 use super::trig::{sin_cos_q62, turns_from_deg, ONE_Q62};
 use super::{Deriv, Param, PosFine, Xy};
-use hydra_core::fixed_point::{mul_shr32_i64_small, mul_shr_i64, shr_round_i64, sq_mul_shr68};
+use hydra_core::fixed_point::{
+    mul64_shr_round_sat, mul_shr32_round_i64_small, shr_round_i64, sq_mul_shr68_round,
+};
 
 /// Specification of a parabolic segment, engineering units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -145,8 +147,8 @@ impl Parabola {
         }
         let (c, s) = (self.rot.x, self.rot.y);
         (
-            mul_shr_i64(c, x, 62).saturating_sub(mul_shr_i64(s, y, 62)),
-            mul_shr_i64(s, x, 62).saturating_add(mul_shr_i64(c, y, 62)),
+            mul64_shr_round_sat(c, x, 62).saturating_sub(mul64_shr_round_sat(s, y, 62)),
+            mul64_shr_round_sat(s, x, 62).saturating_add(mul64_shr_round_sat(c, y, 62)),
         )
     }
 }
@@ -160,7 +162,7 @@ impl Parabola {
         let xl = shr_round_i64(uq, 4);
         // u² (Q32, ≤ 2^78) · 1/(2p) (Q48, ≤ 2^47) → Q80 → Q12 (64-bit products while
         // |x_l| < 65.5 mm, the exact i128 form beyond).
-        let yl = sq_mul_shr68(uq, self.inv_2p_q48);
+        let yl = sq_mul_shr68_round(uq, self.inv_2p_q48);
         let (px, py) = self.rotate(xl, yl);
         // |x_l| ≤ 2^35 (u clamped to 2^23 µm), |y_l| ≤ 2^57 (u² ≤ 2^78 in Q32, 1/(2p) ≤
         // 2^47 in Q48), so |(px, py)| < 2^58 after any rotation; the vertex is within
@@ -193,7 +195,7 @@ impl ParametricPath for Parabola {
     fn eval(&self, u: Param) -> PathPoint {
         let (pos, uq) = self.local(u);
         // u/p: Q16·Q48 → Q64 → Q32 (|uq| ≤ 2^39, |1/p| ≤ 2^48: 32-bit products).
-        let slope = mul_shr32_i64_small(uq, self.inv_p_q48);
+        let slope = mul_shr32_round_i64_small(uq, self.inv_p_q48);
         let curv = shr_round_i64(self.inv_p_q48, 16);
         let (d1x, d1y) = self.rotate(1 << 32, slope);
         let (d2x, d2y) = self.rotate(0, curv);

@@ -22,7 +22,7 @@
 use super::{Deriv, Param, PosFine, Xy};
 use fixed::types::I32F32;
 use hydra_core::fixed_point::{
-    mul_shr30_i32_i64, mul_shr_i64_by_u32, normalize_no_len, shr_round_i128,
+    mul_shr30_round_i32_i64, mul_shr_round_i64_by_u32, normalize_no_len, shr_round_i128,
 };
 
 /// Largest |coordinate| of any point of a built-in path, µm (the range of `PosUm`).
@@ -116,9 +116,10 @@ pub(crate) fn deriv_frame(p: &PathPoint) -> Option<DerivFrame> {
 pub(crate) fn curvature_q32_per_um(p: &PathPoint, f: &DerivFrame) -> i64 {
     let (d2x, d2y) = (p.d2.x.to_bits(), p.d2.y.to_bits());
     // û × r″ = κ·|r′|², Q32.
-    let cross = mul_shr30_i32_i64(f.ux, d2y).saturating_sub(mul_shr30_i32_i64(f.uy, d2x));
-    let c1 = mul_shr_i64_by_u32(cross, f.inv_q30, 30);
-    mul_shr_i64_by_u32(c1, f.inv_q30, 30)
+    let cross =
+        mul_shr30_round_i32_i64(f.ux, d2y).saturating_sub(mul_shr30_round_i32_i64(f.uy, d2x));
+    let c1 = mul_shr_round_i64_by_u32(cross, f.inv_q30, 30);
+    mul_shr_round_i64_by_u32(c1, f.inv_q30, 30)
 }
 
 /// A straight line from `start` to `end` (µm), parameterised by arc length u ∈ [0, L] µm.

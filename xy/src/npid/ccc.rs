@@ -26,7 +26,7 @@ use super::contour_model::{contour_model, PathFrame};
 use super::npid::Npid;
 use super::pid::Pid;
 use super::{cmd_from_q16, q16_from_pos, ErrorLaw};
-use hydra_core::fixed_point::mul64_shr;
+use hydra_core::fixed_point::mul64_shr_floor_sat;
 use hydra_core::units::{CmdLsb, PosUm};
 
 /// Largest |command| of an axis, LSB Q16 (the 12-bit DAC's ±2047).
@@ -85,7 +85,7 @@ fn pos_from_q16(x: i64) -> PosUm {
 
 /// `u + g·u_c` (g Q30), clamped to ±2047 LSB.
 fn distribute(u: CmdLsb, g_q30: i64, uc: CmdLsb) -> CmdLsb {
-    let corr = mul64_shr(g_q30, i64::from(uc.to_bits()), 30);
+    let corr = mul64_shr_floor_sat(g_q30, i64::from(uc.to_bits()), 30);
     cmd_from_q16(
         i64::from(u.to_bits())
             .saturating_add(corr)
@@ -99,7 +99,7 @@ fn distribute(u: CmdLsb, g_q30: i64, uc: CmdLsb) -> CmdLsb {
 /// [`distribute`].
 #[inline(always)]
 fn distribute_unit(u: CmdLsb, g_q30: i32, uc: CmdLsb) -> CmdLsb {
-    let corr = hydra_core::fixed_point::mul_shr(g_q30, uc.to_bits(), 30);
+    let corr = hydra_core::fixed_point::mul_shr_floor_sat(g_q30, uc.to_bits(), 30);
     CmdLsb::from_bits(
         u.to_bits()
             .saturating_add(corr)

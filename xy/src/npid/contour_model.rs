@@ -26,7 +26,7 @@
 
 use crate::contour::{UnitQ30, Xy};
 use fixed::types::I32F32;
-use hydra_core::fixed_point::{mul64_shr, sat_i64};
+use hydra_core::fixed_point::{mul64_shr_floor_sat, sat_i64};
 
 /// Path geometry at the reference point: unit tangent and signed curvature.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -47,7 +47,7 @@ impl PathFrame {
     /// relative error 10⁻⁹). The curvature is clamped to ±0.1 1/µm.
     #[inline]
     pub fn from_contour(tangent: Xy<UnitQ30>, curvature_per_m: I32F32) -> Self {
-        let k = mul64_shr(curvature_per_m.to_bits(), 281_474_977, 32);
+        let k = mul64_shr_floor_sat(curvature_per_m.to_bits(), 281_474_977, 32);
         let kmax: i64 = 28_147_497_671_066; // 0.1 1/µm in Q48
         Self {
             sin_q30: tangent.y.to_bits(),
@@ -120,8 +120,8 @@ pub struct ContourModel {
 pub fn contour_model(f: &PathFrame, e1_um_q16: i64, e2_um_q16: i64) -> ContourModel {
     // E·κ/2: Q16·Q48 = Q64, >> 35 → Q30 with the /2.
     let k = f.curvature_per_um_q48;
-    let c1 = i64::from(f.sin_q30).saturating_sub(mul64_shr(e1_um_q16, k, 35));
-    let c2 = i64::from(f.cos_q30).saturating_add(mul64_shr(e2_um_q16, k, 35));
+    let c1 = i64::from(f.sin_q30).saturating_sub(mul64_shr_floor_sat(e1_um_q16, k, 35));
+    let c2 = i64::from(f.cos_q30).saturating_add(mul64_shr_floor_sat(e2_um_q16, k, 35));
     let eps = (c2 as i128)
         .wrapping_mul(e2_um_q16 as i128)
         .saturating_sub((c1 as i128).wrapping_mul(e1_um_q16 as i128))

@@ -43,7 +43,7 @@
 //! 48 µm over a 0.6 mm/s band, ≈ 0.05 otherwise: the friction term differentiates d and
 //! so amplifies v_ff's resolution by D_c/(v_s·h)).
 
-use hydra_core::fixed_point::mul_shr;
+use hydra_core::fixed_point::mul_shr_floor_sat;
 use hydra_core::units::{CmdLsb, PosUm};
 
 /// Feed-forward parameters in engineering units (validated by [`VelocityFfConfig::build`]).
@@ -191,24 +191,24 @@ impl VelocityFf {
     pub fn step(&mut self, c: &VelocityFfCoeffs, reference_um: PosUm) -> CmdLsb {
         let r = reference_um.to_bits();
         // µm Q8 · 1/s Q8 >> 8 = µm/s Q8.
-        let v = mul_shr(r.saturating_sub(self.last_ref_q8), c.inv_h_q8, 8);
+        let v = mul_shr_floor_sat(r.saturating_sub(self.last_ref_q8), c.inv_h_q8, 8);
         let dv = v.saturating_sub(self.last_v_q8);
         // µm/s Q8 · Q18 >> 18 = µm/s Q8.
-        let vff = v.saturating_add(mul_shr(dv, c.lead_over_h_q18, 18));
+        let vff = v.saturating_add(mul_shr_floor_sat(dv, c.lead_over_h_q18, 18));
         self.last_ref_q8 = r;
         self.last_v_q8 = v;
         let k = if vff >= 0 { c.k_ext_q24 } else { c.k_ret_q24 };
         // µm/s Q8 · LSB/(µm/s) Q24 >> 16 = LSB Q16.
-        let u_v = mul_shr(vff, k, 16);
+        let u_v = mul_shr_floor_sat(vff, k, 16);
         // Friction: d = D_c·sat(v_ff/v_s) = clamp(v_ff·D_c/v_s, ±D_c), u_fc = K·Δd/h.
         // µm/s Q8 · µm/(µm/s) Q24 >> 16 = µm Q16 (one rounding: d is differentiated).
-        let d = mul_shr(vff, c.friction_gain_q24, 16)
+        let d = mul_shr_floor_sat(vff, c.friction_gain_q24, 16)
             .clamp(c.friction_um_q16.wrapping_neg(), c.friction_um_q16);
         let dd = d.saturating_sub(self.last_d_q16);
         self.last_d_q16 = d;
         let kd = if dd >= 0 { c.k_ext_q24 } else { c.k_ret_q24 };
         // µm Q16 · 1/s Q8 >> 16 = µm/s Q8 (|Δd|/h ≤ 2000 µm · 10⁵/s: fits); · Q24 >> 16.
-        let u_fc = mul_shr(mul_shr(dd, c.inv_h_q8, 16), kd, 16);
+        let u_fc = mul_shr_floor_sat(mul_shr_floor_sat(dd, c.inv_h_q8, 16), kd, 16);
         CmdLsb::from_bits(u_v.saturating_add(u_fc).clamp(-U_MAX_Q16, U_MAX_Q16))
     }
 }

@@ -14,7 +14,7 @@
 //! filtered derivative in LSB Q16, `λ` in Q24; errors µm Q16.
 
 use super::{cmd_from_q16, q16_from_pos, ErrorLaw, NpidError};
-use hydra_core::fixed_point::{mul64_shr, sign};
+use hydra_core::fixed_point::{mul64_shr_floor_sat, sign};
 use hydra_core::units::{CmdLsb, PosUm};
 
 /// Linear PID parameters (validated by [`PidConfig::build`]).
@@ -106,16 +106,16 @@ impl Pid {
     /// One period on the error `e` (µm Q16).
     #[inline]
     fn law(&mut self, c: &PidCoeffs, e: i64) -> CmdLsb {
-        let p = mul64_shr(e, c.kp_q24, 24);
+        let p = mul64_shr_floor_sat(e, c.kp_q24, 24);
         if self.sat == 0 || sign(e) != self.sat {
             self.i_q16 = self
                 .i_q16
-                .saturating_add(mul64_shr(e, c.ki_h_q24, 24))
+                .saturating_add(mul64_shr_floor_sat(e, c.ki_h_q24, 24))
                 .clamp(c.i_max_q16.wrapping_neg(), c.i_max_q16);
         }
-        let raw_d = mul64_shr(e.saturating_sub(self.e_prev_q16), c.kd_over_h_q24, 24);
+        let raw_d = mul64_shr_floor_sat(e.saturating_sub(self.e_prev_q16), c.kd_over_h_q24, 24);
         self.e_prev_q16 = e;
-        let dd = mul64_shr(raw_d.saturating_sub(self.d_q16), c.lambda_q24, 24);
+        let dd = mul64_shr_floor_sat(raw_d.saturating_sub(self.d_q16), c.lambda_q24, 24);
         self.d_q16 = self.d_q16.saturating_add(dd);
         let u = p.saturating_add(self.i_q16).saturating_add(self.d_q16);
         self.sat = if u > c.u_max_q16 {
