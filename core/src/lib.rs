@@ -30,6 +30,7 @@ pub mod dac;
 pub mod fixed_point;
 pub mod follower;
 pub mod master;
+pub mod plc;
 pub mod profile;
 pub mod protocol;
 pub mod runtime;

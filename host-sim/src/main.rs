@@ -57,6 +57,8 @@ enum Command {
     Table(cmd::table::Args),
     /// List, read, set and save a board's settings by path (`axis/0/kp_lsb_per_um`).
     Param(cmd::param::Args),
+    /// The board's Modbus register map for a PLC (Markdown, or `--json`).
+    ModbusMap(cmd::modbus_map::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -99,5 +101,6 @@ fn dispatch() -> anyhow::Result<()> {
         Some(Command::Motion(a)) => cmd::motion::run(&a),
         Some(Command::Table(a)) => cmd::table::run(&a),
         Some(Command::Param(a)) => cmd::param::run(&a),
+        Some(Command::ModbusMap(a)) => cmd::modbus_map::run(&a),
     }
 }

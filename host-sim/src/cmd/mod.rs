@@ -6,6 +6,7 @@ pub mod fair;
 pub mod identify;
 pub mod manual;
 pub mod margins;
+pub mod modbus_map;
 pub mod motion;
 pub mod open_loop;
 pub mod param;
