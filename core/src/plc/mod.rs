@@ -2,9 +2,12 @@
 //!
 //! - [`map`]: the register map, one table from which the server's decoding, the
 //!   integrator's documentation (docs/plc.md) and `host-sim modbus-map --json` come.
+//! - [`owner`]: control ownership (one side moves the machine) and the PLC's heartbeat.
 pub mod map;
+pub mod owner;
 
 pub use map::{
     Access, AxisCount, CommandBit, RegType, Register, RegisterTable, Scope, StatusBit, AXIS_BASE,
     AXIS_STRIDE, MAP, MAX_AXES,
 };
+pub use owner::{Heartbeat, MachineNow, OwnerError, Ownership, Side};
