@@ -264,7 +264,7 @@ impl CommandBit {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u8)]
 pub enum StatusBit {
-    /// Idle with a law and a table: Start would be taken.
+    /// Idle, every axis referenced, with a law and a table: Start would be taken.
     Ready = 0,
     /// Following the table.
     Following = 1,
@@ -333,27 +333,28 @@ use RegisterTable::{Holding as H, Input as I};
 use Scope::{Axis as A, Board as B};
 
 /// The register map.
-pub const MAP: [Register; 32] = [
+pub const MAP: [Register; 33] = [
     // ---- holding: what the PLC writes ----
     reg("command", B, H, 0, U16, "", RW, "command bits (CommandBit): enable, start, stop, hold, clear_fault, home, jog_pos, jog_neg, move, activate_table, save"),
     reg("command_axis", B, H, 1, U16, "", RW, "the axis of home, jog_pos, jog_neg and move"),
-    reg("heartbeat", B, H, 2, U16, "", RW, "the PLC writes a changing value; unchanged for plc/heartbeat_ms holds the axes (status heartbeat_lost)"),
-    reg("owner", B, H, 3, U16, "", RW, "who moves the machine: 0 none, 1 serial host, 2 PLC; taken in Idle or Fault, or when the other side timed out"),
-    reg("table.select_id", B, H, 4, U16, "", RW, "the table activate_table makes active"),
-    reg("param.id", B, H, 10, U16, "", RW, "the setting's stable id (host-sim param list)"),
+    reg("heartbeat", B, H, 2, U16, "", RW, "the PLC writes a changing value; unchanged for the PLC link's heartbeat time holds the axes (status heartbeat_lost)"),
+    reg("owner", B, H, 3, U16, "", RW, "who moves the machine: 0 none, 1 serial host, 2 PLC; free while nobody owns it, else taken in Idle or Fault or from an owner that timed out; released by its owner"),
+    reg("table.select_id", B, H, 4, U16, "", RW, "the table activate_table makes active: a table id of PROTOCOL.md, 0 … 65 534"),
+    reg("param.id", B, H, 10, U16, "", RW, "the setting's stable id (PROTOCOL.md §3)"),
     reg("param.op", B, H, 11, U16, "", RW, "1 read, 2 write: acts when written; param.result tells the outcome"),
     reg("param.value", B, H, 12, F32, "setting's unit", RW, "the value to write"),
+    reg("param.axis", B, H, 14, U16, "", RW, "the slave of a per-axis setting (ignored for a board setting)"),
     reg("move_to_um", A, H, 0, I32, "µm", RW, "move: the target position"),
     reg("move_speed_um_s", A, H, 2, I32, "µm/s", RW, "move: the top speed (the axis' S-curve limits apply)"),
     // ---- input: what the board reports ----
     reg("status", B, I, 0, U16, "", R, "status bits (StatusBit)"),
-    reg("state", B, I, 1, U16, "", R, "0 idle, 1 following, 2 holding, 3 manual, 4 fault"),
+    reg("state", B, I, 1, U16, "", R, "0 idle, 1 following, 2 holding, 3 fault, 4 manual (the serial Status' codes)"),
     reg("fault_code", B, I, 2, U16, "", R, "the latched fault's code (0: none; PROTOCOL.md fault table)"),
     reg("fault_axis", B, I, 3, U16, "", R, "the latched fault's axis (0xFFFF: the board)"),
-    reg("command_ack", B, I, 4, U16, "", R, "the last command's outcome: 0 none yet, 1 done, else the refusal's code"),
+    reg("command_ack", B, I, 4, U16, "", R, "the last command's outcome: 0 none yet, 1 done, 0x100 + the serial Nak code when refused"),
     reg("command_count", B, I, 5, U16, "", R, "counts the commands taken (wrapping): a new command_ack is one with a new count"),
-    reg("table.active_id", B, I, 6, U16, "", R, "the active table's id (0: none)"),
-    reg("param.result", B, I, 7, U16, "", R, "the last param.op's outcome: 0 none yet, 1 done, 2 unknown id, 3 out of range, 4 read-only, 5 busy, 6 not owner"),
+    reg("table.active_id", B, I, 6, U16, "", R, "the active table's id (0xFFFF: none, or an id beyond 65 534)"),
+    reg("param.result", B, I, 7, U16, "", R, "the last param.op's outcome: 0 none yet, 1 done, 2 unknown id, 3 out of range, 4 read-only, 5 busy"),
     reg("param.read_value", B, I, 8, F32, "setting's unit", R, "the value param.op read"),
     reg("referenced", B, I, 10, U16, "", R, "bit n: axis n referenced"),
     reg("in_position", B, I, 11, U16, "", R, "bit n: axis n within its in-position window"),
@@ -365,7 +366,7 @@ pub const MAP: [Register; 32] = [
     reg("error_um", A, I, 4, I32, "µm", R, "target − actual"),
     reg("pressure_a_bar", A, I, 6, F32, "bar", R, "chamber A (piston side) pressure"),
     reg("pressure_b_bar", A, I, 8, F32, "bar", R, "chamber B (rod side) pressure"),
-    reg("valve_lsb", A, I, 10, I32, "DAC LSB", R, "the valve code written (0 = null)"),
+    reg("valve_lsb", A, I, 10, I32, "DAC LSB", R, "the valve code written, from the DAC's mid-scale (the valve's null is its calibrated null code)"),
     reg("force_n", A, I, 12, F32, "N", R, "the cylinder force A_A·p_A − A_B·p_B"),
     reg("backoff_level", A, I, 14, U16, "", R, "the gain backoff's level (0: the set gain)"),
 ];
@@ -423,6 +424,7 @@ mod tests {
             Register::find(RegisterTable::Input, 9, axes(2)).is_some(),
             "f32 low word"
         );
+        assert!(Register::find(RegisterTable::Input, 12, axes(2)).is_none());
         assert!(
             Register::find(RegisterTable::Input, 30, axes(2)).is_none(),
             "a gap"

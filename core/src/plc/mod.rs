@@ -2,10 +2,13 @@
 //!
 //! - [`map`]: the register map, one table from which the server's decoding, the
 //!   integrator's documentation (docs/plc.md) and `host-sim modbus-map --json` come.
+//! - [`image`]: the input registers' values from the runtime's status;
 //! - [`owner`]: control ownership (one side moves the machine) and the PLC's heartbeat.
+pub mod image;
 pub mod map;
 pub mod owner;
 
+pub use image::{read_input, PlcFacts, ReadError, NO_TABLE};
 pub use map::{
     Access, AxisCount, CommandBit, RegType, Register, RegisterTable, Scope, StatusBit, AXIS_BASE,
     AXIS_STRIDE, MAP, MAX_AXES,
