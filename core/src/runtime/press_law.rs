@@ -2,18 +2,21 @@
 //! under the press law ([`crate::axis::press`]) instead.
 //!
 //! A stretch-bending machine runs table-following axes and a side press from one tick.
-//! [`PressAxes`] is the law the runtime runs for such a machine: each tick it runs `L`
+//! [`PressAxes`] is a law the runtime runs for such a machine (the simulator's; the
+//! board's profile has no press slave yet): each tick it runs `L`
 //! (the follower) over every slave, then replaces the outputs of each press slave with
 //! its press law's, from the same inputs (the slave's position and its two chamber
 //! pressures). So the press goes through [`super::TickLoop::run`] like every other axis:
 //! its encoder is extended and checked for plausibility, stale pressure inputs latch
 //! `pressure_input`, an E-stop or any latched fault puts its valve at null, and it runs
-//! while the runtime is Following or Holding (also after the end of the table).
+//! while the runtime is Following or Holding — also in a commanded Hold and after the end
+//! of the table: a press holding the master keeps its force (and an approach under way
+//! goes on to contact).
 //!
 //! | runtime | a press slave |
 //! |---|---|
 //! | [`Controller::restart`] | the press law restarts: its approach starts from the measured position |
-//! | [`Controller::tick`] | the press law's valve code; `error_um` = approach reference − position during the approach, 0 under force control; `L`'s fault on the slave is dropped |
+//! | [`Controller::tick`] | the press law's valve code; `error_um` = approach reference − position during the approach (checked against the runtime's following-error limit of the slave), 0 under force control; `L`'s fault on the slave is dropped |
 //! | [`Controller::tick_manual`] | `L`'s position law (a press is jogged and moved like any axis) |
 //! | [`Controller::null_codes`] | the press valve's calibrated null |
 //!

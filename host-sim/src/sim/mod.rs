@@ -23,7 +23,7 @@
 //! * follower axis: `e(t) = X(θ(t)) − x(t)`, the table (linear interpolation of its nodes)
 //!   at the *true* master angle minus the true position, after `sim.error_skip_s`; max |e|
 //!   and RMS in µm;
-//! * force axis: `e_F(t) = F_ref − F(t)` while force control is active, `F_ref` the press
+//! * force axis: `e_F(t) = F_ref − F(t)` while force control is active and the runtime powers the valves, `F_ref` the press
 //!   law's (ramped) reference from its last tick and `F = A_A·p_A − A_B·p_B` from the true
 //!   pressures; max |e_F| and RMS in N, the time of the switch and the jump of the command
 //!   across it;
@@ -330,6 +330,8 @@ pub fn run_probed(
     let mut start_refused = None;
     let mut osc: Vec<Reversals> = vec![Reversals::default(); n_axes];
     let mut master_est_deg = 0.0;
+    // The runtime powers the valves this period (a force axis' error counts only then).
+    let mut controlling = false;
     let mut err_stats = vec![ErrorStat::default(); nf];
     let mut peak = vec![0.0f64; n_axes];
     let mut cursors = vec![0usize; nf];
@@ -364,6 +366,7 @@ pub fn run_probed(
             };
             let o = f.tick(&reading, &mut dac, &mut ctrl_target);
             master_est_deg = o.master_estimate.to_num::<f64>() * sc.master.resolution_deg;
+            controlling = o.enable;
             for (u, d) in u_next.iter_mut().zip(&dac) {
                 // Not controlling: the valves are unpowered and their spools centre.
                 *u = valve_command(d.get(), o.enable);
@@ -465,7 +468,7 @@ pub fn run_probed(
                     Role::Force => {
                         let p = &mut presses[pj];
                         let f = plants[i].force_n();
-                        if metric && p.phase == PressPhase::Force {
+                        if metric && controlling && p.phase == PressPhase::Force {
                             p.stat.add(p.f_ref_n - f);
                         }
                         if let Some(r) = row.as_deref_mut() {
@@ -570,7 +573,7 @@ pub struct FaultEvent {
     pub code: u16,
     /// Its name (`following_error`, …).
     pub name: &'static str,
-    /// The follower axis it names, if any.
+    /// The axis it names (a follower or a force axis), if any.
     pub axis: Option<String>,
     /// The runtime's tick counter when it latched.
     pub tick: u32,

@@ -33,7 +33,7 @@ pub struct EventsCfg {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct EncoderLoss {
-    /// The follower axis (its `name`).
+    /// The axis (its `name`): a follower or a force axis.
     pub axis: String,
     /// From this time on, s.
     pub at_s: f64,

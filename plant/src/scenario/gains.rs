@@ -67,8 +67,9 @@ pub fn press_config(axis: &AxisCfg, g: &PressGains) -> Option<PressConfig> {
 }
 
 /// The follower configuration (`S` axes, in scenario order) for a gain set used at
-/// `period_us`. A force axis gets its `[tuning.axes.<name>]` gains if the set has them
-/// (the defaults otherwise): the position law that jogs and moves it by hand.
+/// `period_us`. A force axis (which a set cannot name in `[tuning.axes]`) gets the
+/// default position gains: the position law that jogs and moves it by hand, and a
+/// following-error limit of 5 000 µm on its approach.
 pub fn follower_config<const S: usize>(
     s: &Scenario,
     t: &Tuning,
