@@ -93,36 +93,32 @@ fn an_estop_faults_the_run_and_nulls_every_valve_within_one_tick() {
     valves_null_within_one_tick(&r, &["tangent", "side_press"], f.t_s);
 }
 
-#[test]
-fn a_reset_encoder_latches_encoder_jump_on_its_axis() {
-    let r = run_with("tangent_alone.toml", |s| {
+/// `file` with `axis`' encoder reset at 2 s: `encoder_jump` on that axis within one
+/// period, and every valve of `valves` at null one tick later.
+fn a_reset_encoder_faults(file: &str, axis: &str, valves: &[&str]) {
+    let r = run_with(file, |s| {
         s.events.encoder_lost = Some(EncoderLoss {
-            axis: "tangent".into(),
+            axis: axis.into(),
             at_s: 2.0,
             mode: EncoderLossMode::Reset,
         })
     });
     let f = first_fault(&r, "encoder_jump", 2.0);
     assert!(f.t_s < 2.0 + PERIOD_S + 1e-9, "{f:?}");
-    assert_eq!(f.axis.as_deref(), Some("tangent"), "{f:?}");
-    valves_null_within_one_tick(&r, &["tangent"], f.t_s);
+    assert_eq!(f.axis.as_deref(), Some(axis), "{f:?}");
+    valves_null_within_one_tick(&r, valves, f.t_s);
+}
+
+#[test]
+fn a_reset_encoder_latches_encoder_jump_on_its_axis() {
+    a_reset_encoder_faults("tangent_alone.toml", "tangent", &["tangent"]);
 }
 
 #[test]
 fn a_reset_encoder_on_the_side_press_faults_it_through_the_runtime() {
     // The press runs inside the runtime: its encoder is extended and checked like a
     // follower's, and its fault nulls every valve.
-    let r = run_with("tangent.toml", |s| {
-        s.events.encoder_lost = Some(EncoderLoss {
-            axis: "side_press".into(),
-            at_s: 2.0,
-            mode: EncoderLossMode::Reset,
-        })
-    });
-    let f = first_fault(&r, "encoder_jump", 2.0);
-    assert!(f.t_s < 2.0 + PERIOD_S + 1e-9, "{f:?}");
-    assert_eq!(f.axis.as_deref(), Some("side_press"), "{f:?}");
-    valves_null_within_one_tick(&r, &["tangent", "side_press"], f.t_s);
+    a_reset_encoder_faults("tangent.toml", "side_press", &["tangent", "side_press"]);
 }
 
 #[test]

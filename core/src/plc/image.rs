@@ -68,13 +68,14 @@ fn sat_i32(x: i64) -> u32 {
 }
 
 /// The value of input register `r` of axis `axis`, as raw bits (a 16-bit value in the
-/// low half).
+/// low half); `None` for a register this image does not know (a map entry without a
+/// source reads as an illegal address, never as a silent 0).
 fn input_value<const S: usize, const P: usize>(
     r: &Register,
     axis: u8,
     st: &Status<S, P>,
     f: &PlcFacts<S>,
-) -> u32 {
+) -> Option<u32> {
     let n = usize::from(axis);
     let pos = |a: &[crate::units::PosUm; S]| a.get(n).map_or(0, |p| sat_i32(p.to_num::<i64>()));
     let bar = |k: usize| {
@@ -94,7 +95,7 @@ fn input_value<const S: usize, const P: usize>(
         (Some(e), Some(&w)) => u64::from(e.unsigned_abs().to_num::<u32>()) <= u64::from(w),
         _ => false,
     };
-    match r.name {
+    let v = match r.name {
         "status" => {
             let mut s = 0u32;
             let mut set = |b: StatusBit, on: bool| {
@@ -137,8 +138,9 @@ fn input_value<const S: usize, const P: usize>(
         "valve_lsb" => st.dac.get(n).map_or(0, |d| i32::from(d.get()) as u32),
         "force_n" => f.force_n.get(n).map_or(0.0f32, |x| *x).to_bits(),
         "backoff_level" => f.backoff_level.get(n).map_or(0, |&l| u32::from(l)),
-        _ => 0,
-    }
+        _ => return None,
+    };
+    Some(v)
 }
 
 /// Reads `out.len()` input registers from `start` (function code 4) of a board with
@@ -155,7 +157,7 @@ pub fn read_input<const S: usize, const P: usize>(
         let address = start.saturating_add(u16::try_from(k).unwrap_or(u16::MAX));
         let illegal = ReadError::IllegalAddress { address };
         let (r, axis, word) = Register::find(RegisterTable::Input, address, axes).ok_or(illegal)?;
-        let v = input_value(r, axis, st, facts);
+        let v = input_value(r, axis, st, facts).ok_or(illegal)?;
         let words: &[u16] = &match r.ty {
             RegType::U16 | RegType::I16 => [v as u16, 0],
             _ => [(v >> 16) as u16, v as u16],
@@ -293,6 +295,18 @@ mod tests {
         assert_eq!(read(0, 12).map(|w| w.len()), Ok(12));
         assert_eq!(read(0, 13), e(12), "past the board block");
         assert_eq!(e(0).unwrap_err().modbus_exception(), 2);
+    }
+
+    #[test]
+    fn every_input_register_of_the_map_has_a_value() {
+        use crate::plc::map::{Scope, MAP};
+        for r in MAP.iter().filter(|r| r.table == RegisterTable::Input) {
+            let axes = if r.scope == Scope::Board { 1 } else { 2 };
+            for a in 0..axes {
+                let n = usize::from(r.ty.words());
+                assert!(read(r.address_of(a), n).is_ok(), "{} axis {a}", r.name);
+            }
+        }
     }
 
     #[test]

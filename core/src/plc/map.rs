@@ -287,6 +287,20 @@ pub enum StatusBit {
 }
 
 impl StatusBit {
+    /// Every status bit (the per-axis ones by their first bit), in bit order.
+    pub const ALL: [Self; 10] = [
+        Self::Ready,
+        Self::Following,
+        Self::Holding,
+        Self::Manual,
+        Self::Fault,
+        Self::TableActive,
+        Self::OwnerIsPlc,
+        Self::HeartbeatLost,
+        Self::Referenced0,
+        Self::InPosition0,
+    ];
+
     /// Its name in docs/plc.md.
     pub const fn name(self) -> &'static str {
         match self {

@@ -89,18 +89,7 @@ pub fn markdown(axes: AxisCount) -> String {
         let _ = writeln!(s, "| {} | `{}` | {acts} |", b as u8, b.name());
     }
     s.push_str("\n| `status` bit | name |\n|---|---|\n");
-    for b in [
-        StatusBit::Ready,
-        StatusBit::Following,
-        StatusBit::Holding,
-        StatusBit::Manual,
-        StatusBit::Fault,
-        StatusBit::TableActive,
-        StatusBit::OwnerIsPlc,
-        StatusBit::HeartbeatLost,
-        StatusBit::Referenced0,
-        StatusBit::InPosition0,
-    ] {
+    for b in StatusBit::ALL {
         let _ = writeln!(s, "| {} | `{}` |", b as u8, b.name());
     }
     s
