@@ -138,6 +138,9 @@ pub struct Register {
 pub struct AxisCount(u8);
 
 impl AxisCount {
+    /// One axis.
+    pub const ONE: Self = Self(1);
+
     /// `n` axes, if 1 ≤ n ≤ [`MAX_AXES`].
     pub const fn new(n: u8) -> Option<Self> {
         if n >= 1 && n <= MAX_AXES {
@@ -194,7 +197,9 @@ impl Register {
 pub enum CommandBit {
     /// Valve power permitted (level): clearing it stops any motion (Stop).
     Enable = 0,
-    /// Start following the active table (Start; an approach first when not at its start).
+    /// Start following the active table: from a commanded hold it resumes (Start); else
+    /// every axis moves to the table at the present master by an S-curve with axis 0's
+    /// `move_*` limits, then follows (Approach).
     Start = 1,
     /// Stop: every axis to Idle, valves at null.
     Stop = 2,
@@ -342,12 +347,12 @@ const fn reg(
 }
 
 use Access::{Read as R, ReadWrite as RW};
-use RegType::{F32, I32, U16};
+use RegType::{F32, I32, U16, U32};
 use RegisterTable::{Holding as H, Input as I};
 use Scope::{Axis as A, Board as B};
 
 /// The register map.
-pub const MAP: [Register; 33] = [
+pub const MAP: [Register; 35] = [
     // ---- holding: what the PLC writes ----
     reg("command", B, H, 0, U16, "", RW, "command bits (CommandBit): enable, start, stop, hold, clear_fault, home, jog_pos, jog_neg, move, activate_table, save"),
     reg("command_axis", B, H, 1, U16, "", RW, "the axis of home, jog_pos, jog_neg and move"),
@@ -359,7 +364,9 @@ pub const MAP: [Register; 33] = [
     reg("param.value", B, H, 12, F32, "setting's unit", RW, "the value to write"),
     reg("param.axis", B, H, 14, U16, "", RW, "the slave of a per-axis setting (ignored for a board setting)"),
     reg("move_to_um", A, H, 0, I32, "µm", RW, "move: the target position"),
-    reg("move_speed_um_s", A, H, 2, I32, "µm/s", RW, "move: the top speed (the axis' S-curve limits apply)"),
+    reg("move_speed_um_s", A, H, 2, I32, "µm/s", RW, "move and jog: the top speed (> 0; a jog's sign is its bit's), also start's approach speed on axis 0"),
+    reg("move_acc_um_s2", A, H, 4, U32, "µm/s²", RW, "move, jog and approach: the acceleration limit (0: 100 000)"),
+    reg("move_jerk_um_s3", A, H, 6, U32, "µm/s³", RW, "move, jog and approach: the jerk limit (0: 1 000 000)"),
     // ---- input: what the board reports ----
     reg("status", B, I, 0, U16, "", R, "status bits (StatusBit)"),
     reg("state", B, I, 1, U16, "", R, "0 idle, 1 following, 2 holding, 3 fault, 4 manual (the serial Status' codes)"),

@@ -118,46 +118,50 @@ impl Ownership {
     }
 }
 
-/// The PLC's heartbeat: the PLC writes a changing value; no change for `timeout` ticks
-/// means the PLC is gone.
+/// The PLC's heartbeat: the PLC writes a changing value to `heartbeat`; no change for
+/// `plc/heartbeat_ms` means the PLC is gone. Times are a wrapping millisecond clock.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Heartbeat {
     last: u16,
-    quiet_ticks: u32,
-    timeout_ticks: u32,
+    last_ms: u32,
     lost: bool,
 }
 
 impl Heartbeat {
-    /// A heartbeat lost after `timeout_ticks` ticks without a change (0: never lost).
-    /// It starts quiet: lost after the first timeout unless written.
-    pub const fn new(timeout_ticks: u32) -> Self {
+    /// A heartbeat last seen at `now_ms` with value 0.
+    pub const fn new(now_ms: u32) -> Self {
         Self {
             last: 0,
-            quiet_ticks: 0,
-            timeout_ticks,
+            last_ms: now_ms,
             lost: false,
         }
     }
 
-    /// The PLC wrote `value` to `heartbeat`: a changed value restarts the timeout and
-    /// clears a loss.
-    pub fn write(&mut self, value: u16) {
+    /// The PLC wrote `value` at `now_ms`: a changed value restarts the timeout and clears
+    /// a loss; the same value again is no heartbeat.
+    pub fn write(&mut self, value: u16, now_ms: u32) {
         if value != self.last {
             self.last = value;
-            self.quiet_ticks = 0;
+            self.last_ms = now_ms;
             self.lost = false;
         }
     }
 
-    /// One tick. Returns `true` on the tick the heartbeat is lost (once per loss).
-    pub fn tick(&mut self) -> bool {
-        if self.timeout_ticks == 0 || self.lost {
+    /// Restarts the timeout at `now_ms` (the PLC took the machine or started a motion:
+    /// the time before does not count against it).
+    pub fn restart(&mut self, now_ms: u32) {
+        self.last_ms = now_ms;
+        self.lost = false;
+    }
+
+    /// Checks at `now_ms` against `timeout_ms` (0: never lost). Returns `true` once, when
+    /// the heartbeat is lost.
+    pub fn watch(&mut self, now_ms: u32, timeout_ms: u32) -> bool {
+        if timeout_ms == 0 || self.lost {
             return false;
         }
-        self.quiet_ticks = self.quiet_ticks.saturating_add(1);
-        self.lost = self.quiet_ticks >= self.timeout_ticks;
+        self.lost = now_ms.wrapping_sub(self.last_ms) >= timeout_ms;
         self.lost
     }
 
@@ -222,16 +226,18 @@ mod tests {
 
     #[test]
     fn a_heartbeat_that_stops_changing_is_lost_once() {
-        let mut h = Heartbeat::new(3);
-        h.write(1);
-        assert!(!h.tick() && !h.tick());
-        h.write(1); // the same value is no heartbeat
-        assert!(h.tick(), "lost on the third quiet tick");
-        assert!(h.lost() && !h.tick(), "reported once");
-        h.write(2);
+        let mut h = Heartbeat::new(0);
+        h.write(1, 10);
+        assert!(!h.watch(500, 1000) && !h.watch(1009, 1000));
+        h.write(1, 1005); // the same value is no heartbeat
+        assert!(h.watch(1010, 1000), "lost 1000 ms after the last change");
+        assert!(h.lost() && !h.watch(1020, 1000), "reported once");
+        h.write(2, 1030);
         assert!(!h.lost());
-        assert!(!h.tick());
+        assert!(!h.watch(2000, 1000));
+        h.restart(u32::MAX - 5);
+        assert!(!h.watch(100, 1000), "the clock wraps");
         let mut off = Heartbeat::new(0);
-        assert!((0..10).all(|_| !off.tick()));
+        assert!(!off.watch(u32::MAX / 2, 0));
     }
 }

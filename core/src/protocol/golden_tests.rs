@@ -32,6 +32,7 @@ fn status() -> StatusMsg {
     let mut s = StatusMsg {
         state: 1,
         flags: 0x10,
+        owner: 1,
         fault_code: 0,
         fault_axis: 0xFF,
         inputs: 2,
@@ -259,6 +260,7 @@ fn messages(chunk: &'static [u8]) -> Vec<(&'static str, Msg)> {
             )
         ),
         ("approach", Req(16, Request::Approach { limits: limits() })),
+        ("owner", Req(17, Request::Owner { side: 1 })),
         (
             "virtual_master",
             Req(

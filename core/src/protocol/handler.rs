@@ -141,7 +141,7 @@ pub trait Device<const S: usize, const N: usize> {
     /// by one and stops at the first refusal — the handler then undoes everything with
     /// [`Device::reset_params`] — which is order-dependent: a device overrides it.
     fn set_params(&mut self, records: &[super::ParamRecord]) -> Result<(), Nak> {
-        for r in records.iter().filter(|r| r.param != ParamId::LinkTimeoutMs) {
+        for r in records.iter().filter(|r| !r.param.held_by_handler()) {
             self.set_param(r.axis, r.param, r.value)?;
         }
         Ok(())
@@ -279,6 +279,13 @@ pub struct Handler<const S: usize, const N: usize> {
     tel_seq: u16,
     /// Host-link watchdog ([`ParamId::LinkTimeoutMs`], 0 = off).
     link: LinkWatch,
+    /// The PLC link's settings (`plc/…`, `axis/<n>/in_position_um`).
+    pub(super) plc: crate::plc::PlcSettings<S>,
+    /// Who moves the machine (`crate::plc::owner`).
+    pub(super) owner: crate::plc::Ownership,
+    /// The PLC's heartbeat is lost (the PLC server reports it): an owning PLC has timed
+    /// out.
+    pub(super) plc_lost: bool,
 }
 
 /// The host-link watchdog's state (see [`Handler::watch_link`]).
@@ -347,6 +354,9 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 host_started: false,
                 lost: false,
             },
+            plc: crate::plc::PlcSettings::DEFAULT,
+            owner: crate::plc::Ownership::NONE,
+            plc_lost: false,
         }
     }
 
@@ -381,6 +391,22 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             self.link.lost = true;
         }
         held
+    }
+
+    /// The host-link watchdog held the axes since the host's last Start: an owning host
+    /// has timed out.
+    pub(super) fn link_lost(&self) -> bool {
+        self.link.lost
+    }
+
+    /// Runs `f` (a request from another side than the serial host) without touching the
+    /// host-link watchdog's view: a PLC's Start is not watched by the serial link.
+    pub(super) fn with_link_kept<R>(&mut self, f: impl FnOnce(&mut Self) -> R) -> R {
+        let (started, lost) = (self.link.host_started, self.link.lost);
+        let r = f(self);
+        self.link.host_started = started;
+        self.link.lost = lost;
+        r
     }
 
     fn set_link_timeout(&mut self, value: f32) -> Result<(), Nak> {
@@ -461,15 +487,24 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 continue;
             }
             // The slot's settings as one set: all apply, or the slot is refused like a
-            // table that fails its rules (the older slot is tried). The link timeout is
-            // the handler's (at most one record); the device skips it.
+            // table that fails its rules (the older slot is tried). The link timeout and
+            // the PLC link's settings are the handler's; the device skips them.
             let mut timeout = Ok(0);
+            let mut plc = crate::plc::PlcSettings::DEFAULT;
+            let mut plc_ok = true;
             for r in self.overrides.iter() {
                 if r.param == ParamId::LinkTimeoutMs {
                     timeout = link_timeout_ms(r.value);
+                } else if r.param.held_by_handler() {
+                    plc_ok &= plc.set(r.axis, r.param, r.value).is_ok();
                 }
             }
-            let ok = timeout.is_ok() && dev.set_params(self.overrides.as_slice()).is_ok();
+            let ok = timeout.is_ok() && plc_ok && dev.set_params(self.overrides.as_slice()).is_ok();
+            self.plc = if ok {
+                plc
+            } else {
+                crate::plc::PlcSettings::DEFAULT
+            };
             if !ok {
                 // Cleared first: a reset that fails ends the boot with none of them.
                 self.overrides.clear();
@@ -505,6 +540,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             self.overrides.clear();
             dev.reset_params().ok()?;
             self.link.timeout_ms = 0;
+            self.plc = crate::plc::PlcSettings::DEFAULT;
             refused.get_or_insert(BootReason::FallbackTable);
         }
         None
@@ -649,7 +685,10 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 ));
             }
         }
-        let r = self.dispatch(dev, flash, &req);
+        let r = match self.gate(dev, crate::plc::Side::Host, &req) {
+            Ok(()) => self.dispatch(dev, flash, &req),
+            Err(nak) => Response::Nak { req: t, nak },
+        };
         if !matches!(r, Response::Nak { .. }) {
             self.session = true;
             self.last_seq = seq;
@@ -657,7 +696,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
         r
     }
 
-    fn dispatch<D: Device<S, N>, F: NorFlash>(
+    pub(super) fn dispatch<D: Device<S, N>, F: NorFlash>(
         &mut self,
         dev: &mut D,
         flash: &mut F,
@@ -767,6 +806,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             Request::GetParam { axis, param } => {
                 let value = match ParamId::from_u8(param) {
                     Some(ParamId::LinkTimeoutMs) => Ok(self.link.timeout_ms as f32),
+                    Some(p) if p.held_by_handler() => self.plc.get(axis, p),
                     Some(p) => dev.get_param(axis, p),
                     None => Err(Nak::with(NakCode::UnknownParam, u16::from(axis), param)),
                 };
@@ -781,6 +821,14 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                 }
                 Some(ParamId::LinkTimeoutMs) => self.set_link_timeout(value).map(|()| {
                     self.overrides.record(0, ParamId::LinkTimeoutMs, value);
+                }),
+                Some(p) if p.held_by_handler() => self.plc.set(axis, p, value).map(|()| {
+                    let a = if p.info().scope == super::settings::Scope::Axis {
+                        axis
+                    } else {
+                        0
+                    };
+                    self.overrides.record(a, p, value);
                 }),
                 Some(p) => dev.set_param(axis, p, value).map(|()| {
                     self.overrides.record(axis, p, value);
@@ -823,6 +871,12 @@ impl<const S: usize, const N: usize> Handler<S, N> {
                     Err(nak) => Response::Nak { req: t, nak },
                 }
             }
+            Request::Owner { side } => match crate::plc::Side::from_register(u16::from(side)) {
+                Some(w @ (crate::plc::Side::None | crate::plc::Side::Host)) => {
+                    self.take_owner(dev, crate::plc::Side::Host, w)
+                }
+                _ => Err(Nak::with(NakCode::Malformed, u16::from(side), 0)),
+            },
         };
         match r {
             Ok(()) => ack,
@@ -867,6 +921,7 @@ impl<const S: usize, const N: usize> Handler<S, N> {
             flags |= 16;
         }
         s.flags = flags;
+        s.owner = self.owner.owner() as u8;
         s.active_id = self.active_id();
         s.active_rows = dev
             .active_table()

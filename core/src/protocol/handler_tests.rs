@@ -26,7 +26,7 @@ pub(super) const SLOT: u32 = 2048;
 #[derive(Clone, Debug, Default)]
 pub(super) struct Mock {
     pub(super) table: Option<CamTable<S, N>>,
-    running: bool,
+    pub(super) running: bool,
     ended: bool,
     pub(super) kp: f32,
     /// Refuse every table (as a device whose law cannot be built).
@@ -36,7 +36,10 @@ pub(super) struct Mock {
     /// `reset_params` fails (a device that cannot undo parameters).
     no_reset: bool,
     /// Hold commands received.
-    holds: u32,
+    pub(super) holds: u32,
+    /// Jog commands received, and the last one's speed (I24F8 µm/s raw).
+    pub(super) jogs: u32,
+    pub(super) jog_speed: i32,
     /// Refuse Hold (a device whose tick did not answer).
     refuse_hold: bool,
     /// The last set-position.
@@ -117,7 +120,16 @@ impl Device<S, N> for Mock {
                 self.running = true;
                 Ok(())
             }
-            Motion::Jog { .. } | Motion::MoveTo { .. } | Motion::Approach { .. } => {
+            Motion::Approach { .. } if self.table.is_some() => {
+                self.running = true;
+                Ok(())
+            }
+            Motion::Jog { speed, .. } => {
+                self.jogs += 1;
+                self.jog_speed = speed.to_bits();
+                Ok(())
+            }
+            Motion::MoveTo { .. } | Motion::Approach { .. } => {
                 Err(Nak::with(NakCode::BadState, 0, 1))
             }
         }
@@ -217,7 +229,7 @@ impl Rig {
         r
     }
 
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         let flash = RamFlash::new(4 * SLOT as usize);
         let store = Store::new::<_, S, N>(&flash, 0, SLOT).unwrap();
         Self {
@@ -311,7 +323,7 @@ impl Rig {
     }
 }
 
-fn nak_code(r: &Response) -> NakCode {
+pub(super) fn nak_code(r: &Response) -> NakCode {
     match r {
         Response::Nak { nak, .. } => nak.code,
         r => panic!("expected a Nak, got {r:?}"),
@@ -320,7 +332,7 @@ fn nak_code(r: &Response) -> NakCode {
 
 /// A rig with table 1 active and saved, table 2 active and saved (both slots full),
 /// and a session open.
-fn loaded_rig() -> Rig {
+pub(super) fn loaded_rig() -> Rig {
     let mut r = Rig::new();
     assert!(matches!(r.req(&Request::Hello), Response::Info(_)));
     for (id, scale) in [(1, 100), (2, 150)] {

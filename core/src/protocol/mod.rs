@@ -25,6 +25,7 @@ pub mod device;
 pub mod diag;
 pub mod frame;
 pub mod handler;
+mod handler_plc;
 pub mod msg;
 pub mod overrides;
 pub mod params;
@@ -43,6 +44,7 @@ pub mod wire;
 
 pub use device::{BoardDevice, DeviceGlue, LawBuffer, LawDevice};
 pub use handler::{BootReason, Device, Handler, Motion};
+pub use handler_plc::needs_owner;
 pub use msg::{Nak, NakCode, ParamId, Request, Response};
 pub use overrides::{ParamOverrides, ParamRecord};
 pub use params::{
@@ -55,5 +57,7 @@ pub use store::{SlotHeader, Store, StoreError};
 mod golden_tests;
 #[cfg(test)]
 mod handler_tests;
+#[cfg(test)]
+mod plc_tests;
 #[cfg(test)]
 mod powercut_tests;

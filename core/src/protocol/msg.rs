@@ -14,7 +14,7 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 /// Protocol version reported in `Info`.
-pub const PROTOCOL_VERSION: u8 = 8;
+pub const PROTOCOL_VERSION: u8 = 9;
 /// Most axes a `Status`/`Telemetry` message can describe.
 pub const MAX_AXES: usize = 8;
 /// "No table" in id fields.
@@ -72,6 +72,8 @@ pub mod ty {
     pub const GET_CAPTURE: u8 = 0x41;
     /// Request: a test board's simulated master ([`super::Response::MasterState`]).
     pub const VIRTUAL_MASTER: u8 = 0x42;
+    /// Take or release control ownership (`crate::plc::owner`).
+    pub const OWNER: u8 = 0x35;
     /// Response: done.
     pub const ACK: u8 = 0x80;
     /// Response: refused, nothing changed.
@@ -183,6 +185,10 @@ pub enum NakCode {
     /// Jog / MoveTo / Approach refused (`detail` = axis, `detail2` = why: see
     /// [`motion_reason`]).
     Motion = 39,
+    /// Another side owns the machine (`crate::plc::owner`): `detail` = the owner (0
+    /// none, 1 serial host, 2 PLC), `detail2` = 0 the asking side is not the owner, 1 the
+    /// machine moves under a live owner (ownership cannot be taken now).
+    NotOwner = 40,
 }
 
 /// `detail2` of a [`NakCode::Motion`] Nak.
@@ -207,7 +213,7 @@ impl NakCode {
     /// From the wire byte.
     pub fn from_u8(b: u8) -> Option<Self> {
         use NakCode::*;
-        const ALL: [NakCode; 39] = [
+        const ALL: [NakCode; 40] = [
             UnknownType,
             Truncated,
             Oversized,
@@ -247,6 +253,7 @@ impl NakCode {
             CaptureTrigger,
             NoVirtualMaster,
             Motion,
+            NotOwner,
         ];
         ALL.iter().copied().find(|c| *c as u8 == b)
     }
@@ -461,6 +468,12 @@ pub enum Request<'a> {
         /// Speed relative to the profile (0 = unchanged, else 0.01 … 100).
         speed_scale: f32,
     },
+    /// Take (`side` 1, the serial host) or release (`side` 0) control ownership
+    /// (`crate::plc::owner`); answered by Ack, or Nak [`NakCode::NotOwner`].
+    Owner {
+        /// The side wanted: 0 none (release), 1 the serial host.
+        side: u8,
+    },
 }
 
 impl<'a> Request<'a> {
@@ -548,6 +561,9 @@ impl<'a> Request<'a> {
                 let (op, speed_scale) = body(payload)?;
                 Request::VirtualMaster { op, speed_scale }
             }
+            ty::OWNER => Request::Owner {
+                side: body(payload)?,
+            },
             _ => return Err(NakCode::UnknownType),
         })
     }
@@ -580,6 +596,7 @@ impl<'a> Request<'a> {
             Request::CaptureArm(_) => ty::CAPTURE_ARM,
             Request::GetCapture { .. } => ty::GET_CAPTURE,
             Request::VirtualMaster { .. } => ty::VIRTUAL_MASTER,
+            Request::Owner { .. } => ty::OWNER,
         }
     }
 
@@ -623,6 +640,7 @@ impl<'a> Request<'a> {
             Request::CaptureArm(ref c) => put(c, buf),
             Request::GetCapture { offset, count } => put(&(offset, count), buf),
             Request::VirtualMaster { op, speed_scale } => put(&(op, speed_scale), buf),
+            Request::Owner { side } => put(&side, buf),
         }
     }
 }
@@ -863,6 +881,8 @@ pub struct StatusMsg {
     pub overruns: u32,
     /// Filtered master, I48F16 counts raw.
     pub master: i64,
+    /// Who owns the machine: 0 none, 1 the serial host, 2 the PLC (`crate::plc::owner`).
+    pub owner: u8,
     /// Per axis.
     pub axes: Vec<AxisStatus, MAX_AXES>,
 }
@@ -1057,7 +1077,8 @@ mod tests {
         assert_eq!(NakCode::from_u8(37), Some(NakCode::CaptureTrigger));
         assert_eq!(NakCode::from_u8(38), Some(NakCode::NoVirtualMaster));
         assert_eq!(NakCode::from_u8(39), Some(NakCode::Motion));
-        assert_eq!(NakCode::from_u8(40), None);
+        assert_eq!(NakCode::from_u8(40), Some(NakCode::NotOwner));
+        assert_eq!(NakCode::from_u8(41), None);
     }
 
     #[test]
@@ -1121,7 +1142,7 @@ mod tests {
         assert_eq!(Request::decode(0x7F, &[]), Err(NakCode::UnknownType));
         // A version-2 host's Hello (empty) and a future version's are refused as such.
         assert_eq!(Request::decode(ty::HELLO, &[]), Err(NakCode::Version));
-        assert_eq!(Request::decode(ty::HELLO, &[9]), Err(NakCode::Version));
+        assert_eq!(Request::decode(ty::HELLO, &[10]), Err(NakCode::Version));
         // A varint longer than its integer is not a body of its type.
         assert_eq!(
             Request::decode(ty::ACTIVATE, &[0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x01]),

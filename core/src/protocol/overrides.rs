@@ -180,7 +180,7 @@ mod tests {
             .iter()
             .filter(|i| i.scope == super::super::settings::Scope::Board)
             .count();
-        assert_eq!(board, 4);
+        assert_eq!(board, 11);
         // … and both Kv (id 4) as the two it sets, not a record of its own.
         assert_eq!(o.len(), MAX_AXES * (ParamId::COUNT - board - 1) + board);
         assert!(o.iter().all(|r| r.param != ParamId::KvLsbPerUmS));

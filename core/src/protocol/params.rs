@@ -45,14 +45,12 @@ pub fn apply_param_set<const S: usize, const N: usize>(
     records: &[super::ParamRecord],
 ) -> Result<(), Nak> {
     for r in records {
-        if matches!(
-            r.param,
-            ParamId::LinkTimeoutMs
-                | ParamId::SlaveOffsetUm
-                | ParamId::PeriodUs
-                | ParamId::HomeUm
-                | ParamId::UmPerCount
-        ) {
+        if r.param.held_by_handler()
+            || matches!(
+                r.param,
+                ParamId::SlaveOffsetUm | ParamId::PeriodUs | ParamId::HomeUm | ParamId::UmPerCount
+            )
+        {
             continue;
         }
         assign_param(cfg, lim, r.axis, r.param, r.value)?;

@@ -141,6 +141,29 @@ pub enum ParamId {
     BackoffGrowth = 45,
     /// Gain backoff: growing half-cycles in a row that take the next level (integer).
     BackoffGrowthHalfCycles = 46,
+    /// The PLC link (Modbus) answers requests: 1 on, 0 off (the default). Kept by the
+    /// protocol handler ([`crate::plc::PlcSettings`]).
+    PlcEnable = 47,
+    /// The PLC's heartbeat time, ms: while the PLC owns the machine and it moves, the
+    /// `heartbeat` register unchanged for this long holds the axes. 0 = off, else
+    /// 50 … 60 000; 1 000 by default.
+    PlcHeartbeatMs = 48,
+    /// The in-position window of a slave, µm: |following error| within it sets the
+    /// slave's `in_position` bit. 100 by default.
+    InPositionUm = 49,
+    /// The board's Modbus unit id (RTU slave address; a TCP request's unit id must be it
+    /// or 255), 1 … 247; 1 by default.
+    PlcUnitId = 50,
+    /// First allowed Modbus TCP client: the address' first two octets as a·256 + b
+    /// (0 … 65 535). An entry of 0.0.0.0 is empty; with every entry empty any client
+    /// may connect.
+    PlcAllow0High = 51,
+    /// First allowed Modbus TCP client: the last two octets as c·256 + d.
+    PlcAllow0Low = 52,
+    /// Second allowed Modbus TCP client: the first two octets as a·256 + b.
+    PlcAllow1High = 53,
+    /// Second allowed Modbus TCP client: the last two octets as c·256 + d.
+    PlcAllow1Low = 54,
 }
 
 /// Whether a parameter belongs to each slave or to the board.
@@ -259,6 +282,7 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
         1000.0,
     ),
     p(P::DpCornerHz, A, "dp_corner_hz", "Hz", 0.1, 1000.0),
+    p(P::InPositionUm, A, "in_position_um", "µm", 0.0, 1e6),
     p(P::AreaAMm2, A, "cylinder/area_a_mm2", "mm²", 0.0, 1e6),
     p(P::AreaBMm2, A, "cylinder/area_b_mm2", "mm²", 0.0, 1e6),
     p(P::OscBandUm, A, "osc_band_um", "µm", 0.0, 10_000.0),
@@ -432,11 +456,71 @@ pub static PARAMS: [ParamInfo; ParamId::COUNT] = [
         60_000.0,
     )),
     ro(int(p(P::PeriodUs, B, "period_us", "µs", 50.0, 1e6))),
+    int(p(P::PlcEnable, B, "plc/enable", "bool", 0.0, 1.0)),
+    int(p(
+        P::PlcHeartbeatMs,
+        B,
+        "plc/heartbeat_ms",
+        "ms",
+        0.0,
+        60_000.0,
+    )),
+    int(p(P::PlcUnitId, B, "plc/unit_id", "id", 1.0, 247.0)),
+    int(p(
+        P::PlcAllow0High,
+        B,
+        "plc/allow/0/high",
+        "a·256+b",
+        0.0,
+        65_535.0,
+    )),
+    int(p(
+        P::PlcAllow0Low,
+        B,
+        "plc/allow/0/low",
+        "c·256+d",
+        0.0,
+        65_535.0,
+    )),
+    int(p(
+        P::PlcAllow1High,
+        B,
+        "plc/allow/1/high",
+        "a·256+b",
+        0.0,
+        65_535.0,
+    )),
+    int(p(
+        P::PlcAllow1Low,
+        B,
+        "plc/allow/1/low",
+        "c·256+d",
+        0.0,
+        65_535.0,
+    )),
 ];
 
 impl ParamId {
     /// Number of parameter ids.
-    pub const COUNT: usize = 46;
+    pub const COUNT: usize = 54;
+
+    /// Held by the protocol handler, not the device: the host-link watchdog and the PLC
+    /// link's settings ([`crate::plc::PlcSettings`]). The device neither sets nor reads
+    /// them, and a saved set passes them to the handler.
+    pub const fn held_by_handler(self) -> bool {
+        matches!(
+            self,
+            P::LinkTimeoutMs
+                | P::PlcEnable
+                | P::PlcHeartbeatMs
+                | P::InPositionUm
+                | P::PlcUnitId
+                | P::PlcAllow0High
+                | P::PlcAllow0Low
+                | P::PlcAllow1High
+                | P::PlcAllow1Low
+        )
+    }
 
     /// The gain backoff threshold this parameter sets, if it is one.
     pub fn backoff_field(self) -> Option<BackoffField> {
@@ -581,7 +665,7 @@ mod tests {
                 assert_eq!(id.info().id, id);
             }
         }
-        assert_eq!(all_paths(2).count(), 42 * 2 + 4);
+        assert_eq!(all_paths(2).count(), 43 * 2 + 11);
         for pp in all_paths(3) {
             let s = pp.to_string();
             let (axis, id) = parse_path(&s, 3).unwrap();
@@ -594,7 +678,7 @@ mod tests {
         let mut paths: std::vec::Vec<_> = all_paths(2).map(|p| p.to_string()).collect();
         paths.sort();
         paths.dedup();
-        assert_eq!(paths.len(), 88, "two parameters share a path");
+        assert_eq!(paths.len(), 97, "two parameters share a path");
     }
 
     /// The tree's range of each backoff threshold is the one the axis build enforces.
