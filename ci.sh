@@ -63,6 +63,20 @@ fi
 passed=$(grep -E '^test result: ok' target/host-tests.log | sed -E 's/.* ([0-9]+) passed.*/\1/' | awk '{s+=$1} END {print s+0}')
 echo "host tests: $passed passed, 0 failed"
 
+step "PLC link: pymodbus (PyPI, pinned) against the virtual board's Modbus TCP"
+# A client nobody here wrote, in its own venv (the system Python stays untouched).
+venv="${CARGO_TARGET_DIR:-target}/pymodbus-venv"
+if ! "$venv/bin/python" -c 'import pymodbus; assert pymodbus.__version__ == "3.8.6"' 2>/dev/null; then
+  python3 -m venv "$venv"
+  "$venv/bin/pip" install -q pymodbus==3.8.6
+fi
+cargo build --release -q -p host-sim
+if ! "$venv/bin/python" scripts/plc-modbus-test.py "${CARGO_TARGET_DIR:-target}/release/host-sim" \
+  --flood-s 20 --json target/plc-modbus.json > target/plc-modbus.log 2>&1; then
+  echo "pymodbus test FAILED"; tail -40 target/plc-modbus.log; exit 1
+fi
+echo "pymodbus: $(grep -c '^ok: ' target/plc-modbus.log) checks passed; $(tail -1 target/plc-modbus.log)"
+
 step "firmware (release, thumbv7em)"
 RUSTFLAGS="-D warnings" cargo build -p firmware --release --target "$TARGET"
 ./scripts/fw-size.sh

@@ -14,6 +14,7 @@ pub mod contour_truth;
 pub mod fair;
 pub mod identify;
 pub mod margins;
+pub mod modbus_tcp;
 pub mod plot;
 pub mod robust;
 pub mod sim;

@@ -415,6 +415,8 @@ pub struct VBoard {
     pub handler: Handler<AXES, CAPACITY>,
     /// The flash (two slots).
     pub flash: RamFlash,
+    /// The PLC link's server (Modbus registers → the handler's requests).
+    pub plc: hydra_core::plc::Server<AXES>,
 }
 
 impl VBoard {
@@ -465,6 +467,7 @@ impl VBoard {
             dev,
             handler,
             flash,
+            plc: hydra_core::plc::Server::new(0),
         })
     }
 
@@ -512,6 +515,77 @@ impl VBoard {
         self.machine.ticks()
     }
 
+    /// The board's millisecond clock (ticks × period).
+    pub fn now_ms(&self) -> u32 {
+        (self.machine.ticks() * self.machine.period_ns / 1_000_000) as u32
+    }
+
+    /// Modbus function 3.
+    pub fn plc_read_holding(
+        &self,
+        start: u16,
+        out: &mut [u16],
+    ) -> Result<(), hydra_core::plc::Exception> {
+        self.plc.read_holding(start, out)
+    }
+
+    /// Modbus function 4: the input image of the last tick.
+    pub fn plc_read_input(
+        &mut self,
+        start: u16,
+        out: &mut [u16],
+    ) -> Result<(), hydra_core::plc::Exception> {
+        let rt = self
+            .machine
+            .runtime()
+            .ok_or(hydra_core::plc::Exception::DeviceFailure)?;
+        let st = *rt.status();
+        let mut backoff_level = [0u8; AXES];
+        let mut speed = 0i32;
+        if let Some(law) = rt.law() {
+            for (i, l) in backoff_level.iter_mut().enumerate() {
+                *l = law.backoff_level(i);
+            }
+            let v = law.master_estimate().rate_per_s.to_num::<i64>();
+            speed = v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        }
+        let live = hydra_core::plc::Live {
+            master_speed_counts_per_s: speed,
+            // The clock counts ns.
+            tick_max_us: u16::try_from(st.timing.max_cycles / 1000).unwrap_or(u16::MAX),
+            backoff_level,
+        };
+        let dev = BoardDevice::<_, _, _, AXES, CAPACITY, PRESSURES> {
+            st: &mut self.dev,
+            glue: &mut self.machine,
+        };
+        self.plc
+            .read_input(&self.handler, &dev, &st, &live, start, out)
+    }
+
+    /// Modbus functions 6 and 16 at the board's clock.
+    pub fn plc_write(
+        &mut self,
+        start: u16,
+        values: &[u16],
+    ) -> Result<(), hydra_core::plc::Exception> {
+        let now = self.now_ms();
+        let mut dev = BoardDevice::<_, _, _, AXES, CAPACITY, PRESSURES> {
+            st: &mut self.dev,
+            glue: &mut self.machine,
+        };
+        let r = self.plc.write(
+            &mut self.handler,
+            &mut dev,
+            &mut self.flash,
+            start,
+            values,
+            now,
+        );
+        let _ = self.handler.poll(&mut dev);
+        r
+    }
+
     /// Received bytes → responses through `tx`.
     pub fn on_bytes(&mut self, bytes: &[u8], tx: &mut impl FnMut(&[u8])) {
         let mut dev = BoardDevice::<_, _, _, AXES, CAPACITY, PRESSURES> {
@@ -543,6 +617,12 @@ impl VBoard {
             glue: &mut self.machine,
         };
         self.handler.watch_link(&mut dev, ms as u32);
+        let mut dev = BoardDevice::<_, _, _, AXES, CAPACITY, PRESSURES> {
+            st: &mut self.dev,
+            glue: &mut self.machine,
+        };
+        self.plc
+            .poll(&mut self.handler, &mut dev, &mut self.flash, ms as u32);
         let m = &self.machine;
         self.handler.on_tick(tx, || m.telemetry());
     }

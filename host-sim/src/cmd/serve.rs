@@ -25,6 +25,11 @@ pub struct Args {
     /// the same file is a power cycle (without it the flash lives in memory only).
     #[arg(long)]
     pub flash: Option<PathBuf>,
+    /// Also serve Modbus TCP on this address (e.g. 127.0.0.1:1502; port 0 picks a free
+    /// one): prints `modbus-tcp: ADDR` on the second line. Answers only while the
+    /// board's `plc/enable` is 1 (docs/plc.md).
+    #[arg(long)]
+    pub modbus_tcp: Option<String>,
 }
 
 /// Output bytes the virtual board keeps for a host that is not reading (≈ 2.8 s of
@@ -40,11 +45,28 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(p) => Scenario::load(p)?,
         None => Scenario::default(),
     };
-    serve_with(&scn, args.flash.as_deref(), |path| {
-        let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "{path}");
-        let _ = out.flush();
-    })
+    let mut tcp = match &args.modbus_tcp {
+        Some(a) => Some(crate::modbus_tcp::TcpServer::bind(a)?),
+        None => None,
+    };
+    let tcp_addr = tcp.as_ref().map(|t| t.local_addr()).transpose()?;
+    serve_loop(
+        &scn,
+        args.flash.as_deref(),
+        |path| {
+            let mut out = std::io::stdout().lock();
+            let _ = writeln!(out, "{path}");
+            if let Some(a) = tcp_addr {
+                let _ = writeln!(out, "modbus-tcp: {a}");
+            }
+            let _ = out.flush();
+        },
+        |board| {
+            if let Some(t) = tcp.as_mut() {
+                t.poll(board);
+            }
+        },
+    )
 }
 
 /// Runs the virtual board of `scn` on a new PTY until an I/O error; `on_path` gets the
@@ -58,6 +80,16 @@ pub fn serve_with(
     scn: &Scenario,
     flash_file: Option<&std::path::Path>,
     on_path: impl FnOnce(&str),
+) -> anyhow::Result<()> {
+    serve_loop(scn, flash_file, on_path, |_| {})
+}
+
+/// [`serve_with`], calling `other` (another transport: Modbus TCP) once per loop.
+fn serve_loop(
+    scn: &Scenario,
+    flash_file: Option<&std::path::Path>,
+    on_path: impl FnOnce(&str),
+    mut other: impl FnMut(&mut VBoard),
 ) -> anyhow::Result<()> {
     let mut board = match flash_file {
         Some(f) => VBoard::with_flash_file(scn, f)?,
@@ -91,6 +123,10 @@ pub fn serve_with(
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
             Err(e) => return Err(e.into()),
+        }
+        other(&mut board);
+        if let Some(f) = flash_file {
+            board.persist(f, &mut seen_ops)?;
         }
         // Paced on the board's own tick count, which includes the tick that answered a
         // command: the command's tick is the next period of the timeline, not an extra.

@@ -131,6 +131,9 @@ pub struct Report {
     pub master: f64,
     /// The master's unit.
     pub master_unit: String,
+    /// Who owns the machine (moves and configures it): `none`, `host` (the serial
+    /// host), `plc` (docs/plc.md).
+    pub owner: String,
     /// Active table id, if any.
     pub active_id: Option<u32>,
     /// Its rows.
@@ -262,6 +265,13 @@ pub fn report_with(s: &StatusMsg, f: &FaultsMsg, period_us: u32, round_trip_ms: 
         pressure_stale: s.flags & FLAG_PRESSURE_STALE != 0,
         master: s.master as f64 / 65536.0 / 1000.0,
         master_unit: "deg".to_string(),
+        owner: match s.owner {
+            0 => "none",
+            1 => "host",
+            2 => "plc",
+            _ => "unknown",
+        }
+        .to_string(),
         active_id: id(s.active_id),
         active_rows: s.active_rows,
         active_crc: format!("{:08x}", s.active_crc),
@@ -465,6 +475,7 @@ pub fn text(r: &Report) -> String {
         let _ = writeln!(o, "note         {n}");
     }
     let _ = writeln!(o, "master       {:.3} {}", r.master, r.master_unit);
+    let _ = writeln!(o, "owner        {}", r.owner);
     let _ = writeln!(
         o,
         "tables       active {}{}, committed {}, saved {}{}{}",
