@@ -74,8 +74,7 @@ pub fn pdu(board: &mut VBoard, req: &[u8]) -> Vec<u8> {
                 return exception(f, 3);
             };
             let bytes = data.get(4).copied().map(usize::from);
-            let ok = n >= 1
-                && n <= MAX_WRITE
+            let ok = (1..=MAX_WRITE).contains(&n)
                 && bytes == Some(usize::from(n) * 2)
                 && data.len() == 5 + usize::from(n) * 2;
             if !ok {

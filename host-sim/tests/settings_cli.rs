@@ -29,8 +29,8 @@ fn settings_survive_a_restart_exactly_and_every_path_reads_back() {
     let rows = list.as_array().expect("array");
     assert_eq!(
         rows.len(),
-        42 * 2 + 4,
-        "42 settings per slave, 4 board-wide"
+        43 * 2 + 11,
+        "43 settings per slave, 11 board-wide"
     );
     for r in rows {
         let path = r["path"].as_str().expect("path");
