@@ -132,7 +132,7 @@ impl TcpServer {
                 std::net::IpAddr::V4(v4) => v4.octets(),
                 std::net::IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or([0; 4], |v| v.octets()),
             };
-            if !plc.enable || !plc.allows(ip) || self.clients.len() >= MAX_CLIENTS {
+            if !plc.enable() || !plc.allows(ip) || self.clients.len() >= MAX_CLIENTS {
                 drop(stream);
                 continue;
             }
@@ -146,8 +146,8 @@ impl TcpServer {
                 last: Instant::now(),
             });
         }
-        let unit_id = board.handler.plc_settings().unit_id;
-        let enabled = board.handler.plc_settings().enable;
+        let unit_id = board.handler.plc_settings().unit_id();
+        let enabled = board.handler.plc_settings().enable();
         self.clients
             .retain_mut(|c| enabled && serve_client(c, board, unit_id));
     }

@@ -218,7 +218,7 @@ impl<const S: usize> Server<S> {
             param_read_value: self.param_read_value,
             master_speed_counts_per_s: live.master_speed_counts_per_s,
             tick_max_us: live.tick_max_us,
-            in_position_um: plc.in_position_um.map(|w| w as u32),
+            in_position_um: core::array::from_fn(|i| plc.in_position_um(i) as u32),
             force_n,
             backoff_level: live.backoff_level,
         }
@@ -541,7 +541,7 @@ impl<const S: usize> Server<S> {
         now_ms: u32,
     ) -> bool {
         let owned = handler.owner() == Side::Plc;
-        let timeout = handler.plc_settings().heartbeat_ms;
+        let timeout = handler.plc_settings().heartbeat_ms();
         if owned && self.plc_started {
             self.heartbeat.watch(now_ms, timeout);
         }

@@ -16,30 +16,64 @@ use crate::protocol::ParamId;
 /// Allowed Modbus TCP clients (`plc/allow/<n>`).
 pub const ALLOW_ENTRIES: usize = 2;
 
+/// Default heartbeat time, ms.
+const HEARTBEAT_MS: u32 = 1000;
+/// Default unit id.
+const UNIT_ID: u8 = 1;
+/// Default in-position window, µm.
+const IN_POSITION_UM: f32 = 100.0;
+
 /// The PLC link's settings on a board of `S` slaves.
+///
+/// Each field is stored as its bits XOR its default's, so the defaults are all-zero
+/// bytes: the handler that holds these stays a zero-initialised static (`.bss`, no
+/// flash image of its 21 KiB). Read them through the accessors.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlcSettings<const S: usize> {
-    /// The PLC link answers requests.
-    pub enable: bool,
-    /// Heartbeat time, ms (0: off).
-    pub heartbeat_ms: u32,
-    /// The Modbus unit id (RTU address).
-    pub unit_id: u8,
+    enable: bool,
+    heartbeat_x: u32,
+    unit_id_x: u8,
     /// Allowed TCP clients, IPv4 as a big-endian `u32` (0: an empty entry).
-    pub allow: [u32; ALLOW_ENTRIES],
-    /// In-position window per slave, µm.
-    pub in_position_um: [f32; S],
+    allow: [u32; ALLOW_ENTRIES],
+    in_position_x: [u32; S],
 }
 
 impl<const S: usize> PlcSettings<S> {
-    /// The settings at power-up, before a saved set applies.
+    /// The settings at power-up, before a saved set applies (all-zero bytes).
     pub const DEFAULT: Self = Self {
         enable: false,
-        heartbeat_ms: 1000,
-        unit_id: 1,
+        heartbeat_x: 0,
+        unit_id_x: 0,
         allow: [0; ALLOW_ENTRIES],
-        in_position_um: [100.0; S],
+        in_position_x: [0; S],
     };
+
+    /// The PLC link answers requests.
+    pub const fn enable(&self) -> bool {
+        self.enable
+    }
+
+    /// Heartbeat time, ms (0: off).
+    pub const fn heartbeat_ms(&self) -> u32 {
+        self.heartbeat_x ^ HEARTBEAT_MS
+    }
+
+    /// The Modbus unit id (RTU address).
+    pub const fn unit_id(&self) -> u8 {
+        self.unit_id_x ^ UNIT_ID
+    }
+
+    /// The allowed TCP clients (0: an empty entry).
+    pub const fn allow(&self) -> [u32; ALLOW_ENTRIES] {
+        self.allow
+    }
+
+    /// The in-position window of slave `i`, µm (0 for a slave the board does not have).
+    pub fn in_position_um(&self, i: usize) -> f32 {
+        self.in_position_x
+            .get(i)
+            .map_or(0.0, |x| f32::from_bits(x ^ IN_POSITION_UM.to_bits()))
+    }
 
     /// The allow entry and half a parameter sets: (entry, high half).
     fn allow_slot(p: ParamId) -> Option<(usize, bool)> {
@@ -63,14 +97,14 @@ impl<const S: usize> PlcSettings<S> {
         match p {
             ParamId::PlcEnable => self.enable = v != 0.0,
             ParamId::PlcHeartbeatMs if v != 0.0 && v < 50.0 => return Err(range),
-            ParamId::PlcHeartbeatMs => self.heartbeat_ms = v as u32,
-            ParamId::PlcUnitId => self.unit_id = v as u8,
+            ParamId::PlcHeartbeatMs => self.heartbeat_x = (v as u32) ^ HEARTBEAT_MS,
+            ParamId::PlcUnitId => self.unit_id_x = (v as u8) ^ UNIT_ID,
             ParamId::InPositionUm => {
                 let w = self
-                    .in_position_um
+                    .in_position_x
                     .get_mut(usize::from(axis))
                     .ok_or(Nak::with(NakCode::UnknownParam, u16::from(axis), p as u8))?;
-                *w = v;
+                *w = v.to_bits() ^ IN_POSITION_UM.to_bits();
             }
             _ => {
                 let (entry, high) = Self::allow_slot(p).ok_or(Nak::with(
@@ -96,9 +130,12 @@ impl<const S: usize> PlcSettings<S> {
         let unknown = Nak::with(NakCode::UnknownParam, u16::from(axis), p as u8);
         Ok(match p {
             ParamId::PlcEnable => f32::from(u8::from(self.enable)),
-            ParamId::PlcHeartbeatMs => self.heartbeat_ms as f32,
-            ParamId::PlcUnitId => f32::from(self.unit_id),
-            ParamId::InPositionUm => *self.in_position_um.get(usize::from(axis)).ok_or(unknown)?,
+            ParamId::PlcHeartbeatMs => self.heartbeat_ms() as f32,
+            ParamId::PlcUnitId => f32::from(self.unit_id()),
+            ParamId::InPositionUm if usize::from(axis) < S => {
+                self.in_position_um(usize::from(axis))
+            }
+            ParamId::InPositionUm => return Err(unknown),
             _ => {
                 let (entry, high) = Self::allow_slot(p).ok_or(unknown)?;
                 let a = self.allow.get(entry).copied().unwrap_or(0);
@@ -123,7 +160,8 @@ mod tests {
     #[test]
     fn settings_set_read_back_and_refuse_out_of_range_whole() {
         let mut s = PlcSettings::<2>::DEFAULT;
-        assert!(!s.enable && s.heartbeat_ms == 1000 && s.unit_id == 1);
+        assert!(!s.enable() && s.heartbeat_ms() == 1000 && s.unit_id() == 1);
+        assert_eq!(s.in_position_um(1), 100.0);
         s.set(0, ParamId::PlcEnable, 1.0).unwrap();
         assert_eq!(s.get(0, ParamId::PlcEnable), Ok(1.0));
         let before = s;
@@ -148,7 +186,14 @@ mod tests {
         );
         s.set(0, ParamId::PlcHeartbeatMs, 0.0).unwrap();
         s.set(1, ParamId::InPositionUm, 25.0).unwrap();
-        assert_eq!(s.in_position_um, [100.0, 25.0]);
+        assert_eq!((s.in_position_um(0), s.in_position_um(1)), (100.0, 25.0));
+    }
+
+    #[test]
+    fn the_defaults_are_all_zero_bytes_so_the_handler_stays_in_bss() {
+        let d = PlcSettings::<2>::DEFAULT;
+        assert!(!d.enable && d.heartbeat_x == 0 && d.unit_id_x == 0);
+        assert!(d.allow == [0; ALLOW_ENTRIES] && d.in_position_x == [0; 2]);
     }
 
     #[test]
@@ -158,7 +203,7 @@ mod tests {
         s.set(0, ParamId::PlcAllow0High, (127 * 256) as f32)
             .unwrap();
         s.set(0, ParamId::PlcAllow0Low, 1.0).unwrap();
-        assert_eq!(s.allow[0], 0x7F00_0001);
+        assert_eq!(s.allow()[0], 0x7F00_0001);
         assert!(s.allows([127, 0, 0, 1]));
         assert!(!s.allows([127, 0, 0, 2]));
         assert_eq!(s.get(0, ParamId::PlcAllow0High), Ok(32_512.0));

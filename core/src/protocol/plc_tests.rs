@@ -180,7 +180,7 @@ fn the_parameter_channel_is_validated_as_the_serial_link() {
     assert_eq!(input(&r, &s, 7, 1), [param_result::READ_ONLY]);
     // A handler-held setting, and a read back.
     param(&mut r, &mut s, ParamId::PlcHeartbeatMs, 2, 250.0).unwrap();
-    assert_eq!(r.h.plc_settings().heartbeat_ms, 250);
+    assert_eq!(r.h.plc_settings().heartbeat_ms(), 250);
     param(&mut r, &mut s, ParamId::KpLsbPerUm, 1, 0.0).unwrap();
     let w = input(&r, &s, 8, 2);
     assert_eq!(
